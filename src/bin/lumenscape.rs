@@ -1,0 +1,46 @@
+//! The `lumenscape` command-line tool.
+
+use clap::{Parser, Subcommand};
+use lumenscape::cli::{generate, scene_cmds};
+use std::io::Write;
+use std::process::ExitCode;
+
+/// lumenscape: 3D radiative transfer for optical remote sensing (a DART 5 re-implementation).
+#[derive(Parser, Debug)]
+#[command(name = "lumenscape", version, about, long_about = None)]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Subcommand, Debug)]
+enum Command {
+    /// Validate a scene and print its summary (areas, cells, memory estimate); exit 0 if valid.
+    Check(scene_cmds::CheckArgs),
+    /// Run the Maket stage and write its products (LAI map, DSM, densities, maket.json).
+    Maket(scene_cmds::MaketArgs),
+    /// Run every stage that exists so far and write the products.
+    Run(scene_cmds::RunArgs),
+    /// Print a generated scene as RON.
+    Generate(generate::Args),
+}
+
+fn main() -> ExitCode {
+    let cli = Cli::parse();
+    let stdout = std::io::stdout();
+    let mut out = stdout.lock();
+    let res = match &cli.command {
+        Command::Check(a) => scene_cmds::check(a, &mut out),
+        Command::Maket(a) => scene_cmds::maket(a, &mut out),
+        Command::Run(a) => scene_cmds::run(a, &mut out),
+        Command::Generate(a) => generate::run(a, &mut out),
+    };
+    let _ = out.flush();
+    match res {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("error: {}", e.message);
+            ExitCode::from(e.code.clamp(1, 255) as u8)
+        }
+    }
+}

@@ -1,0 +1,277 @@
+//! `lumenscape generate KIND [flags] > scene.ron`: the programmatic generators on the command
+//! line; the scene is printed as RON on stdout.
+
+use super::scene_cmds::CliError;
+use crate::scene::desc::LadDesc;
+use crate::scene::generators::{BandOptics, disk_canopy, forest, turbid_layer, urban};
+use std::io::Write;
+
+/// Parses a LAD name: spherical, uniform, planophile, erectophile, plagiophile, extremophile,
+/// ellipsoidal:MEAN_DEG, beta:MU,NU.
+pub fn parse_lad(s: &str) -> Result<LadDesc, String> {
+    let l = s.to_ascii_lowercase();
+    Ok(match l.as_str() {
+        "spherical" => LadDesc::Spherical,
+        "uniform" => LadDesc::Uniform,
+        "planophile" => LadDesc::Planophile,
+        "erectophile" => LadDesc::Erectophile,
+        "plagiophile" => LadDesc::Plagiophile,
+        "extremophile" => LadDesc::Extremophile,
+        _ => {
+            if let Some(v) = l.strip_prefix("ellipsoidal:") {
+                LadDesc::Ellipsoidal {
+                    mean_angle_deg: v.parse().map_err(|_| format!("bad mean angle in `{s}`"))?,
+                }
+            } else if let Some(v) = l.strip_prefix("beta:") {
+                let (a, b) = v
+                    .split_once(',')
+                    .ok_or_else(|| format!("`{s}`: expected beta:MU,NU"))?;
+                LadDesc::Beta {
+                    mu: a.parse().map_err(|_| format!("bad μ in `{s}`"))?,
+                    nu: b.parse().map_err(|_| format!("bad ν in `{s}`"))?,
+                }
+            } else {
+                return Err(format!(
+                    "unknown LAD `{s}` (spherical, uniform, planophile, erectophile, plagiophile, extremophile, ellipsoidal:MEAN_DEG, beta:MU,NU)"
+                ));
+            }
+        }
+    })
+}
+
+/// Optics and sun flags shared by the vegetation generators.
+#[derive(clap::Args, Debug, Clone)]
+pub struct OpticsFlags {
+    /// Leaf reflectance (single band named `red`; ignored when --band is given).
+    #[arg(long, default_value_t = 0.0546)]
+    pub leaf_r: f64,
+    /// Leaf transmittance.
+    #[arg(long, default_value_t = 0.0149)]
+    pub leaf_t: f64,
+    /// Soil reflectance.
+    #[arg(long, default_value_t = 0.127)]
+    pub soil_r: f64,
+    /// A band `NAME[@NM]:leaf_r,leaf_t,soil_r` (repeat for several bands).
+    #[arg(long = "band")]
+    pub bands: Vec<String>,
+    /// Sun zenith angle (ground→sun), degrees.
+    #[arg(long, default_value_t = 20.0)]
+    pub sun_zenith: f64,
+    /// Sun azimuth (ground→sun, anticlockwise from +x), degrees.
+    #[arg(long, default_value_t = 0.0)]
+    pub sun_azimuth: f64,
+}
+
+impl OpticsFlags {
+    fn bands(&self) -> Result<Vec<BandOptics>, String> {
+        if self.bands.is_empty() {
+            Ok(vec![BandOptics {
+                name: "red".into(),
+                wavelength_nm: 670.0,
+                leaf_r: self.leaf_r,
+                leaf_t: self.leaf_t,
+                soil_r: self.soil_r,
+            }])
+        } else {
+            self.bands.iter().map(|b| BandOptics::parse(b)).collect()
+        }
+    }
+}
+
+/// Generator kinds.
+#[derive(clap::Subcommand, Debug)]
+pub enum Kind {
+    /// Horizontally homogeneous turbid canopy on a periodic scene.
+    TurbidLayer {
+        /// Leaf area index.
+        #[arg(long, default_value_t = 3.0)]
+        lai: f64,
+        /// Leaf angle distribution.
+        #[arg(long, default_value = "spherical", value_parser = parse_lad)]
+        lad: LadDesc,
+        /// Canopy height, metres.
+        #[arg(long, default_value_t = 2.0)]
+        height: f64,
+        /// Cell size, metres.
+        #[arg(long, default_value_t = 0.5)]
+        cell_size: f64,
+        /// Scene side, metres.
+        #[arg(long, default_value_t = 2.0)]
+        size: f64,
+        #[command(flatten)]
+        /// Optics and sun.
+        optics: OpticsFlags,
+    },
+    /// RAMI HOM-style canopy of random non-intersecting disk leaves.
+    DiskCanopy {
+        /// Leaf area index.
+        #[arg(long, default_value_t = 1.0)]
+        lai: f64,
+        /// Disk radius, metres.
+        #[arg(long, default_value_t = 0.05)]
+        disk_radius: f64,
+        /// Canopy height, metres.
+        #[arg(long, default_value_t = 1.0)]
+        height: f64,
+        /// Scene side, metres.
+        #[arg(long, default_value_t = 2.0)]
+        size: f64,
+        /// Cell size, metres.
+        #[arg(long, default_value_t = 0.5)]
+        cell_size: f64,
+        /// Leaf angle distribution.
+        #[arg(long, default_value = "spherical", value_parser = parse_lad)]
+        lad: LadDesc,
+        /// Random seed.
+        #[arg(long, default_value_t = 1)]
+        seed: u64,
+        #[command(flatten)]
+        /// Optics and sun.
+        optics: OpticsFlags,
+    },
+    /// A seeded stand of broadleaf and conifer trees on flat ground or a slope.
+    Forest {
+        /// Scene side, metres.
+        #[arg(long, default_value_t = 40.0)]
+        size: f64,
+        /// Cell size, metres.
+        #[arg(long, default_value_t = 1.0)]
+        cell_size: f64,
+        /// Number of broadleaf trees.
+        #[arg(long, default_value_t = 12)]
+        broadleaf: usize,
+        /// Number of conifers.
+        #[arg(long, default_value_t = 12)]
+        conifer: usize,
+        /// Minimum trunk spacing, metres.
+        #[arg(long, default_value_t = 3.0)]
+        min_spacing: f64,
+        /// Ground slope along +x, degrees.
+        #[arg(long, default_value_t = 0.0)]
+        slope: f64,
+        /// Crown size jitter (fraction).
+        #[arg(long, default_value_t = 0.0)]
+        jitter: f64,
+        /// Random seed.
+        #[arg(long, default_value_t = 7)]
+        seed: u64,
+        /// Sun zenith, degrees.
+        #[arg(long, default_value_t = 30.0)]
+        sun_zenith: f64,
+        /// Sun azimuth, degrees.
+        #[arg(long, default_value_t = 225.0)]
+        sun_azimuth: f64,
+    },
+    /// A block of buildings with streets and street trees.
+    Urban {
+        /// Buildings per side.
+        #[arg(long, default_value_t = 3)]
+        blocks: usize,
+        /// Building side, metres.
+        #[arg(long, default_value_t = 12.0)]
+        building: f64,
+        /// Street width, metres.
+        #[arg(long, default_value_t = 8.0)]
+        street: f64,
+        /// Cell size, metres.
+        #[arg(long, default_value_t = 1.0)]
+        cell_size: f64,
+        /// Random seed.
+        #[arg(long, default_value_t = 3)]
+        seed: u64,
+    },
+}
+
+/// `generate` arguments.
+#[derive(clap::Args, Debug)]
+pub struct Args {
+    /// What to generate.
+    #[command(subcommand)]
+    pub kind: Kind,
+}
+
+/// Runs `generate`: prints the scene as RON.
+pub fn run(args: &Args, out: &mut dyn Write) -> Result<(), CliError> {
+    let desc = match &args.kind {
+        Kind::TurbidLayer {
+            lai,
+            lad,
+            height,
+            cell_size,
+            size,
+            optics,
+        } => turbid_layer::turbid_layer(&turbid_layer::TurbidLayerParams {
+            lai: *lai,
+            lad: lad.clone(),
+            bands: optics.bands()?,
+            height_m: *height,
+            cell_m: *cell_size,
+            size_m: *size,
+            sun_zenith_deg: optics.sun_zenith,
+            sun_azimuth_deg: optics.sun_azimuth,
+        }),
+        Kind::DiskCanopy {
+            lai,
+            disk_radius,
+            height,
+            size,
+            cell_size,
+            lad,
+            seed,
+            optics,
+        } => disk_canopy::disk_canopy(&disk_canopy::DiskCanopyParams {
+            lai: *lai,
+            disk_radius_m: *disk_radius,
+            height_m: *height,
+            size_m: *size,
+            cell_m: *cell_size,
+            lad: lad.clone(),
+            seed: *seed,
+            bands: optics.bands()?,
+            sun_zenith_deg: optics.sun_zenith,
+            sun_azimuth_deg: optics.sun_azimuth,
+        })?,
+        Kind::Forest {
+            size,
+            cell_size,
+            broadleaf,
+            conifer,
+            min_spacing,
+            slope,
+            jitter,
+            seed,
+            sun_zenith,
+            sun_azimuth,
+        } => forest::forest(&forest::ForestParams {
+            size_m: *size,
+            cell_m: *cell_size,
+            species: vec![forest::broadleaf(*broadleaf), forest::conifer(*conifer)],
+            min_spacing_m: *min_spacing,
+            slope_deg: *slope,
+            seed: *seed,
+            size_jitter: *jitter,
+            sun_zenith_deg: *sun_zenith,
+            sun_azimuth_deg: *sun_azimuth,
+            ..Default::default()
+        }),
+        Kind::Urban {
+            blocks,
+            building,
+            street,
+            cell_size,
+            seed,
+        } => urban::urban(&urban::UrbanParams {
+            blocks: *blocks,
+            building_m: *building,
+            street_m: *street,
+            cell_m: *cell_size,
+            seed: *seed,
+            ..Default::default()
+        }),
+    };
+    // Refuse to print a scene that would not load.
+    crate::scene::validate::validate(&desc, &crate::scene::SceneSource::generated())?;
+    out.write_all(crate::scene::to_ron(&desc).as_bytes())?;
+    writeln!(out)?;
+    Ok(())
+}

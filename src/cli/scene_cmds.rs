@@ -1,0 +1,275 @@
+//! `lumenscape check | maket | run SCENE`.
+
+use crate::resources::maket_report::MaketReport;
+use crate::resources::scene::{RunSettings, default_max_memory};
+use crate::simulation::{Simulation, Stage};
+use std::io::Write;
+use std::path::{Path, PathBuf};
+
+/// A command failure: message for stderr and process exit code.
+#[derive(Debug)]
+pub struct CliError {
+    /// Message.
+    pub message: String,
+    /// Exit code (non-zero).
+    pub code: i32,
+}
+
+impl<E: std::fmt::Display> From<E> for CliError {
+    fn from(e: E) -> Self {
+        Self {
+            message: e.to_string(),
+            code: 1,
+        }
+    }
+}
+
+/// Parses a memory size: `123` (bytes), `512K`, `300M`, `4G`, `1.5G`, or `50%` of RAM.
+pub fn parse_memory(s: &str) -> Result<u64, String> {
+    let s = s.trim();
+    let err = || format!("cannot read memory size `{s}` (use e.g. 4G, 500M or 50%)");
+    if let Some(p) = s.strip_suffix('%') {
+        let f: f64 = p.parse().map_err(|_| err())?;
+        if !(f > 0.0 && f <= 100.0) {
+            return Err(err());
+        }
+        return Ok((default_max_memory() as f64 / 0.75 * f / 100.0) as u64);
+    }
+    let (num, mult) = match s.chars().last() {
+        Some('K' | 'k') => (&s[..s.len() - 1], 1u64 << 10),
+        Some('M' | 'm') => (&s[..s.len() - 1], 1 << 20),
+        Some('G' | 'g') => (&s[..s.len() - 1], 1 << 30),
+        Some('T' | 't') => (&s[..s.len() - 1], 1 << 40),
+        _ => (s, 1),
+    };
+    let v: f64 = num.parse().map_err(|_| err())?;
+    if !(v > 0.0 && v.is_finite()) {
+        return Err(err());
+    }
+    Ok((v * mult as f64) as u64)
+}
+
+/// Options shared by the scene commands.
+#[derive(clap::Args, Debug, Clone)]
+pub struct SceneOpts {
+    /// Scene file (RON).
+    pub scene: PathBuf,
+    /// Refuse scenes whose Maket grid would need more memory than this (e.g. 4G, 500M, 50%).
+    /// Default: 75% of the machine's RAM.
+    #[arg(long, value_parser = parse_memory)]
+    pub max_memory: Option<u64>,
+    /// No progress bars.
+    #[arg(long, short)]
+    pub quiet: bool,
+}
+
+impl SceneOpts {
+    fn settings(&self) -> RunSettings {
+        RunSettings {
+            max_memory_bytes: self.max_memory.unwrap_or_else(default_max_memory),
+            progress: !self.quiet && std::io::IsTerminal::is_terminal(&std::io::stderr()),
+        }
+    }
+}
+
+/// `check`: validate a scene and print its summary (leaf and facet areas, cell counts, memory
+/// estimate) without allocating the grid.
+#[derive(clap::Args, Debug)]
+pub struct CheckArgs {
+    #[command(flatten)]
+    /// Scene and settings.
+    pub opts: SceneOpts,
+    /// Print the summary as JSON.
+    #[arg(long)]
+    pub json: bool,
+}
+
+fn human_bytes(b: u64) -> String {
+    let b = b as f64;
+    if b >= (1u64 << 30) as f64 {
+        format!("{:.2} GiB", b / (1u64 << 30) as f64)
+    } else if b >= (1u64 << 20) as f64 {
+        format!("{:.1} MiB", b / (1u64 << 20) as f64)
+    } else {
+        format!("{:.1} KiB", b / 1024.0)
+    }
+}
+
+/// Prints a report as text.
+pub fn print_report(r: &MaketReport, out: &mut dyn Write) -> std::io::Result<()> {
+    writeln!(
+        out,
+        "grid: {} × {} × {} cells of {} × {} × {} m ({} cells), z from {:.3} to {:.3} m",
+        r.cells[0],
+        r.cells[1],
+        r.cells[2],
+        r.cell_m[0],
+        r.cell_m[1],
+        r.cell_m[2],
+        r.n_cells,
+        r.z_range_m[0],
+        r.z_range_m[1]
+    )?;
+    if r.topography_offset_m != (0.0, 0.0) {
+        writeln!(
+            out,
+            "continuous topography offsets: {:.4} m along x, {:.4} m along y",
+            r.topography_offset_m.0, r.topography_offset_m.1
+        )?;
+    }
+    for (m, la) in &r.leaf_area {
+        match la.rasterised_m2 {
+            Some(x) => writeln!(
+                out,
+                "leaf area `{m}`: {:.6} m² (analytic {:.6} m², relative difference {:.2e})",
+                x,
+                la.analytic_m2,
+                (x - la.analytic_m2) / la.analytic_m2.max(1e-300)
+            )?,
+            None => writeln!(out, "leaf area `{m}`: {:.6} m²", la.analytic_m2)?,
+        }
+    }
+    for (m, a) in &r.facet_area_m2 {
+        writeln!(
+            out,
+            "facets `{m}`: {} triangles, {:.4} m²",
+            r.facet_count.get(m).copied().unwrap_or(0),
+            a
+        )?;
+    }
+    if let Some(t) = r.turbid_cells {
+        writeln!(out, "cells with vegetation: {t}")?;
+    }
+    if let Some(f) = r.facet_cells {
+        writeln!(out, "cells with facets: {f}")?;
+    }
+    writeln!(
+        out,
+        "memory estimate (peak): {} (limit {})",
+        human_bytes(r.memory.peak_bytes),
+        human_bytes(r.memory.limit_bytes)
+    )?;
+    if let Some(u) = r.memory_used_bytes {
+        writeln!(out, "memory held after Maket: {}", human_bytes(u))?;
+    }
+    for w in &r.warnings {
+        writeln!(out, "warning: {w}")?;
+    }
+    Ok(())
+}
+
+fn report_after_plan(sim: &mut Simulation) -> MaketReport {
+    use crate::components::{ImportedMesh, TurbidCrown, TurbidPlot};
+    use crate::resources::{
+        facets::FacetStore, grid::GridSpec, maket_report::MemoryEstimate, materials::Materials,
+        scene::Warnings,
+    };
+    use bevy_ecs::prelude::{Query, Res};
+    use bevy_ecs::system::RunSystemOnce;
+    sim.world
+        .run_system_once(
+            |spec: Res<GridSpec>,
+             est: Res<MemoryEstimate>,
+             mats: Res<Materials>,
+             facets: Res<FacetStore>,
+             crowns: Query<&TurbidCrown>,
+             plots: Query<&TurbidPlot>,
+             meshes: Query<&ImportedMesh>,
+             warnings: Res<Warnings>| {
+                crate::systems::maket::make_report(
+                    &spec, &est, &mats, &facets, None, None, &crowns, &plots, &meshes, &warnings,
+                )
+            },
+        )
+        .expect("resources exist after planning")
+}
+
+/// Runs `check`.
+pub fn check(args: &CheckArgs, out: &mut dyn Write) -> Result<(), CliError> {
+    let mut sim = Simulation::load(&args.opts.scene, args.opts.settings())?;
+    let planned = sim.plan();
+    if !sim
+        .world
+        .contains_resource::<crate::resources::maket_report::MemoryEstimate>()
+    {
+        planned?;
+        return Err(CliError {
+            message: "planning produced no grid".into(),
+            code: 1,
+        });
+    }
+    let report = report_after_plan(&mut sim);
+    if args.json {
+        writeln!(out, "{}", serde_json::to_string_pretty(&report)?)?;
+    } else {
+        writeln!(out, "{}: scene is valid", args.opts.scene.display())?;
+        print_report(&report, out)?;
+    }
+    planned?;
+    Ok(())
+}
+
+/// `maket`: run the Maket stage and write its products.
+#[derive(clap::Args, Debug)]
+pub struct MaketArgs {
+    #[command(flatten)]
+    /// Scene and settings.
+    pub opts: SceneOpts,
+    /// Output folder (created if needed).
+    #[arg(long)]
+    pub out: PathBuf,
+}
+
+/// Runs `maket`.
+pub fn maket(args: &MaketArgs, out: &mut dyn Write) -> Result<(), CliError> {
+    let mut sim = Simulation::load(&args.opts.scene, args.opts.settings())?;
+    sim.world
+        .insert_resource(crate::systems::output::OutputDir(args.out.clone()));
+    sim.run_stage(Stage::Maket)?;
+    sim.run_stage(Stage::Output)?;
+    print_report(sim.resource::<MaketReport>(), out)?;
+    writeln!(out, "products written to {}", args.out.display())?;
+    Ok(())
+}
+
+/// `run`: every stage that exists so far, products into `--out`.
+#[derive(clap::Args, Debug)]
+pub struct RunArgs {
+    #[command(flatten)]
+    /// Scene and settings.
+    pub opts: SceneOpts,
+    /// Output folder (created if needed).
+    #[arg(long)]
+    pub out: PathBuf,
+}
+
+/// Runs `run`.
+pub fn run(args: &RunArgs, out: &mut dyn Write) -> Result<(), CliError> {
+    let t0 = std::time::Instant::now();
+    let mut sim = Simulation::load(&args.opts.scene, args.opts.settings())?;
+    let ran = sim.run(Some(&args.out))?;
+    print_report(sim.resource::<MaketReport>(), out)?;
+    let skipped: Vec<String> = Stage::ALL
+        .iter()
+        .filter(|s| !s.implemented())
+        .map(|s| format!("{s:?}"))
+        .collect();
+    writeln!(
+        out,
+        "stages run: {:?}; not implemented yet: {}",
+        ran,
+        skipped.join(", ")
+    )?;
+    writeln!(
+        out,
+        "products written to {} in {:.2} s",
+        args.out.display(),
+        t0.elapsed().as_secs_f64()
+    )?;
+    Ok(())
+}
+
+/// Resolves a path relative to the current folder (for messages).
+pub fn display(p: &Path) -> String {
+    p.display().to_string()
+}

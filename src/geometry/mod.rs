@@ -1,0 +1,8 @@
+//! Geometry: polygons, triangles, crown shapes and their cell overlaps, terrain, facet shapes.
+
+pub mod crown;
+pub mod polygon;
+pub mod quadrature;
+pub mod shapes;
+pub mod terrain;
+pub mod triangle;

@@ -1,0 +1,99 @@
+//! Multi-channel OpenEXR output (f32 samples). Channel names are `layer.channel`; exr sorts
+//! channels by name. Image row r holds scene row j = ny − 1 − r, so the image reads as a map
+//! (+x right, +y up).
+
+use crate::io::atomic::{tmp_path, write_atomic};
+use exr::prelude::*;
+use std::path::Path;
+
+/// One named layer of channels; each channel holds `nx·ny` values indexed `i + nx·j`.
+pub struct ExrLayer {
+    /// Layer name.
+    pub name: String,
+    /// (channel name, values).
+    pub channels: Vec<(String, Vec<f64>)>,
+}
+
+/// Writes the layers into one EXR file atomically.
+pub fn write_exr_layers(
+    path: &Path,
+    nx: usize,
+    ny: usize,
+    layers: &[ExrLayer],
+) -> std::result::Result<(), String> {
+    let mut list = Vec::new();
+    for l in layers {
+        let chans: Vec<AnyChannel<FlatSamples>> = l
+            .channels
+            .iter()
+            .map(|(name, v)| {
+                let mut flipped = vec![0f32; nx * ny];
+                for j in 0..ny {
+                    for i in 0..nx {
+                        flipped[i + nx * (ny - 1 - j)] = v[i + nx * j] as f32;
+                    }
+                }
+                AnyChannel::new(name.as_str(), FlatSamples::F32(flipped))
+            })
+            .collect();
+        let layer = Layer::new(
+            (nx, ny),
+            LayerAttributes::named(l.name.as_str()),
+            Encoding::FAST_LOSSLESS,
+            AnyChannels::sort(chans.into()),
+        );
+        list.push(layer);
+    }
+    let image = Image::from_layers(
+        ImageAttributes::new(IntegerBounds::from_dimensions((nx, ny))),
+        list,
+    );
+    let tmp = tmp_path(path);
+    image
+        .write()
+        .to_file(&tmp)
+        .map_err(|e| format!("{}: cannot write EXR: {e}", path.display()))?;
+    std::fs::rename(&tmp, path).map_err(|e| {
+        let _ = std::fs::remove_file(&tmp);
+        format!("{}: cannot write: {e}", path.display())
+    })?;
+    let _ = write_atomic;
+    Ok(())
+}
+
+/// Reads every channel of an EXR file as (name, values indexed `i + nx·j`), plus (nx, ny).
+pub fn read_exr_channels(
+    path: &Path,
+) -> std::result::Result<(usize, usize, Vec<(String, Vec<f32>)>), String> {
+    let img = read()
+        .no_deep_data()
+        .largest_resolution_level()
+        .all_channels()
+        .all_layers()
+        .all_attributes()
+        .from_file(path)
+        .map_err(|e| format!("{}: {e}", path.display()))?;
+    let mut out = Vec::new();
+    let mut size = (0, 0);
+    for layer in &img.layer_data {
+        let (nx, ny) = (layer.size.0, layer.size.1);
+        size = (nx, ny);
+        for ch in &layer.channel_data.list {
+            let vals: Vec<f32> = ch.sample_data.values_as_f32().collect();
+            let mut v = vec![0f32; nx * ny];
+            for j in 0..ny {
+                for i in 0..nx {
+                    v[i + nx * j] = vals[i + nx * (ny - 1 - j)];
+                }
+            }
+            let lname = layer.attributes.layer_name.as_ref().map(|t| t.to_string());
+            let cname = ch.name.to_string();
+            let full = match lname {
+                Some(l) if !cname.starts_with(&format!("{l}.")) => format!("{l}.{cname}"),
+                _ => cname,
+            };
+            out.push((full, v));
+        }
+    }
+    Ok((size.0, size.1, out))
+}

@@ -1,0 +1,5 @@
+//! Input/output: atomic writes, EXR products, mesh import.
+
+pub mod atomic;
+pub mod exr_out;
+pub mod mesh;

@@ -1,0 +1,7 @@
+//! Resources: world data shared between stages.
+
+pub mod facets;
+pub mod grid;
+pub mod maket_report;
+pub mod materials;
+pub mod scene;

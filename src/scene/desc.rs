@@ -1,0 +1,574 @@
+//! Authoring types of the RON scene format (`*Desc`), version 1.
+//!
+//! These are plain serde types: they are what a user writes and what generators return, never ECS
+//! components. Every struct denies unknown fields; units are in field names (`_m`, `_deg`, `_nm`).
+//! `spawn` turns a validated [`SceneDesc`] into entities.
+
+use serde::{Deserialize, Serialize};
+use std::collections::BTreeMap;
+
+/// The current scene-format version. Files must state it in `version`.
+pub const SCENE_FORMAT_VERSION: u32 = 1;
+
+/// A whole scene file.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SceneDesc {
+    /// Scene-format version; must equal [`SCENE_FORMAT_VERSION`].
+    pub version: u32,
+    /// Human-readable name, copied into products.
+    #[serde(default)]
+    pub name: String,
+    /// Seed for every random choice made while building the scene (tree placement, …).
+    #[serde(default)]
+    pub seed: u64,
+    /// Cell grid and boundary mode.
+    pub grid: GridDesc,
+    /// Spectral bands; every per-band list in `optics` has one value per band.
+    pub bands: Vec<BandDesc>,
+    /// Library of named optical properties.
+    pub optics: BTreeMap<String, OpticsDesc>,
+    /// Sun and sky.
+    pub illumination: IlluminationDesc,
+    /// Scene objects; each becomes one or more entities.
+    #[serde(default)]
+    pub objects: Vec<ObjectDesc>,
+    /// Reserved for the atmosphere module (not supported yet: rejected when present).
+    #[serde(default, skip_serializing)]
+    pub atmosphere: Option<serde::de::IgnoredAny>,
+    /// Reserved for sensors (not supported yet: rejected when present).
+    #[serde(default, skip_serializing)]
+    pub sensors: Option<serde::de::IgnoredAny>,
+    /// Reserved for LiDAR instruments (not supported yet: rejected when present).
+    #[serde(default, skip_serializing)]
+    pub lidars: Option<serde::de::IgnoredAny>,
+    /// Reserved for the discrete-direction settings (not supported yet: rejected when present).
+    #[serde(default, skip_serializing)]
+    pub directions: Option<serde::de::IgnoredAny>,
+}
+
+/// What happens to rays leaving the scene through a side (DART 5 paper §3, Fig. 4).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+pub enum BoundaryMode {
+    /// Infinite repetition of the scene: a ray leaving a side re-enters on the opposite side.
+    Repetitive,
+    /// Repetition with the ground-altitude offset between opposite sides applied on re-entry.
+    RepetitiveContinuousTopography,
+    /// Rays leaving a side are lost; objects must lie inside the scene.
+    Isolated,
+}
+
+/// The cell grid.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct GridDesc {
+    /// Scene extent along x and y, metres; the scene spans `[0, x] × [0, y]`.
+    pub size_m: (f64, f64),
+    /// Cell size (dx, dy, dz), metres; non-cubic cells are allowed.
+    pub cell_m: (f64, f64, f64),
+    /// Scene height above the lowest ground point, metres; by default the highest object
+    /// rounded up to a whole cell (plus one empty cell layer).
+    #[serde(default)]
+    pub height_m: Option<f64>,
+    /// Sub-cell factor D (each cell holds D³ sub-cells for facet scattering points); DART default 2.
+    #[serde(default = "default_subcells")]
+    pub subcells: u32,
+    /// Boundary mode.
+    pub boundary: BoundaryMode,
+}
+
+fn default_subcells() -> u32 {
+    2
+}
+
+/// One spectral band.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct BandDesc {
+    /// Band name, used for image channels and CSV columns.
+    pub name: String,
+    /// Central wavelength, nanometres.
+    pub wavelength_nm: f64,
+    /// Full width at half maximum, nanometres (0 = monochromatic).
+    #[serde(default)]
+    pub fwhm_nm: f64,
+}
+
+/// A named optical property; every list holds one value per band.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub enum OpticsDesc {
+    /// Lambertian facet (DART 5 paper §3.1; physics.md §5.1).
+    Lambertian {
+        /// Hemispherical reflectance per band.
+        reflectance: Vec<f64>,
+        /// Diffuse (Lambertian) transmittance per band.
+        #[serde(default)]
+        diffuse_transmittance: Vec<f64>,
+        /// Direct transmittance along the normal per band (T_dir; T_dir^(1/|μ|) off-normal).
+        #[serde(default)]
+        direct_transmittance: Vec<f64>,
+    },
+    /// Rahman–Pinty–Verstraete reflectance (physics.md §5.2).
+    Rpv {
+        /// Amplitude ρ0 per band.
+        rho0: Vec<f64>,
+        /// Minnaert exponent k per band.
+        k: Vec<f64>,
+        /// Henyey–Greenstein asymmetry Θ per band (Θ < 0: backward scattering).
+        theta: Vec<f64>,
+        /// Hotspot amplitude ρc per band (default ρ0).
+        #[serde(default)]
+        rho_c: Option<Vec<f64>>,
+    },
+    /// Hapke particulate-surface reflectance (physics.md §5.3).
+    Hapke {
+        /// Single-scattering albedo w per band.
+        w: Vec<f64>,
+        /// Phase-function asymmetry b per band.
+        b: Vec<f64>,
+        /// Phase-function back/forward weight c per band.
+        c: Vec<f64>,
+        /// Macroscopic roughness θ̄, degrees.
+        roughness_deg: f64,
+        /// Opposition-effect amplitude B0.
+        b0: f64,
+        /// Opposition-effect width h.
+        h: f64,
+    },
+    /// Bi-Lambertian leaf (physics.md §3.3): reflectance and transmittance per band.
+    BiLambertian {
+        /// Leaf hemispherical reflectance per band.
+        reflectance: Vec<f64>,
+        /// Leaf hemispherical transmittance per band.
+        transmittance: Vec<f64>,
+    },
+    /// Turbid vegetation: leaf optics + leaf angle distribution + leaf size (physics.md §3).
+    Turbid {
+        /// Name of a `BiLambertian` entry of the library.
+        leaf: String,
+        /// Leaf angle distribution.
+        lad: LadDesc,
+        /// Leaf dimension for the hotspot, metres (DART `dimFoliar`, default 0.01; 0 = no hotspot).
+        #[serde(default = "default_leaf_size")]
+        leaf_size_m: f64,
+    },
+}
+
+fn default_leaf_size() -> f64 {
+    0.01
+}
+
+/// Leaf angle distribution (physics.md §3.2; de Wit 1965, Goel & Strebel 1984, Campbell 1990).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub enum LadDesc {
+    /// f(θ) = sin θ.
+    Spherical,
+    /// f(θ) = 2/π.
+    Uniform,
+    /// f(θ) = (2/π)(1 + cos 2θ).
+    Planophile,
+    /// f(θ) = (2/π)(1 − cos 2θ).
+    Erectophile,
+    /// f(θ) = (2/π)(1 − cos 4θ).
+    Plagiophile,
+    /// f(θ) = (2/π)(1 + cos 4θ).
+    Extremophile,
+    /// Campbell ellipsoidal distribution given by its mean leaf inclination, degrees.
+    Ellipsoidal {
+        /// Mean leaf inclination from horizontal, degrees.
+        mean_angle_deg: f64,
+    },
+    /// Goel & Strebel beta distribution of t = 2θ/π.
+    Beta {
+        /// Shape parameter μ.
+        mu: f64,
+        /// Shape parameter ν.
+        nu: f64,
+    },
+    /// Area weights of equal-width inclination bins over [0°, 90°] (normalised on use).
+    Histogram {
+        /// Relative weights, one per bin.
+        weights: Vec<f64>,
+    },
+}
+
+/// Sun and diffuse sky.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct IlluminationDesc {
+    /// Sun zenith angle of the ground→sun direction, degrees, in [0, 90).
+    pub sun_zenith_deg: f64,
+    /// Sun azimuth of the ground→sun direction, degrees, anticlockwise from +x (DART convention).
+    pub sun_azimuth_deg: f64,
+    /// Diffuse sky fraction SKYL = E_diff / (E_dir + E_diff) per band (default 0).
+    #[serde(default)]
+    pub skyl: Vec<f64>,
+    /// Total bottom-of-atmosphere irradiance on a horizontal plane per band, W m⁻² µm⁻¹
+    /// (default 1: products are then relative).
+    #[serde(default)]
+    pub irradiance_w_m2_um: Vec<f64>,
+}
+
+/// Horizontal placement of one object, metres, in scene coordinates.
+pub type Xy = (f64, f64);
+
+/// A scene object.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub enum ObjectDesc {
+    /// The ground (at most one).
+    Ground(GroundDesc),
+    /// One tree.
+    Tree(TreeDesc),
+    /// Several trees from species templates.
+    TreeStand(TreeStandDesc),
+    /// A turbid plot (grass, crops).
+    TurbidPlot(TurbidPlotDesc),
+    /// A building made of facets.
+    Building(BuildingDesc),
+    /// A water body (horizontal polygon of facets).
+    Water(WaterDesc),
+    /// A mesh imported from glTF or OBJ.
+    Mesh(MeshDesc),
+    /// Disk leaves listed inline (RAMI HOM-style discrete canopies).
+    Leaves(LeavesDesc),
+}
+
+/// Disk-shaped leaves given inline; each disk becomes a regular polygon of facets with the
+/// disk's exact area.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct LeavesDesc {
+    /// Disk radius, metres.
+    pub radius_m: f64,
+    /// Polygon sides per disk (default 12).
+    #[serde(default = "default_disk_sides")]
+    pub sides: u32,
+    /// Name of a facet (usually BiLambertian) optical property.
+    pub optics: String,
+    /// Both faces interact (default true: leaves).
+    #[serde(default = "yes")]
+    pub two_sided: bool,
+    /// Disks as (x, y, z, normal_x, normal_y, normal_z): centre in metres (z above the ground),
+    /// normal (normalised on use).
+    pub disks: Vec<(f64, f64, f64, f64, f64, f64)>,
+}
+
+fn default_disk_sides() -> u32 {
+    12
+}
+
+fn yes() -> bool {
+    true
+}
+
+/// Ground: flat or a digital elevation model.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct GroundDesc {
+    /// Name of a facet optical property (Lambertian, RPV or Hapke).
+    pub optics: String,
+    /// Shape of the ground.
+    #[serde(default)]
+    pub topography: TopographyDesc,
+}
+
+/// Ground shape.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, Default)]
+pub enum TopographyDesc {
+    /// Horizontal plane at z = 0.
+    #[default]
+    Flat,
+    /// Altitudes on a regular raster given inline.
+    Raster(RasterDesc),
+    /// Altitudes on a regular raster read from a file.
+    RasterFile(RasterFileDesc),
+    /// Scattered (x, y, z) points, Delaunay-triangulated (spade).
+    Points {
+        /// Points (x_m, y_m, z_m); their convex hull must cover the scene.
+        points_m: Vec<(f64, f64, f64)>,
+    },
+}
+
+/// Inline raster of altitudes; node (i, j) lies at (origin.x + i·dx, origin.y + j·dy).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RasterDesc {
+    /// Number of nodes along x and y (≥ 2 each).
+    pub nodes: (usize, usize),
+    /// Node spacing along x and y, metres.
+    pub spacing_m: (f64, f64),
+    /// Position of node (0, 0), metres.
+    #[serde(default)]
+    pub origin_m: Xy,
+    /// Altitudes, metres, row-major with x fastest: value `i + j·nx` is node (i, j).
+    pub altitude_m: Vec<f64>,
+}
+
+/// Raster file formats.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub enum RasterFormat {
+    /// ESRI ASCII grid (`ncols`, `nrows`, `xllcorner`/`xllcenter`, `cellsize`, optional `nodata_value`).
+    /// Rows are stored north (max y) first; node values are taken at cell centres.
+    EsriAscii,
+    /// Raw little-endian f32 values, x fastest then y; dimensions and spacing given in the scene.
+    BinaryF32 {
+        /// Number of nodes along x and y.
+        nodes: (usize, usize),
+        /// Node spacing, metres.
+        spacing_m: (f64, f64),
+    },
+}
+
+/// Raster read from a file (path relative to the scene file).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct RasterFileDesc {
+    /// Path, relative to the scene file's folder.
+    pub path: String,
+    /// File format.
+    pub format: RasterFormat,
+    /// Position of node (0, 0) in scene coordinates for `BinaryF32`, metres (ESRI files carry
+    /// their own origin; this offset is then subtracted from it).
+    #[serde(default)]
+    pub origin_m: Xy,
+}
+
+/// Crown shapes of DART trees.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+pub enum CrownShape {
+    /// Ellipsoid with horizontal semi-axes (radius_x, radius_y) and vertical semi-axis height/2.
+    Ellipsoid,
+    /// Cone: base ellipse at the crown base, apex at the crown top.
+    Cone,
+    /// Truncated cone (frustum): bottom ellipse at the crown base, top ellipse scaled by
+    /// `top_radius_fraction`.
+    Trapezoid,
+    /// Elliptic cylinder.
+    Cylinder,
+}
+
+/// Amount of foliage in a crown or plot.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub enum FoliageDesc {
+    /// Mean one-sided leaf area volume density, m² m⁻³.
+    LeafAreaDensity(f64),
+    /// Leaf area index: leaf area divided by the horizontal projected area of the shape, m² m⁻².
+    Lai(f64),
+    /// Total one-sided leaf area, m².
+    LeafArea(f64),
+}
+
+/// Tree crown.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct CrownDesc {
+    /// Shape.
+    pub shape: CrownShape,
+    /// Height of the crown base above the ground, metres.
+    pub base_height_m: f64,
+    /// Crown height (base to top), metres.
+    pub height_m: f64,
+    /// Horizontal semi-axis along x at the widest level, metres.
+    pub radius_x_m: f64,
+    /// Horizontal semi-axis along y, metres (default: `radius_x_m`).
+    #[serde(default)]
+    pub radius_y_m: Option<f64>,
+    /// For `Trapezoid`: top radius / bottom radius, in [0, 1].
+    #[serde(default)]
+    pub top_radius_fraction: Option<f64>,
+    /// Foliage amount.
+    pub foliage: FoliageDesc,
+    /// Relative leaf-area-density weights of equal-height layers from base to top (piecewise
+    /// constant; default uniform).
+    #[serde(default)]
+    pub vertical_profile: Vec<f64>,
+    /// Relative weights of equal-width rings of relative horizontal radius ρ = d / r(z) from the
+    /// axis (ρ = 0) to the crown edge (ρ = 1) (piecewise constant; default uniform).
+    #[serde(default)]
+    pub radial_profile: Vec<f64>,
+    /// Name of a `Turbid` optical property.
+    pub optics: String,
+}
+
+/// Tree trunk (an n-sided closed prism of facets).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct TrunkDesc {
+    /// Trunk height above the ground, metres.
+    pub height_m: f64,
+    /// Trunk diameter, metres.
+    pub diameter_m: f64,
+    /// Number of sides of the prism (default 8, at least 3).
+    #[serde(default = "default_trunk_sides")]
+    pub sides: u32,
+    /// Name of a facet optical property.
+    pub optics: String,
+}
+
+fn default_trunk_sides() -> u32 {
+    8
+}
+
+/// One tree: a trunk of facets and a turbid crown.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct TreeDesc {
+    /// Position of the trunk base, metres; z comes from the ground.
+    pub position_m: Xy,
+    /// Trunk (optional).
+    #[serde(default)]
+    pub trunk: Option<TrunkDesc>,
+    /// Crown.
+    pub crown: CrownDesc,
+}
+
+/// A species template: a tree without position.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SpeciesDesc {
+    /// Species name.
+    pub name: String,
+    /// Trunk.
+    #[serde(default)]
+    pub trunk: Option<TrunkDesc>,
+    /// Crown.
+    pub crown: CrownDesc,
+}
+
+/// How trees of a stand are placed.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub enum PlacementDesc {
+    /// Explicit positions: (species index, x_m, y_m).
+    Explicit(Vec<(usize, f64, f64)>),
+    /// Random uniform positions with a minimum spacing, reproducible from the scene seed.
+    Random {
+        /// Number of trees per species.
+        counts: Vec<usize>,
+        /// Minimum distance between trunks, metres.
+        min_spacing_m: f64,
+        /// Area to fill (x_min, y_min, x_max, y_max), metres; default the whole scene.
+        #[serde(default)]
+        region_m: Option<(f64, f64, f64, f64)>,
+    },
+}
+
+/// A stand of trees of one or more species.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct TreeStandDesc {
+    /// Species templates.
+    pub species: Vec<SpeciesDesc>,
+    /// Placement.
+    pub placement: PlacementDesc,
+}
+
+/// Footprint of a plot or building: an axis-aligned box or a simple polygon.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub enum FootprintDesc {
+    /// Axis-aligned rectangle (x_min, y_min, x_max, y_max), metres.
+    Box((f64, f64, f64, f64)),
+    /// Simple polygon, vertices in order (either orientation), metres.
+    Polygon(Vec<Xy>),
+}
+
+/// A turbid plot: grass or crop as a turbid layer over a footprint.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct TurbidPlotDesc {
+    /// Footprint.
+    pub footprint: FootprintDesc,
+    /// Bottom of the vegetation above the local ground, metres.
+    #[serde(default)]
+    pub bottom_m: f64,
+    /// Top of the vegetation above the local ground, metres.
+    pub top_m: f64,
+    /// Foliage amount (`Lai` = leaf area / footprint area).
+    pub foliage: FoliageDesc,
+    /// Name of a `Turbid` optical property.
+    pub optics: String,
+}
+
+/// Roof of a building.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub enum RoofDesc {
+    /// Flat roof at the wall top.
+    Flat,
+    /// Gable roof over a rectangular (4-vertex) footprint, ridge along the longer side.
+    Gable {
+        /// Ridge height above the wall top, metres.
+        ridge_height_m: f64,
+    },
+}
+
+/// A building made of facets (walls, roof, floor: a closed shell).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct BuildingDesc {
+    /// Footprint polygon.
+    pub footprint: FootprintDesc,
+    /// Wall height above the lowest ground point under the footprint, metres.
+    pub wall_height_m: f64,
+    /// Roof.
+    pub roof: RoofDesc,
+    /// Name of a facet optical property for walls.
+    pub wall_optics: String,
+    /// Name of a facet optical property for the roof.
+    pub roof_optics: String,
+}
+
+/// A water body: a horizontal polygon of facets.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct WaterDesc {
+    /// Footprint.
+    pub footprint: FootprintDesc,
+    /// Altitude of the water surface, metres (default: highest ground altitude under the
+    /// footprint vertices plus 1 cm).
+    #[serde(default)]
+    pub altitude_m: Option<f64>,
+    /// Name of a facet optical property.
+    pub optics: String,
+}
+
+/// Optics of one mesh group (material or object name in the file).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct MeshGroupOptics {
+    /// Group name as written in the file (glTF material / OBJ `usemtl` name).
+    pub group: String,
+    /// Name of an optical property: a facet property, or a `Turbid` one when `as_turbid`.
+    pub optics: String,
+    /// Whether both faces of each triangle interact (leaves: true).
+    #[serde(default)]
+    pub two_sided: bool,
+    /// Convert this group's triangles into turbid cells (DART "facet to turbid"): leaf area per
+    /// cell is kept exactly and the group's leaf-inclination histogram becomes the LAD.
+    #[serde(default)]
+    pub as_turbid: bool,
+}
+
+/// A mesh imported from a file.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct MeshDesc {
+    /// Path relative to the scene file (`.gltf`, `.glb`, `.obj`).
+    pub path: String,
+    /// Convert glTF's y-up axes to the scene's z-up before the transform (default true for glTF).
+    #[serde(default)]
+    pub y_up: Option<bool>,
+    /// Uniform scale applied first.
+    #[serde(default = "one")]
+    pub scale: f64,
+    /// Rotation about z, degrees anticlockwise, applied after the scale.
+    #[serde(default)]
+    pub rotation_z_deg: f64,
+    /// Translation applied last, metres (z relative to the ground under the position).
+    #[serde(default)]
+    pub translation_m: (f64, f64, f64),
+    /// Optics per group; every group of the file must be listed.
+    pub groups: Vec<MeshGroupOptics>,
+}
+
+fn one() -> f64 {
+    1.0
+}

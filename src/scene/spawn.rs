@@ -1,0 +1,490 @@
+//! The spawn step: a validated [`SceneDesc`] becomes entities and resources of a bevy `World`.
+//!
+//! External files (DEM rasters, meshes) are read here, trees of stands are placed (seeded), and
+//! every object gets absolute coordinates (scene frame, metres, z = altitude). Maket then turns
+//! the entities into the cell grid.
+
+use super::desc::*;
+use super::error::SceneError;
+use super::validate::{SceneSource, validate};
+use crate::components::*;
+use crate::geometry::crown::CrownGeom;
+use crate::geometry::polygon::{footprint_polygon, signed_area};
+use crate::geometry::shapes::Roof;
+use crate::geometry::terrain::{Terrain, build_terrain};
+use crate::resources::materials::{Material, MaterialKind, Materials};
+use crate::resources::scene::{SceneInfo, TerrainRes, Warnings};
+use bevy_ecs::prelude::*;
+use glam::{DMat4, DVec3};
+use rand_xoshiro::Xoshiro256PlusPlus;
+use rand_xoshiro::rand_core::{Rng, SeedableRng};
+use std::f64::consts::PI;
+
+/// Uniform draw in [0, 1) with 53 random bits.
+pub fn uniform(rng: &mut Xoshiro256PlusPlus) -> f64 {
+    (rng.next_u64() >> 11) as f64 * (1.0 / (1u64 << 53) as f64)
+}
+
+/// A generator stream for (scene seed, purpose, item): reproducible whatever the thread count.
+pub fn stream(seed: u64, purpose: u64, item: u64) -> Xoshiro256PlusPlus {
+    // SplitMix64-style mixing of the three words into one seed.
+    let mut z = seed
+        ^ purpose.wrapping_mul(0x9E37_79B9_7F4A_7C15)
+        ^ item.wrapping_mul(0xBF58_476D_1CE4_E5B9);
+    z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+    z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+    Xoshiro256PlusPlus::seed_from_u64(z ^ (z >> 31))
+}
+
+/// Leaf area of a crown from its foliage description.
+pub fn crown_geom(c: &CrownDesc, x: f64, y: f64, ground_z: f64) -> CrownGeom {
+    let rx = c.radius_x_m;
+    let ry = c.radius_y_m.unwrap_or(rx);
+    let top_fraction = match c.shape {
+        CrownShape::Trapezoid => c.top_radius_fraction.unwrap_or(1.0),
+        CrownShape::Cylinder => 1.0,
+        _ => 0.0,
+    };
+    let g = CrownGeom {
+        shape: c.shape,
+        center: (x, y),
+        z_base: ground_z + c.base_height_m,
+        height: c.height_m,
+        radius: (rx, ry),
+        top_fraction,
+        vertical: c.vertical_profile.clone(),
+        radial: c.radial_profile.clone(),
+        u0: 1.0,
+    };
+    let leaf_area = match c.foliage {
+        FoliageDesc::LeafArea(a) => a,
+        FoliageDesc::Lai(l) => l * PI * rx * ry,
+        // Mean density over the crown volume.
+        FoliageDesc::LeafAreaDensity(u) => u * g.volume(),
+    };
+    g.with_leaf_area(leaf_area)
+}
+
+fn spawn_tree(
+    world: &mut World,
+    idx: u32,
+    trunk: Option<&TrunkDesc>,
+    crown: &CrownDesc,
+    x: f64,
+    y: f64,
+    terrain: &Terrain,
+    mats: &Materials,
+) {
+    let gz = terrain.height(x, y);
+    let geom = crown_geom(crown, x, y, gz);
+    let crown_c = TurbidCrown {
+        geom,
+        material: mats.id(&crown.optics).expect("validated"),
+    };
+    match trunk {
+        Some(t) => {
+            world.spawn((
+                SourceObject(idx),
+                crown_c,
+                Trunk {
+                    base: DVec3::new(x, y, gz),
+                    height: t.height_m,
+                    diameter: t.diameter_m,
+                    sides: t.sides,
+                    material: mats.id(&t.optics).expect("validated"),
+                },
+            ));
+        }
+        None => {
+            world.spawn((SourceObject(idx), crown_c));
+        }
+    }
+}
+
+/// Random placement with a minimum spacing (dart throwing with a hash grid), per species
+/// counts, seeded by (scene seed, object index).
+fn place_random(
+    counts: &[usize],
+    min_spacing: f64,
+    region: (f64, f64, f64, f64),
+    periodic: Option<(f64, f64)>,
+    seed: u64,
+    idx: u32,
+) -> Result<Vec<(usize, f64, f64)>, String> {
+    let total: usize = counts.iter().sum();
+    let mut rng = stream(seed, 1, idx as u64);
+    let (x0, y0, x1, y1) = region;
+    let cell = min_spacing.max(1e-9);
+    let gx = (((x1 - x0) / cell).ceil() as usize).clamp(1, 4096);
+    let gy = (((y1 - y0) / cell).ceil() as usize).clamp(1, 4096);
+    let (cw, ch) = ((x1 - x0) / gx as f64, (y1 - y0) / gy as f64);
+    let mut buckets: Vec<Vec<(f64, f64)>> = vec![Vec::new(); gx * gy];
+    let mut out = Vec::with_capacity(total);
+    let max_attempts = 1000 * total.max(1);
+    let mut attempts = 0;
+    for (sp, &n) in counts.iter().enumerate() {
+        let mut placed = 0;
+        while placed < n {
+            attempts += 1;
+            if attempts > max_attempts {
+                return Err(format!(
+                    "placed only {} of {total} trees with a minimum spacing of {min_spacing} m after {max_attempts} attempts: reduce the counts or the spacing",
+                    out.len()
+                ));
+            }
+            let x = x0 + (x1 - x0) * uniform(&mut rng);
+            let y = y0 + (y1 - y0) * uniform(&mut rng);
+            let bi = (((x - x0) / cw) as usize).min(gx - 1);
+            let bj = (((y - y0) / ch) as usize).min(gy - 1);
+            let reach_i = (min_spacing / cw).ceil() as i64;
+            let reach_j = (min_spacing / ch).ceil() as i64;
+            let mut ok = true;
+            'scan: for dj in -reach_j..=reach_j {
+                for di in -reach_i..=reach_i {
+                    let (mut ii, mut jj) = (bi as i64 + di, bj as i64 + dj);
+                    if periodic.is_some() {
+                        ii = ii.rem_euclid(gx as i64);
+                        jj = jj.rem_euclid(gy as i64);
+                    } else if ii < 0 || jj < 0 || ii >= gx as i64 || jj >= gy as i64 {
+                        continue;
+                    }
+                    for &(px, py) in &buckets[ii as usize + gx * jj as usize] {
+                        let (mut dx, mut dy) = ((px - x).abs(), (py - y).abs());
+                        if let Some((sx, sy)) = periodic {
+                            dx = dx.min(sx - dx);
+                            dy = dy.min(sy - dy);
+                        }
+                        if dx * dx + dy * dy < min_spacing * min_spacing {
+                            ok = false;
+                            break 'scan;
+                        }
+                    }
+                }
+            }
+            if ok {
+                buckets[bi + gx * bj].push((x, y));
+                out.push((sp, x, y));
+                placed += 1;
+            }
+        }
+    }
+    Ok(out)
+}
+
+/// Area-weighted histogram of leaf inclinations (18 bins of 5°) of a set of triangles: the LAD
+/// kept by the facet→turbid conversion (DART 5 paper §2, supportive tools).
+pub fn inclination_histogram(tris: &[[DVec3; 3]]) -> Vec<f64> {
+    let mut h = vec![0.0; 18];
+    for t in tris {
+        let n = (t[1] - t[0]).cross(t[2] - t[0]);
+        let a = 0.5 * n.length();
+        if a <= 0.0 {
+            continue;
+        }
+        let incl = (n.z.abs() / n.length()).clamp(0.0, 1.0).acos();
+        let b = ((incl / (PI / 2.0) * 18.0) as usize).min(17);
+        h[b] += a;
+    }
+    h
+}
+
+fn mesh_transform(m: &MeshDesc, is_gltf: bool, ground_z: f64) -> DMat4 {
+    let y_up = m.y_up.unwrap_or(is_gltf);
+    let axes = if y_up {
+        crate::io::mesh::gltf_y_up_to_z_up()
+    } else {
+        DMat4::IDENTITY
+    };
+    DMat4::from_translation(DVec3::new(
+        m.translation_m.0,
+        m.translation_m.1,
+        m.translation_m.2 + ground_z,
+    )) * DMat4::from_rotation_z(m.rotation_z_deg.to_radians())
+        * DMat4::from_scale(DVec3::splat(m.scale))
+        * axes
+}
+
+/// Spawns a validated scene into `world` (resources `SceneInfo`, `Materials`, `TerrainRes`,
+/// `Warnings`, and one or more entities per object).
+pub fn spawn_scene(
+    world: &mut World,
+    desc: &SceneDesc,
+    src: &SceneSource,
+) -> Result<(), SceneError> {
+    validate(desc, src)?;
+    let nb = desc.bands.len();
+    let mut mats = Materials::from_desc(&desc.optics, nb);
+    let mut warnings = Vec::new();
+    let base_dir = src.base_dir();
+    let size = desc.grid.size_m;
+    // Terrain first: every object sits on it.
+    let mut terrain = Terrain::Flat(0.0);
+    for (i, o) in desc.objects.iter().enumerate() {
+        if let ObjectDesc::Ground(g) = o {
+            let field = format!("objects[{i}].topography");
+            terrain =
+                build_terrain(&g.topography, &base_dir, &src.path, &field, size).map_err(|e| {
+                    match e {
+                        SceneError::Invalid { at, field, message }
+                            if at.line_col.is_none() && at.file == src.path =>
+                        {
+                            SceneError::Invalid {
+                                at: src.at(&field),
+                                field,
+                                message,
+                            }
+                        }
+                        other => other,
+                    }
+                })?;
+            world.spawn((
+                SourceObject(i as u32),
+                Ground {
+                    optics: mats.id(&g.optics).expect("validated"),
+                },
+            ));
+        }
+    }
+    let periodic = (desc.grid.boundary != BoundaryMode::Isolated).then_some(size);
+    for (i, o) in desc.objects.iter().enumerate() {
+        let idx = i as u32;
+        match o {
+            ObjectDesc::Ground(_) => {}
+            ObjectDesc::Tree(t) => spawn_tree(
+                world,
+                idx,
+                t.trunk.as_ref(),
+                &t.crown,
+                t.position_m.0,
+                t.position_m.1,
+                &terrain,
+                &mats,
+            ),
+            ObjectDesc::TreeStand(s) => {
+                let list = match &s.placement {
+                    PlacementDesc::Explicit(l) => l.clone(),
+                    PlacementDesc::Random {
+                        counts,
+                        min_spacing_m,
+                        region_m,
+                    } => {
+                        let region = region_m.unwrap_or((0.0, 0.0, size.0, size.1));
+                        let per = if region_m.is_none() { periodic } else { None };
+                        place_random(counts, *min_spacing_m, region, per, desc.seed, idx)
+                            .map_err(|m| src.invalid(format!("objects[{i}].placement"), m))?
+                    }
+                };
+                for (sp, x, y) in list {
+                    let spd = &s.species[sp];
+                    spawn_tree(
+                        world,
+                        idx,
+                        spd.trunk.as_ref(),
+                        &spd.crown,
+                        x,
+                        y,
+                        &terrain,
+                        &mats,
+                    );
+                }
+            }
+            ObjectDesc::TurbidPlot(p) => {
+                let poly = footprint_polygon(&p.footprint);
+                let area = signed_area(&poly);
+                let thickness = p.top_m - p.bottom_m;
+                let density = match p.foliage {
+                    FoliageDesc::LeafAreaDensity(u) => u,
+                    FoliageDesc::Lai(l) => l / thickness,
+                    FoliageDesc::LeafArea(a) => a / (area * thickness),
+                };
+                world.spawn((
+                    SourceObject(idx),
+                    TurbidPlot {
+                        footprint: poly,
+                        bottom: p.bottom_m,
+                        top: p.top_m,
+                        density,
+                        material: mats.id(&p.optics).expect("validated"),
+                    },
+                ));
+            }
+            ObjectDesc::Building(b) => {
+                let poly = footprint_polygon(&b.footprint);
+                let base_z = poly
+                    .iter()
+                    .map(|v| terrain.height(v.x, v.y))
+                    .fold(f64::INFINITY, f64::min);
+                world.spawn((
+                    SourceObject(idx),
+                    Building {
+                        footprint: poly,
+                        base_z,
+                        wall_height: b.wall_height_m,
+                        roof: match b.roof {
+                            RoofDesc::Flat => Roof::Flat,
+                            RoofDesc::Gable { ridge_height_m } => Roof::Gable(ridge_height_m),
+                        },
+                        wall_material: mats.id(&b.wall_optics).expect("validated"),
+                        roof_material: mats.id(&b.roof_optics).expect("validated"),
+                    },
+                ));
+            }
+            ObjectDesc::Water(w) => {
+                let poly = footprint_polygon(&w.footprint);
+                let altitude = w.altitude_m.unwrap_or_else(|| {
+                    poly.iter()
+                        .map(|v| terrain.height(v.x, v.y))
+                        .fold(f64::NEG_INFINITY, f64::max)
+                        + 0.01
+                });
+                world.spawn((
+                    SourceObject(idx),
+                    WaterBody {
+                        footprint: poly,
+                        altitude,
+                        material: mats.id(&w.optics).expect("validated"),
+                    },
+                ));
+            }
+            ObjectDesc::Leaves(l) => {
+                let material = mats.id(&l.optics).expect("validated");
+                let mut tris = Vec::with_capacity(l.disks.len() * l.sides as usize);
+                for d in &l.disks {
+                    let c = DVec3::new(d.0, d.1, d.2 + terrain.height(d.0, d.1));
+                    tris.extend(crate::geometry::shapes::disk_polygon(
+                        c,
+                        DVec3::new(d.3, d.4, d.5),
+                        l.radius_m,
+                        l.sides,
+                    ));
+                }
+                world.spawn((
+                    SourceObject(idx),
+                    ImportedMesh {
+                        path: "<inline leaves>".into(),
+                        parts: vec![MeshPart {
+                            name: "leaves".into(),
+                            triangles: tris,
+                            material,
+                            two_sided: l.two_sided,
+                            as_turbid: false,
+                        }],
+                    },
+                ));
+            }
+            ObjectDesc::Mesh(m) => {
+                let path = base_dir.join(&m.path);
+                let mut mesh = crate::io::mesh::load_mesh(&path)
+                    .map_err(|e| src.invalid(format!("objects[{i}].path"), e.to_string()))?;
+                let rep = mesh.clean_triangles();
+                if rep.removed_degenerate + rep.removed_non_finite > 0 {
+                    warnings.push(format!(
+                        "{}: skipped {} degenerate and {} non-finite triangles",
+                        path.display(),
+                        rep.removed_degenerate,
+                        rep.removed_non_finite
+                    ));
+                }
+                let is_gltf = path.extension().is_some_and(|e| {
+                    e.eq_ignore_ascii_case("gltf") || e.eq_ignore_ascii_case("glb")
+                });
+                let gz = terrain.height(m.translation_m.0, m.translation_m.1);
+                mesh.transform(mesh_transform(m, is_gltf, gz));
+                let mut parts = Vec::new();
+                for g in &mesh.groups {
+                    let Some(k) = m.groups.iter().position(|o| o.group == g.name) else {
+                        let names: Vec<&str> =
+                            mesh.groups.iter().map(|g| g.name.as_str()).collect();
+                        return Err(src.invalid(
+                            format!("objects[{i}].groups"),
+                            format!(
+                                "mesh group `{}` of {} has no optics (groups in the file: {})",
+                                g.name,
+                                path.display(),
+                                names.join(", ")
+                            ),
+                        ));
+                    };
+                    let go = &m.groups[k];
+                    if g.triangles.is_empty() {
+                        continue;
+                    }
+                    let material = if go.as_turbid {
+                        let (r, t) =
+                            match &mats.list[mats.id(&go.optics).expect("validated") as usize].kind
+                            {
+                                MaterialKind::Leaf {
+                                    reflectance,
+                                    transmittance,
+                                } => (reflectance.clone(), transmittance.clone()),
+                                _ => unreachable!("validated as a leaf"),
+                            };
+                        mats.push(Material {
+                            name: format!("{}@objects[{i}]/{}", go.optics, g.name),
+                            kind: MaterialKind::Turbid {
+                                reflectance: r,
+                                transmittance: t,
+                                lad: LadDesc::Histogram {
+                                    weights: inclination_histogram(&g.triangles),
+                                },
+                                leaf_size_m: 0.0,
+                            },
+                        })
+                    } else {
+                        mats.id(&go.optics).expect("validated")
+                    };
+                    parts.push(MeshPart {
+                        name: g.name.clone(),
+                        triangles: g.triangles.clone(),
+                        material,
+                        two_sided: go.two_sided,
+                        as_turbid: go.as_turbid,
+                    });
+                }
+                for (k, go) in m.groups.iter().enumerate() {
+                    if !mesh.groups.iter().any(|g| g.name == go.group) {
+                        return Err(src.invalid(
+                            format!("objects[{i}].groups[{k}].group"),
+                            format!("{} has no group `{}`", path.display(), go.group),
+                        ));
+                    }
+                }
+                if parts.is_empty() {
+                    return Err(src.invalid(
+                        format!("objects[{i}].path"),
+                        format!("{}: the mesh has no triangles", path.display()),
+                    ));
+                }
+                if desc.grid.boundary == BoundaryMode::Isolated {
+                    let (lo, hi) = parts
+                        .iter()
+                        .flat_map(|p| p.triangles.iter().flatten())
+                        .fold((DVec3::INFINITY, DVec3::NEG_INFINITY), |(lo, hi), v| {
+                            (lo.min(*v), hi.max(*v))
+                        });
+                    if lo.x < 0.0 || lo.y < 0.0 || hi.x > size.0 || hi.y > size.1 {
+                        return Err(src.invalid(format!("objects[{i}].translation_m"), format!("the transformed mesh spans x [{:.3}, {:.3}], y [{:.3}, {:.3}] m, outside the isolated scene", lo.x, hi.x, lo.y, hi.y)));
+                    }
+                }
+                world.spawn((SourceObject(idx), ImportedMesh { path, parts }));
+            }
+        }
+    }
+    let g = &desc.grid;
+    world.insert_resource(SceneInfo {
+        name: desc.name.clone(),
+        source: src.path.clone(),
+        seed: desc.seed,
+        bands: desc.bands.clone(),
+        illumination: desc.illumination.clone(),
+        size,
+        cell: g.cell_m,
+        height: g.height_m,
+        subcells: g.subcells,
+        boundary: g.boundary,
+    });
+    world.insert_resource(mats);
+    world.insert_resource(TerrainRes(terrain));
+    world.insert_resource(Warnings(warnings));
+    Ok(())
+}

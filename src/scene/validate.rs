@@ -1,0 +1,788 @@
+//! Validation of a parsed [`SceneDesc`]: every number a physical quantity must satisfy, every
+//! reference between sections, and the extent rules of isolated scenes. Errors name the file,
+//! the line/column (found with [`super::locate`]) and the field.
+
+use super::desc::*;
+use super::error::{Location, SceneError};
+use super::locate::locate;
+use crate::geometry::polygon;
+use std::path::{Path, PathBuf};
+
+/// The text a scene came from, to turn field paths into line numbers.
+#[derive(Debug, Clone)]
+pub struct SceneSource {
+    /// The file (or `<generated>`).
+    pub path: PathBuf,
+    /// Its text, when the scene was read from a file.
+    pub text: Option<String>,
+}
+
+impl SceneSource {
+    /// A scene built in memory (generators, tests).
+    pub fn generated() -> Self {
+        Self {
+            path: PathBuf::from("<generated>"),
+            text: None,
+        }
+    }
+
+    /// Folder that relative paths in the scene are resolved against.
+    pub fn base_dir(&self) -> PathBuf {
+        match self.text {
+            Some(_) => self
+                .path
+                .parent()
+                .map(Path::to_path_buf)
+                .unwrap_or_default(),
+            None => PathBuf::from("."),
+        }
+    }
+
+    /// Location of a field path.
+    pub fn at(&self, field: &str) -> Location {
+        Location {
+            file: self.path.clone(),
+            line_col: self.text.as_deref().and_then(|t| locate(t, field)),
+        }
+    }
+
+    /// An `Invalid` error for `field`.
+    pub fn invalid(&self, field: impl Into<String>, message: impl Into<String>) -> SceneError {
+        let field = field.into();
+        SceneError::Invalid {
+            at: self.at(&field),
+            field,
+            message: message.into(),
+        }
+    }
+}
+
+/// Kind of optical property expected where a name is referenced.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum OpticsRole {
+    /// A facet: Lambertian, RPV, Hapke (or a bi-Lambertian leaf used as facet).
+    Facet,
+    /// Turbid vegetation.
+    Turbid,
+    /// A bi-Lambertian leaf.
+    Leaf,
+}
+
+struct V<'a> {
+    src: &'a SceneSource,
+    nb: usize,
+    desc: &'a SceneDesc,
+}
+
+type R = Result<(), SceneError>;
+
+impl V<'_> {
+    fn finite(&self, f: &str, x: f64) -> R {
+        if x.is_finite() {
+            Ok(())
+        } else {
+            Err(self
+                .src
+                .invalid(f, format!("must be a finite number, got {x}")))
+        }
+    }
+    fn positive(&self, f: &str, x: f64) -> R {
+        self.finite(f, x)?;
+        if x > 0.0 {
+            Ok(())
+        } else {
+            Err(self.src.invalid(f, format!("must be > 0, got {x}")))
+        }
+    }
+    fn non_negative(&self, f: &str, x: f64) -> R {
+        self.finite(f, x)?;
+        if x >= 0.0 {
+            Ok(())
+        } else {
+            Err(self.src.invalid(f, format!("must be >= 0, got {x}")))
+        }
+    }
+    fn in_range(&self, f: &str, x: f64, lo: f64, hi: f64) -> R {
+        self.finite(f, x)?;
+        if (lo..=hi).contains(&x) {
+            Ok(())
+        } else {
+            Err(self
+                .src
+                .invalid(f, format!("must lie in [{lo}, {hi}], got {x}")))
+        }
+    }
+    /// A per-band list: exactly one value per band (empty allowed when `optional`).
+    fn bands(&self, f: &str, v: &[f64], lo: f64, hi: f64, optional: bool) -> R {
+        if v.is_empty() && optional {
+            return Ok(());
+        }
+        if v.len() != self.nb {
+            return Err(self.src.invalid(
+                f,
+                format!(
+                    "needs one value per band ({} bands), got {}",
+                    self.nb,
+                    v.len()
+                ),
+            ));
+        }
+        for (i, &x) in v.iter().enumerate() {
+            self.in_range(&format!("{f}[{i}]"), x, lo, hi)?;
+        }
+        Ok(())
+    }
+
+    fn optics_ref(&self, f: &str, name: &str, role: OpticsRole) -> R {
+        let Some(o) = self.desc.optics.get(name) else {
+            let known: Vec<&str> = self.desc.optics.keys().map(String::as_str).collect();
+            return Err(self.src.invalid(
+                f,
+                format!(
+                    "unknown optical property `{name}` (defined: {})",
+                    known.join(", ")
+                ),
+            ));
+        };
+        let ok = match role {
+            OpticsRole::Facet => matches!(
+                o,
+                OpticsDesc::Lambertian { .. }
+                    | OpticsDesc::Rpv { .. }
+                    | OpticsDesc::Hapke { .. }
+                    | OpticsDesc::BiLambertian { .. }
+            ),
+            OpticsRole::Turbid => matches!(o, OpticsDesc::Turbid { .. }),
+            OpticsRole::Leaf => matches!(o, OpticsDesc::BiLambertian { .. }),
+        };
+        if ok {
+            Ok(())
+        } else {
+            let want = match role {
+                OpticsRole::Facet => "a facet property (Lambertian, Rpv, Hapke or BiLambertian)",
+                OpticsRole::Turbid => "a Turbid property",
+                OpticsRole::Leaf => "a BiLambertian leaf property",
+            };
+            Err(self.src.invalid(f, format!("`{name}` is not {want}")))
+        }
+    }
+
+    fn foliage(&self, f: &str, fo: &FoliageDesc) -> R {
+        let (name, x) = match fo {
+            FoliageDesc::LeafAreaDensity(x) => ("LeafAreaDensity", *x),
+            FoliageDesc::Lai(x) => ("Lai", *x),
+            FoliageDesc::LeafArea(x) => ("LeafArea", *x),
+        };
+        self.non_negative(&format!("{f}.{name}"), x).map_err(|_| {
+            self.src
+                .invalid(f, format!("{name} must be a finite number >= 0, got {x}"))
+        })
+    }
+
+    fn weights(&self, f: &str, w: &[f64]) -> R {
+        if w.is_empty() {
+            return Ok(());
+        }
+        for (i, &x) in w.iter().enumerate() {
+            self.non_negative(&format!("{f}[{i}]"), x)?;
+        }
+        if w.iter().sum::<f64>() <= 0.0 {
+            return Err(self.src.invalid(f, "weights must not all be zero"));
+        }
+        Ok(())
+    }
+
+    fn footprint(&self, f: &str, fp: &FootprintDesc) -> R {
+        match fp {
+            FootprintDesc::Box((x0, y0, x1, y1)) => {
+                for (k, v) in [x0, y0, x1, y1].iter().enumerate() {
+                    self.finite(&format!("{f}.Box[{k}]"), **v)?;
+                }
+                if !(x1 > x0 && y1 > y0) {
+                    return Err(self.src.invalid(
+                        f,
+                        format!("box needs x_min < x_max and y_min < y_max, got ({x0}, {y0}, {x1}, {y1})"),
+                    ));
+                }
+            }
+            FootprintDesc::Polygon(pts) => {
+                if pts.len() < 3 {
+                    return Err(self.src.invalid(f, "a polygon needs at least 3 vertices"));
+                }
+                for (i, p) in pts.iter().enumerate() {
+                    self.finite(&format!("{f}.Polygon[{i}]"), p.0)?;
+                    self.finite(&format!("{f}.Polygon[{i}]"), p.1)?;
+                }
+                let poly: Vec<glam::DVec2> =
+                    pts.iter().map(|p| glam::DVec2::new(p.0, p.1)).collect();
+                if polygon::signed_area(&poly).abs() <= 1e-12 {
+                    return Err(self.src.invalid(f, "polygon has zero area"));
+                }
+                if let Some((a, b)) = polygon::self_intersection(&poly) {
+                    return Err(self
+                        .src
+                        .invalid(f, format!("polygon is not simple: edges {a} and {b} cross")));
+                }
+            }
+        }
+        Ok(())
+    }
+
+    /// Isolated scenes: the footprint must lie inside [0, X] × [0, Y].
+    fn inside(&self, f: &str, xmin: f64, ymin: f64, xmax: f64, ymax: f64) -> R {
+        if self.desc.grid.boundary != BoundaryMode::Isolated {
+            return Ok(());
+        }
+        let (sx, sy) = self.desc.grid.size_m;
+        let eps = 1e-9 * sx.max(sy);
+        if xmin < -eps || ymin < -eps || xmax > sx + eps || ymax > sy + eps {
+            return Err(self.src.invalid(
+                f,
+                format!(
+                    "object spans x [{xmin:.3}, {xmax:.3}] m, y [{ymin:.3}, {ymax:.3}] m, outside the isolated scene [0, {sx}] × [0, {sy}] m"
+                ),
+            ));
+        }
+        Ok(())
+    }
+
+    fn crown(&self, f: &str, c: &CrownDesc) -> R {
+        self.non_negative(&format!("{f}.base_height_m"), c.base_height_m)?;
+        self.positive(&format!("{f}.height_m"), c.height_m)?;
+        self.positive(&format!("{f}.radius_x_m"), c.radius_x_m)?;
+        if let Some(ry) = c.radius_y_m {
+            self.positive(&format!("{f}.radius_y_m"), ry)?;
+        }
+        match (c.shape, c.top_radius_fraction) {
+            (CrownShape::Trapezoid, Some(t)) => {
+                self.in_range(&format!("{f}.top_radius_fraction"), t, 0.0, 1.0)?
+            }
+            (CrownShape::Trapezoid, None) => {
+                return Err(self.src.invalid(
+                    format!("{f}.shape"),
+                    "a Trapezoid crown needs `top_radius_fraction`",
+                ));
+            }
+            (_, Some(_)) => {
+                return Err(self.src.invalid(
+                    format!("{f}.top_radius_fraction"),
+                    "only a Trapezoid crown takes `top_radius_fraction`",
+                ));
+            }
+            _ => {}
+        }
+        self.foliage(&format!("{f}.foliage"), &c.foliage)?;
+        self.weights(&format!("{f}.vertical_profile"), &c.vertical_profile)?;
+        self.weights(&format!("{f}.radial_profile"), &c.radial_profile)?;
+        self.optics_ref(&format!("{f}.optics"), &c.optics, OpticsRole::Turbid)
+    }
+
+    fn trunk(&self, f: &str, t: &TrunkDesc) -> R {
+        self.positive(&format!("{f}.height_m"), t.height_m)?;
+        self.positive(&format!("{f}.diameter_m"), t.diameter_m)?;
+        if t.sides < 3 {
+            return Err(self
+                .src
+                .invalid(format!("{f}.sides"), "a trunk needs at least 3 sides"));
+        }
+        self.optics_ref(&format!("{f}.optics"), &t.optics, OpticsRole::Facet)
+    }
+
+    fn tree_extent(&self, f: &str, x: f64, y: f64, c: &CrownDesc) -> R {
+        self.finite(&format!("{f}.position_m"), x)?;
+        self.finite(&format!("{f}.position_m"), y)?;
+        let rx = c.radius_x_m;
+        let ry = c.radius_y_m.unwrap_or(rx);
+        self.inside(f, x - rx, y - ry, x + rx, y + ry)
+    }
+}
+
+fn footprint_bounds(fp: &FootprintDesc) -> (f64, f64, f64, f64) {
+    match fp {
+        FootprintDesc::Box(b) => *b,
+        FootprintDesc::Polygon(p) => p.iter().fold(
+            (
+                f64::INFINITY,
+                f64::INFINITY,
+                f64::NEG_INFINITY,
+                f64::NEG_INFINITY,
+            ),
+            |(a, b, c, d), &(x, y)| (a.min(x), b.min(y), c.max(x), d.max(y)),
+        ),
+    }
+}
+
+/// Checks a scene; returns the first error found.
+pub fn validate(desc: &SceneDesc, src: &SceneSource) -> Result<(), SceneError> {
+    let v = V {
+        src,
+        nb: desc.bands.len(),
+        desc,
+    };
+    if desc.version != SCENE_FORMAT_VERSION {
+        return Err(src.invalid(
+            "version",
+            format!(
+                "scene format version {} is not known (this lumenscape reads version {SCENE_FORMAT_VERSION})",
+                desc.version
+            ),
+        ));
+    }
+    for (field, present, issue) in [
+        (
+            "atmosphere",
+            desc.atmosphere.is_some(),
+            "the atmosphere module is planned",
+        ),
+        (
+            "sensors",
+            desc.sensors.is_some(),
+            "sensors arrive with the Radiative/Sensor stages",
+        ),
+        (
+            "lidars",
+            desc.lidars.is_some(),
+            "LiDAR arrives with the Photon stage",
+        ),
+        (
+            "directions",
+            desc.directions.is_some(),
+            "the Direction stage is not wired into scenes yet",
+        ),
+    ] {
+        if present {
+            return Err(SceneError::NotSupported {
+                at: src.at(field),
+                field: field.into(),
+                message: issue.into(),
+            });
+        }
+    }
+    // Grid.
+    let g = &desc.grid;
+    v.positive("grid.size_m", g.size_m.0)?;
+    v.positive("grid.size_m", g.size_m.1)?;
+    v.positive("grid.cell_m", g.cell_m.0)?;
+    v.positive("grid.cell_m", g.cell_m.1)?;
+    v.positive("grid.cell_m", g.cell_m.2)?;
+    for (s, c, axis) in [(g.size_m.0, g.cell_m.0, "x"), (g.size_m.1, g.cell_m.1, "y")] {
+        let n = s / c;
+        if (n - n.round()).abs() > 1e-6 * n.max(1.0) || n.round() < 1.0 {
+            return Err(src.invalid(
+                "grid.cell_m",
+                format!("scene size along {axis} ({s} m) must be a whole number of cells of {c} m"),
+            ));
+        }
+    }
+    if let Some(h) = g.height_m {
+        v.positive("grid.height_m", h)?;
+    }
+    if g.subcells == 0 || g.subcells > 16 {
+        return Err(src.invalid(
+            "grid.subcells",
+            format!("must be in 1..=16, got {}", g.subcells),
+        ));
+    }
+    // Bands.
+    if desc.bands.is_empty() {
+        return Err(src.invalid("bands", "at least one band is needed"));
+    }
+    for (i, b) in desc.bands.iter().enumerate() {
+        if b.name.trim().is_empty() {
+            return Err(src.invalid(format!("bands[{i}].name"), "band name is empty"));
+        }
+        if desc.bands[..i].iter().any(|o| o.name == b.name) {
+            return Err(src.invalid(
+                format!("bands[{i}].name"),
+                format!("duplicate band name `{}`", b.name),
+            ));
+        }
+        v.positive(&format!("bands[{i}].wavelength_nm"), b.wavelength_nm)?;
+        v.non_negative(&format!("bands[{i}].fwhm_nm"), b.fwhm_nm)?;
+    }
+    // Optics.
+    for (name, o) in &desc.optics {
+        let f = format!("optics[\"{name}\"]");
+        match o {
+            OpticsDesc::Lambertian {
+                reflectance,
+                diffuse_transmittance,
+                direct_transmittance,
+            } => {
+                v.bands(&format!("{f}.reflectance"), reflectance, 0.0, 1.0, false)?;
+                v.bands(
+                    &format!("{f}.diffuse_transmittance"),
+                    diffuse_transmittance,
+                    0.0,
+                    1.0,
+                    true,
+                )?;
+                v.bands(
+                    &format!("{f}.direct_transmittance"),
+                    direct_transmittance,
+                    0.0,
+                    1.0,
+                    true,
+                )?;
+                for b in 0..v.nb {
+                    let r = reflectance[b];
+                    let t = diffuse_transmittance.get(b).copied().unwrap_or(0.0);
+                    if r + t > 1.0 + 1e-12 {
+                        return Err(src.invalid(
+                            format!("{f}.reflectance[{b}]"),
+                            format!(
+                                "reflectance + diffuse transmittance = {} > 1 in band `{}`",
+                                r + t,
+                                desc.bands[b].name
+                            ),
+                        ));
+                    }
+                }
+            }
+            OpticsDesc::BiLambertian {
+                reflectance,
+                transmittance,
+            } => {
+                v.bands(&format!("{f}.reflectance"), reflectance, 0.0, 1.0, false)?;
+                v.bands(
+                    &format!("{f}.transmittance"),
+                    transmittance,
+                    0.0,
+                    1.0,
+                    false,
+                )?;
+                for b in 0..v.nb {
+                    if reflectance[b] + transmittance[b] > 1.0 + 1e-12 {
+                        return Err(src.invalid(
+                            format!("{f}.reflectance[{b}]"),
+                            format!(
+                                "leaf reflectance + transmittance = {} > 1 in band `{}`",
+                                reflectance[b] + transmittance[b],
+                                desc.bands[b].name
+                            ),
+                        ));
+                    }
+                }
+            }
+            OpticsDesc::Rpv {
+                rho0,
+                k,
+                theta,
+                rho_c,
+            } => {
+                v.bands(&format!("{f}.rho0"), rho0, 0.0, f64::MAX, false)?;
+                v.bands(&format!("{f}.k"), k, 0.0, 10.0, false)?;
+                v.bands(&format!("{f}.theta"), theta, -0.999, 0.999, false)?;
+                if let Some(rc) = rho_c {
+                    v.bands(&format!("{f}.rho_c"), rc, 0.0, f64::MAX, false)?;
+                }
+            }
+            OpticsDesc::Hapke {
+                w,
+                b,
+                c,
+                roughness_deg,
+                b0,
+                h,
+            } => {
+                v.bands(&format!("{f}.w"), w, 0.0, 1.0, false)?;
+                v.bands(&format!("{f}.b"), b, 0.0, 0.999, false)?;
+                v.bands(&format!("{f}.c"), c, 0.0, 1.0, false)?;
+                v.in_range(&format!("{f}.roughness_deg"), *roughness_deg, 0.0, 60.0)?;
+                v.non_negative(&format!("{f}.b0"), *b0)?;
+                v.positive(&format!("{f}.h"), *h)?;
+            }
+            OpticsDesc::Turbid {
+                leaf,
+                lad,
+                leaf_size_m,
+            } => {
+                v.optics_ref(&format!("{f}.leaf"), leaf, OpticsRole::Leaf)?;
+                v.non_negative(&format!("{f}.leaf_size_m"), *leaf_size_m)?;
+                let lf = format!("{f}.lad");
+                match lad {
+                    LadDesc::Ellipsoidal { mean_angle_deg } => {
+                        v.finite(&lf, *mean_angle_deg)?;
+                        if !(*mean_angle_deg > 1.0 && *mean_angle_deg < 89.0) {
+                            return Err(src.invalid(
+                                lf,
+                                format!(
+                                    "mean leaf angle must lie in (1°, 89°), got {mean_angle_deg}"
+                                ),
+                            ));
+                        }
+                    }
+                    LadDesc::Beta { mu, nu } => {
+                        v.positive(&lf, *mu)?;
+                        v.positive(&lf, *nu)?;
+                    }
+                    LadDesc::Histogram { weights } => {
+                        if weights.is_empty() {
+                            return Err(src.invalid(lf, "histogram needs at least one bin"));
+                        }
+                        v.weights(&lf, weights)?;
+                    }
+                    _ => {}
+                }
+            }
+        }
+    }
+    // Illumination.
+    let il = &desc.illumination;
+    v.finite("illumination.sun_zenith_deg", il.sun_zenith_deg)?;
+    if !(0.0..90.0).contains(&il.sun_zenith_deg) {
+        return Err(src.invalid(
+            "illumination.sun_zenith_deg",
+            format!(
+                "sun zenith (ground→sun) must lie in [0°, 90°), got {}",
+                il.sun_zenith_deg
+            ),
+        ));
+    }
+    v.finite("illumination.sun_azimuth_deg", il.sun_azimuth_deg)?;
+    v.bands("illumination.skyl", &il.skyl, 0.0, 1.0, true)?;
+    if !il.irradiance_w_m2_um.is_empty() {
+        v.bands(
+            "illumination.irradiance_w_m2_um",
+            &il.irradiance_w_m2_um,
+            0.0,
+            f64::MAX,
+            false,
+        )?;
+    }
+    // Objects.
+    let mut ground_seen = false;
+    for (i, o) in desc.objects.iter().enumerate() {
+        let f = format!("objects[{i}]");
+        match o {
+            ObjectDesc::Ground(gd) => {
+                if ground_seen {
+                    return Err(src.invalid(f, "a scene has at most one Ground"));
+                }
+                ground_seen = true;
+                v.optics_ref(&format!("{f}.optics"), &gd.optics, OpticsRole::Facet)?;
+                match &gd.topography {
+                    TopographyDesc::Flat => {}
+                    TopographyDesc::Raster(r) => {
+                        let tf = format!("{f}.topography");
+                        if r.nodes.0 < 2 || r.nodes.1 < 2 {
+                            return Err(src.invalid(
+                                format!("{tf}.nodes"),
+                                "a raster needs at least 2 × 2 nodes",
+                            ));
+                        }
+                        v.positive(&format!("{tf}.spacing_m"), r.spacing_m.0)?;
+                        v.positive(&format!("{tf}.spacing_m"), r.spacing_m.1)?;
+                        if r.altitude_m.len() != r.nodes.0 * r.nodes.1 {
+                            return Err(src.invalid(
+                                format!("{tf}.altitude_m"),
+                                format!(
+                                    "expected {} × {} = {} altitudes, got {}",
+                                    r.nodes.0,
+                                    r.nodes.1,
+                                    r.nodes.0 * r.nodes.1,
+                                    r.altitude_m.len()
+                                ),
+                            ));
+                        }
+                        for (k, z) in r.altitude_m.iter().enumerate() {
+                            v.finite(&format!("{tf}.altitude_m[{k}]"), *z)?;
+                        }
+                    }
+                    TopographyDesc::RasterFile(_) => {}
+                    TopographyDesc::Points { points_m } => {
+                        if points_m.len() < 3 {
+                            return Err(src.invalid(
+                                format!("{f}.topography.points_m"),
+                                "at least 3 points are needed",
+                            ));
+                        }
+                        for (k, p) in points_m.iter().enumerate() {
+                            for x in [p.0, p.1, p.2] {
+                                v.finite(&format!("{f}.topography.points_m[{k}]"), x)?;
+                            }
+                        }
+                    }
+                }
+            }
+            ObjectDesc::Tree(t) => {
+                v.crown(&format!("{f}.crown"), &t.crown)?;
+                if let Some(tr) = &t.trunk {
+                    v.trunk(&format!("{f}.trunk"), tr)?;
+                }
+                v.tree_extent(
+                    &format!("{f}.position_m"),
+                    t.position_m.0,
+                    t.position_m.1,
+                    &t.crown,
+                )?;
+            }
+            ObjectDesc::TreeStand(s) => {
+                if s.species.is_empty() {
+                    return Err(
+                        src.invalid(format!("{f}.species"), "a stand needs at least one species")
+                    );
+                }
+                for (k, sp) in s.species.iter().enumerate() {
+                    v.crown(&format!("{f}.species[{k}].crown"), &sp.crown)?;
+                    if let Some(tr) = &sp.trunk {
+                        v.trunk(&format!("{f}.species[{k}].trunk"), tr)?;
+                    }
+                }
+                match &s.placement {
+                    PlacementDesc::Explicit(list) => {
+                        for (k, (sp, x, y)) in list.iter().enumerate() {
+                            let pf = format!("{f}.placement.Explicit[{k}]");
+                            let Some(spd) = s.species.get(*sp) else {
+                                return Err(src.invalid(
+                                    pf,
+                                    format!(
+                                        "species index {sp} out of range (stand has {})",
+                                        s.species.len()
+                                    ),
+                                ));
+                            };
+                            v.tree_extent(&pf, *x, *y, &spd.crown)?;
+                        }
+                    }
+                    PlacementDesc::Random {
+                        counts,
+                        min_spacing_m,
+                        region_m,
+                    } => {
+                        let pf = format!("{f}.placement");
+                        if counts.len() != s.species.len() {
+                            return Err(src.invalid(
+                                format!("{pf}.counts"),
+                                format!(
+                                    "needs one count per species ({}), got {}",
+                                    s.species.len(),
+                                    counts.len()
+                                ),
+                            ));
+                        }
+                        v.non_negative(&format!("{pf}.min_spacing_m"), *min_spacing_m)?;
+                        if let Some((x0, y0, x1, y1)) = region_m {
+                            v.footprint(
+                                &format!("{pf}.region_m"),
+                                &FootprintDesc::Box((*x0, *y0, *x1, *y1)),
+                            )?;
+                            let r = s
+                                .species
+                                .iter()
+                                .map(|sp| {
+                                    sp.crown.radius_x_m.max(sp.crown.radius_y_m.unwrap_or(0.0))
+                                })
+                                .fold(0.0, f64::max);
+                            v.inside(&format!("{pf}.region_m"), x0 - r, y0 - r, x1 + r, y1 + r)?;
+                        } else if desc.grid.boundary == BoundaryMode::Isolated {
+                            return Err(src.invalid(
+                                format!("{pf}.region_m"),
+                                "random placement in an isolated scene needs a `region_m` that keeps crowns inside the scene",
+                            ));
+                        }
+                    }
+                }
+            }
+            ObjectDesc::TurbidPlot(p) => {
+                v.footprint(&format!("{f}.footprint"), &p.footprint)?;
+                v.non_negative(&format!("{f}.bottom_m"), p.bottom_m)?;
+                v.positive(&format!("{f}.top_m"), p.top_m)?;
+                if p.top_m <= p.bottom_m {
+                    return Err(src.invalid(
+                        format!("{f}.top_m"),
+                        format!("top ({}) must be above bottom ({})", p.top_m, p.bottom_m),
+                    ));
+                }
+                v.foliage(&format!("{f}.foliage"), &p.foliage)?;
+                v.optics_ref(&format!("{f}.optics"), &p.optics, OpticsRole::Turbid)?;
+                let (a, b, c, d) = footprint_bounds(&p.footprint);
+                v.inside(&format!("{f}.footprint"), a, b, c, d)?;
+            }
+            ObjectDesc::Building(b) => {
+                v.footprint(&format!("{f}.footprint"), &b.footprint)?;
+                v.positive(&format!("{f}.wall_height_m"), b.wall_height_m)?;
+                if let RoofDesc::Gable { ridge_height_m } = b.roof {
+                    v.positive(&format!("{f}.roof.ridge_height_m"), ridge_height_m)?;
+                    if let FootprintDesc::Polygon(p) = &b.footprint
+                        && !polygon::is_rectangle(p)
+                    {
+                        return Err(src.invalid(
+                            format!("{f}.roof"),
+                            "a Gable roof needs a rectangular footprint (a Box or a 4-vertex rectangle)",
+                        ));
+                    }
+                }
+                v.optics_ref(
+                    &format!("{f}.wall_optics"),
+                    &b.wall_optics,
+                    OpticsRole::Facet,
+                )?;
+                v.optics_ref(
+                    &format!("{f}.roof_optics"),
+                    &b.roof_optics,
+                    OpticsRole::Facet,
+                )?;
+                let (a, bb, c, d) = footprint_bounds(&b.footprint);
+                v.inside(&format!("{f}.footprint"), a, bb, c, d)?;
+            }
+            ObjectDesc::Water(w) => {
+                v.footprint(&format!("{f}.footprint"), &w.footprint)?;
+                if let Some(z) = w.altitude_m {
+                    v.finite(&format!("{f}.altitude_m"), z)?;
+                }
+                v.optics_ref(&format!("{f}.optics"), &w.optics, OpticsRole::Facet)?;
+                let (a, b, c, d) = footprint_bounds(&w.footprint);
+                v.inside(&format!("{f}.footprint"), a, b, c, d)?;
+            }
+            ObjectDesc::Leaves(l) => {
+                v.positive(&format!("{f}.radius_m"), l.radius_m)?;
+                if l.sides < 3 {
+                    return Err(src.invalid(
+                        format!("{f}.sides"),
+                        "a disk polygon needs at least 3 sides",
+                    ));
+                }
+                v.optics_ref(&format!("{f}.optics"), &l.optics, OpticsRole::Facet)?;
+                for (k, d) in l.disks.iter().enumerate() {
+                    let df = format!("{f}.disks[{k}]");
+                    for x in [d.0, d.1, d.2, d.3, d.4, d.5] {
+                        v.finite(&df, x)?;
+                    }
+                    if (d.3 * d.3 + d.4 * d.4 + d.5 * d.5).sqrt() < 1e-9 {
+                        return Err(src.invalid(df, "disk normal has zero length"));
+                    }
+                    v.inside(
+                        &df,
+                        d.0 - l.radius_m,
+                        d.1 - l.radius_m,
+                        d.0 + l.radius_m,
+                        d.1 + l.radius_m,
+                    )?;
+                }
+            }
+            ObjectDesc::Mesh(m) => {
+                v.positive(&format!("{f}.scale"), m.scale)?;
+                v.finite(&format!("{f}.rotation_z_deg"), m.rotation_z_deg)?;
+                for x in [m.translation_m.0, m.translation_m.1, m.translation_m.2] {
+                    v.finite(&format!("{f}.translation_m"), x)?;
+                }
+                if m.groups.is_empty() {
+                    return Err(src.invalid(
+                        format!("{f}.groups"),
+                        "list the optics of at least one mesh group",
+                    ));
+                }
+                for (k, gr) in m.groups.iter().enumerate() {
+                    let role = if gr.as_turbid {
+                        OpticsRole::Leaf
+                    } else {
+                        OpticsRole::Facet
+                    };
+                    v.optics_ref(&format!("{f}.groups[{k}].optics"), &gr.optics, role)?;
+                }
+            }
+        }
+    }
+    Ok(())
+}

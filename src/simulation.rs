@@ -1,0 +1,163 @@
+//! The simulation: a bevy `World` holding the scene's entities and resources, and one schedule
+//! per DART module, run in DART order (Direction, Phase, Maket, Radiative, Photon, Sensor,
+//! Output). A stage runs only when the scene needs it and when it exists.
+
+use crate::resources::scene::{RunSettings, StageErrors};
+use crate::scene::desc::SceneDesc;
+use crate::scene::error::SceneError;
+use crate::scene::{SceneSource, load_scene, spawn::spawn_scene};
+use crate::systems::maket::{add_maket_systems, add_plan_systems, no_stage_error};
+use crate::systems::output::{OutputDir, write_maket_products};
+use bevy_ecs::prelude::*;
+use bevy_ecs::schedule::ScheduleLabel;
+use std::path::Path;
+
+/// The stages (DART modules), in execution order.
+#[derive(ScheduleLabel, Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum Stage {
+    /// Discrete directions (issue: Direction/Phase; not implemented yet).
+    Direction,
+    /// Phase-function tables (not implemented yet).
+    Phase,
+    /// Scene → cell grid.
+    Maket,
+    /// Discrete-ordinate flux tracking (not implemented yet).
+    Radiative,
+    /// Monte Carlo photons (not implemented yet).
+    Photon,
+    /// Sensor images (not implemented yet).
+    Sensor,
+    /// Products.
+    Output,
+}
+
+impl Stage {
+    /// Every stage in DART order.
+    pub const ALL: [Stage; 7] = [
+        Stage::Direction,
+        Stage::Phase,
+        Stage::Maket,
+        Stage::Radiative,
+        Stage::Photon,
+        Stage::Sensor,
+        Stage::Output,
+    ];
+
+    /// True when the stage has systems in this version.
+    pub fn implemented(self) -> bool {
+        matches!(self, Stage::Maket | Stage::Output)
+    }
+}
+
+/// A stage reported an error.
+#[derive(Debug, thiserror::Error)]
+#[error("{stage:?} stage: {}", messages.join("; "))]
+pub struct StageError {
+    /// Stage.
+    pub stage: Stage,
+    /// Messages.
+    pub messages: Vec<String>,
+}
+
+/// A scene loaded into a World, ready to run stages.
+pub struct Simulation {
+    /// The ECS world.
+    pub world: World,
+}
+
+impl Simulation {
+    /// Spawns a scene description (validated first) with the given settings.
+    pub fn from_desc(
+        desc: &SceneDesc,
+        src: &SceneSource,
+        settings: RunSettings,
+    ) -> Result<Self, SceneError> {
+        let mut world = World::new();
+        world.insert_resource(settings);
+        world.init_resource::<StageErrors>();
+        spawn_scene(&mut world, desc, src)?;
+        let mut sim = Self { world };
+        sim.add_schedules();
+        Ok(sim)
+    }
+
+    /// Loads, validates and spawns a scene file.
+    pub fn load(path: &Path, settings: RunSettings) -> Result<Self, SceneError> {
+        let (desc, src) = load_scene(path)?;
+        Self::from_desc(&desc, &src, settings)
+    }
+
+    fn add_schedules(&mut self) {
+        for stage in Stage::ALL {
+            let mut s = Schedule::new(stage);
+            match stage {
+                Stage::Maket => add_maket_systems(&mut s),
+                Stage::Output => {
+                    s.add_systems(
+                        write_maket_products
+                            .run_if(resource_exists::<OutputDir>)
+                            .run_if(resource_exists::<crate::resources::grid::CellGrid>)
+                            .run_if(resource_exists::<crate::resources::maket_report::MaketReport>)
+                            .run_if(no_stage_error),
+                    );
+                }
+                // Not implemented yet: the schedule exists so that ordering is fixed; it has no
+                // systems, so it does nothing (and `run` reports it as skipped).
+                _ => {}
+            }
+            self.world.add_schedule(s);
+        }
+    }
+
+    /// Runs one stage; fails if a system reported an error.
+    pub fn run_stage(&mut self, stage: Stage) -> Result<(), StageError> {
+        self.world.run_schedule(stage);
+        let errs = std::mem::take(&mut self.world.resource_mut::<StageErrors>().0);
+        if errs.is_empty() {
+            Ok(())
+        } else {
+            Err(StageError {
+                stage,
+                messages: errs,
+            })
+        }
+    }
+
+    /// Runs only the facet and planning part of Maket (grid size and memory estimate, no
+    /// allocation of the cell grid): what `lumenscape check` reports.
+    pub fn plan(&mut self) -> Result<(), StageError> {
+        let mut s = Schedule::default();
+        add_plan_systems(&mut s);
+        s.run(&mut self.world);
+        let errs = std::mem::take(&mut self.world.resource_mut::<StageErrors>().0);
+        if errs.is_empty() {
+            Ok(())
+        } else {
+            Err(StageError {
+                stage: Stage::Maket,
+                messages: errs,
+            })
+        }
+    }
+
+    /// Runs every implemented stage in order, writing products into `out` when given.
+    /// Returns the stages that ran.
+    pub fn run(&mut self, out: Option<&Path>) -> Result<Vec<Stage>, StageError> {
+        if let Some(o) = out {
+            self.world.insert_resource(OutputDir(o.to_path_buf()));
+        }
+        let mut ran = Vec::new();
+        for stage in Stage::ALL {
+            if stage.implemented() {
+                self.run_stage(stage)?;
+                ran.push(stage);
+            }
+        }
+        Ok(ran)
+    }
+
+    /// A resource of the world (panics if absent: for tests and callers that ran the stage).
+    pub fn resource<R: Resource>(&self) -> &R {
+        self.world.resource::<R>()
+    }
+}
