@@ -362,11 +362,13 @@ fn hierarchy_cycles_and_shared_children_are_errors() {
 
 #[test]
 fn missing_file_is_not_found() {
-    let path = temp_dir("missing").join("no_such_tree.obj");
+    let dir = temp_dir("missing");
+    let path = dir.join("no_such_tree.obj");
     let e = load_mesh(&path).unwrap_err();
     assert!(matches!(e, MeshError::NotFound { .. }), "{e}");
     assert!(e.to_string().contains("no_such_tree.obj"), "{e}");
     assert_eq!(e.path(), path);
+    let _ = std::fs::remove_dir_all(&dir);
 }
 
 #[test]

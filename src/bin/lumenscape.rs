@@ -1,7 +1,7 @@
 //! The `lumenscape` command-line tool.
 
 use clap::{Parser, Subcommand};
-use lumenscape::cli::{generate, scene_cmds};
+use lumenscape::cli::{generate, prospect, scene_cmds, sun};
 use std::io::Write;
 use std::process::ExitCode;
 
@@ -23,6 +23,14 @@ enum Command {
     Run(scene_cmds::RunArgs),
     /// Print a generated scene as RON.
     Generate(generate::Args),
+    /// PROSPECT-5 / PROSPECT-D leaf reflectance and transmittance, 400–2500 nm (CSV).
+    Prospect(prospect::Args),
+    /// Sun position (NREL SPA) for a date, time and place, in the scene's angle convention.
+    Sun(sun::Args),
+}
+
+fn plain(message: String) -> scene_cmds::CliError {
+    scene_cmds::CliError { message, code: 1 }
 }
 
 fn main() -> ExitCode {
@@ -34,6 +42,8 @@ fn main() -> ExitCode {
         Command::Maket(a) => scene_cmds::maket(a, &mut out),
         Command::Run(a) => scene_cmds::run(a, &mut out),
         Command::Generate(a) => generate::run(a, &mut out),
+        Command::Prospect(a) => prospect::run(a, &mut out).map_err(plain),
+        Command::Sun(a) => sun::run(a, &mut out).map_err(plain),
     };
     let _ = out.flush();
     match res {

@@ -15,7 +15,9 @@ pub use validate::SceneSource;
 
 /// Parses RON text into a scene description (syntax, types and unknown fields only).
 pub fn parse_scene(text: &str, path: &Path) -> Result<SceneDesc, SceneError> {
+    // IMPLICIT_SOME: optional fields take a bare value (`radius_y_m: 2.0`) or `Some(2.0)`.
     ron::Options::default()
+        .with_default_extension(ron::extensions::Extensions::IMPLICIT_SOME)
         .from_str::<SceneDesc>(text)
         .map_err(|e| SceneError::Syntax {
             at: Location {

@@ -234,6 +234,12 @@ pub fn spawn_scene(
                                 message,
                             }
                         }
+                        // A referenced file that cannot be read: name it, and the scene line
+                        // that refers to it.
+                        SceneError::Io { path, source } => src.invalid(
+                            format!("{field}.path"),
+                            format!("{}: cannot read file: {source}", path.display()),
+                        ),
                         other => other,
                     }
                 })?;
@@ -376,6 +382,12 @@ pub fn spawn_scene(
                 let path = base_dir.join(&m.path);
                 let mut mesh = crate::io::mesh::load_mesh(&path)
                     .map_err(|e| src.invalid(format!("objects[{i}].path"), e.to_string()))?;
+                for w in &mesh.warnings {
+                    warnings.push(format!("{}: {w}", path.display()));
+                }
+                if mesh.skipped_non_triangle > 0 {
+                    warnings.push(format!("{}: skipped {} non-triangle primitives", path.display(), mesh.skipped_non_triangle));
+                }
                 let rep = mesh.clean_triangles();
                 if rep.removed_degenerate + rep.removed_non_finite > 0 {
                     warnings.push(format!(

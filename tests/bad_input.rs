@@ -1,0 +1,201 @@
+//! Bad input: every case gives a clear error naming the file, line/column and field, and the
+//! CLI exits non-zero; nothing panics and no product is half-written.
+
+mod common;
+use lumenscape::resources::scene::RunSettings;
+use lumenscape::scene::error::SceneError;
+use lumenscape::simulation::Simulation;
+use std::path::PathBuf;
+use std::process::Command;
+
+const GOOD: &str = r#"(
+    version: 1,
+    grid: (size_m: (10.0, 10.0), cell_m: (1.0, 1.0, 1.0), boundary: Isolated),
+    bands: [(name: "red", wavelength_nm: 670.0)],
+    optics: {
+        "leaf": BiLambertian(reflectance: [0.05], transmittance: [0.02]),
+        "veg": Turbid(leaf: "leaf", lad: Spherical),
+        "soil": Lambertian(reflectance: [0.1]),
+    },
+    illumination: (sun_zenith_deg: 30.0, sun_azimuth_deg: 0.0),
+    objects: [
+        Ground((optics: "soil")),
+        Tree((
+            position_m: (5.0, 5.0),
+            crown: (shape: Ellipsoid, base_height_m: 1.0, height_m: 3.0, radius_x_m: 1.5,
+                    foliage: LeafAreaDensity(0.8), optics: "veg"),
+        )),
+    ],
+)
+"#;
+
+fn dir() -> PathBuf {
+    let d = std::env::temp_dir().join(format!("lumenscape-bad-{}", std::process::id()));
+    std::fs::create_dir_all(&d).unwrap();
+    d
+}
+
+fn write(name: &str, text: &str) -> PathBuf {
+    let p = dir().join(name);
+    std::fs::write(&p, text).unwrap();
+    p
+}
+
+/// Loads a scene text (written to a file) and returns the error message, which must name the
+/// file; `line` is the expected line, when the error should carry one.
+fn error_of(name: &str, text: &str) -> (SceneError, String) {
+    let p = write(name, text);
+    let e = match Simulation::load(&p, RunSettings::default()) {
+        Ok(_) => panic!("{name}: expected an error"),
+        Err(e) => e,
+    };
+    let msg = e.to_string();
+    assert!(msg.contains(&p.display().to_string()), "{name}: message does not name the file: {msg}");
+    (e, msg)
+}
+
+fn line_of(e: &SceneError) -> Option<usize> {
+    match e {
+        SceneError::Syntax { at, .. } | SceneError::Invalid { at, .. } | SceneError::NotSupported { at, .. } => at.line_col.map(|l| l.0),
+        SceneError::Io { .. } => None,
+    }
+}
+
+fn line_containing(text: &str, needle: &str) -> usize {
+    text.lines().position(|l| l.contains(needle)).expect("needle in text") + 1
+}
+
+#[test]
+fn good_scene_loads() {
+    let p = write("good.ron", GOOD);
+    Simulation::load(&p, RunSettings::default()).unwrap();
+}
+
+#[test]
+fn ron_syntax_error_names_line_and_column() {
+    let text = GOOD.replace("sun_azimuth_deg: 0.0)", "sun_azimuth_deg: 0.0");
+    let (e, msg) = error_of("syntax.ron", &text);
+    assert!(matches!(e, SceneError::Syntax { .. }), "{msg}");
+    assert!(line_of(&e).is_some(), "{msg}");
+}
+
+#[test]
+fn unknown_field_is_an_error_at_its_line() {
+    let text = GOOD.replace("radius_x_m: 1.5,", "radius_x_m: 1.5, radius_z_m: 2.0,");
+    let (e, msg) = error_of("unknown.ron", &text);
+    assert!(msg.contains("radius_z_m"), "{msg}");
+    assert_eq!(line_of(&e), Some(line_containing(&text, "radius_z_m")), "{msg}");
+}
+
+#[test]
+fn missing_files_are_reported() {
+    let p = dir().join("does_not_exist.ron");
+    let e = Simulation::load(&p, RunSettings::default()).err().expect("error");
+    assert!(matches!(e, SceneError::Io { .. }));
+    assert!(e.to_string().contains("does_not_exist.ron"));
+    let text = GOOD.replace("Ground((optics: \"soil\")),", "Ground((optics: \"soil\", topography: RasterFile((path: \"nope.asc\", format: EsriAscii)))),");
+    let (_, msg) = error_of("missing_dem.ron", &text);
+    assert!(msg.contains("nope.asc"), "{msg}");
+    let text = GOOD.replace("Ground((optics: \"soil\")),", "Ground((optics: \"soil\")), Mesh((path: \"nope.obj\", groups: [(group: \"a\", optics: \"soil\")])),");
+    let (e, msg) = error_of("missing_mesh.ron", &text);
+    assert!(msg.contains("nope.obj"), "{msg}");
+    assert_eq!(line_of(&e), Some(line_containing(&text, "nope.obj")));
+}
+
+#[test]
+fn negative_and_nan_densities_and_sizes_are_rejected_with_their_field() {
+    for (name, from, to, field) in [
+        ("neg_density.ron", "LeafAreaDensity(0.8)", "LeafAreaDensity(-0.8)", "foliage"),
+        ("nan_density.ron", "LeafAreaDensity(0.8)", "LeafAreaDensity(NaN)", "foliage"),
+        ("neg_radius.ron", "radius_x_m: 1.5", "radius_x_m: -1.5", "radius_x_m"),
+        ("nan_height.ron", "height_m: 3.0", "height_m: NaN", "height_m"),
+        ("zero_cell.ron", "cell_m: (1.0, 1.0, 1.0)", "cell_m: (1.0, 0.0, 1.0)", "cell_m"),
+        ("neg_cell.ron", "cell_m: (1.0, 1.0, 1.0)", "cell_m: (-1.0, 1.0, 1.0)", "cell_m"),
+        ("bad_sun.ron", "sun_zenith_deg: 30.0", "sun_zenith_deg: 95.0", "sun_zenith_deg"),
+        ("bad_version.ron", "version: 1", "version: 7", "version"),
+        ("bad_optics_ref.ron", "optics: \"veg\"", "optics: \"vegg\"", "optics"),
+        ("wrong_band_count.ron", "reflectance: [0.1]", "reflectance: [0.1, 0.2]", "reflectance"),
+        ("non_whole_cells.ron", "size_m: (10.0, 10.0)", "size_m: (10.5, 10.0)", "cell_m"),
+    ] {
+        let text = GOOD.replace(from, to);
+        assert_ne!(text, GOOD, "{name}: replacement did not apply");
+        let (e, msg) = error_of(name, &text);
+        assert!(matches!(e, SceneError::Invalid { .. }), "{name}: {msg}");
+        assert!(msg.contains(field), "{name}: message does not name `{field}`: {msg}");
+        assert_eq!(line_of(&e), Some(line_containing(&text, to)), "{name}: {msg}");
+    }
+}
+
+#[test]
+fn leaf_reflectance_plus_transmittance_above_one_is_rejected() {
+    let text = GOOD.replace("transmittance: [0.02]", "transmittance: [0.97]");
+    let (e, msg) = error_of("rt.ron", &text);
+    assert!(msg.contains("reflectance + transmittance"), "{msg}");
+    assert_eq!(line_of(&e), Some(line_containing(&text, "\"leaf\"")));
+}
+
+#[test]
+fn objects_outside_an_isolated_scene_are_rejected() {
+    let text = GOOD.replace("position_m: (5.0, 5.0)", "position_m: (9.0, 5.0)");
+    let (e, msg) = error_of("outside.ron", &text);
+    assert!(msg.contains("outside the isolated scene"), "{msg}");
+    assert_eq!(line_of(&e), Some(line_containing(&text, "position_m")));
+}
+
+#[test]
+fn reserved_sections_are_not_supported_yet() {
+    let text = GOOD.replacen("    version: 1,", "    version: 1,\n    lidars: [],", 1);
+    let (e, msg) = error_of("lidar.ron", &text);
+    assert!(matches!(e, SceneError::NotSupported { .. }), "{msg}");
+    assert!(msg.contains("not supported yet"));
+    assert_eq!(line_of(&e), Some(3));
+}
+
+#[test]
+fn degenerate_triangles_are_skipped_with_a_counted_warning_and_empty_meshes_fail() {
+    let obj = "o leafy\nv 1 1 0\nv 2 1 0\nv 1 2 0\nv 3 1 0\nf 1 2 3\nf 1 2 4\nf 2 2 3\n";
+    write("degen.obj", obj);
+    let text = GOOD.replace("Ground((optics: \"soil\")),", "Ground((optics: \"soil\")), Mesh((path: \"degen.obj\", groups: [(group: \"leafy\", optics: \"leaf\", two_sided: true)])),");
+    let p = write("degen.ron", &text);
+    let mut sim = Simulation::load(&p, RunSettings::default()).unwrap();
+    sim.run_stage(lumenscape::simulation::Stage::Maket).unwrap();
+    let r = sim.resource::<lumenscape::resources::maket_report::MaketReport>();
+    assert_eq!(r.facet_count.get("leaf"), Some(&1), "{r:?}");
+    assert!(r.warnings.iter().any(|w| w.contains("2 degenerate")), "{:?}", r.warnings);
+    write("empty.obj", "# nothing\n");
+    let text = GOOD.replace("Ground((optics: \"soil\")),", "Ground((optics: \"soil\")), Mesh((path: \"empty.obj\", groups: [(group: \"a\", optics: \"leaf\")])),");
+    let (_, msg) = error_of("empty.ron", &text);
+    assert!(msg.contains("empty.obj"), "{msg}");
+}
+
+#[test]
+fn cli_exits_non_zero_with_file_line_and_field() {
+    let exe = env!("CARGO_BIN_EXE_lumenscape");
+    let text = GOOD.replace("radius_x_m: 1.5", "radius_x_m: -1.5");
+    let p = write("cli_bad.ron", &text);
+    let out = Command::new(exe).args(["check", p.to_str().unwrap()]).output().unwrap();
+    assert!(!out.status.success());
+    let err = String::from_utf8_lossy(&out.stderr);
+    let line = line_containing(&text, "radius_x_m");
+    assert!(err.contains(&format!("{}:{line}:", p.display())) && err.contains("radius_x_m"), "{err}");
+    assert!(!err.contains("panicked"), "{err}");
+    // Good scene: exit 0, summary on stdout.
+    let p = write("cli_good.ron", GOOD);
+    let out = Command::new(exe).args(["check", p.to_str().unwrap()]).output().unwrap();
+    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    assert!(String::from_utf8_lossy(&out.stdout).contains("leaf area `veg`"));
+}
+
+#[test]
+fn grids_above_the_memory_limit_are_refused_before_allocation() {
+    let exe = env!("CARGO_BIN_EXE_lumenscape");
+    let p = write("mem.ron", GOOD);
+    let out_dir = dir().join("mem_out");
+    let out = Command::new(exe).args(["maket", p.to_str().unwrap(), "--max-memory", "1K", "--out", out_dir.to_str().unwrap()]).output().unwrap();
+    assert!(!out.status.success());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("--max-memory"), "{err}");
+    assert!(!out_dir.join("maket.json").exists(), "no product after a refused run");
+    let out = Command::new(exe).args(["maket", p.to_str().unwrap(), "--max-memory", "lots"]).output().unwrap();
+    assert!(!out.status.success());
+}
