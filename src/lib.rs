@@ -29,6 +29,7 @@ pub mod components;
 pub mod geometry;
 pub mod io;
 pub mod physics;
+pub mod radiative;
 pub mod resources;
 pub mod scene;
 pub mod simulation;

@@ -45,7 +45,7 @@ impl Stage {
 
     /// True when the stage has systems in this version.
     pub fn implemented(self) -> bool {
-        matches!(self, Stage::Maket | Stage::Output)
+        matches!(self, Stage::Direction | Stage::Phase | Stage::Maket | Stage::Radiative | Stage::Output)
     }
 }
 
@@ -91,15 +91,33 @@ impl Simulation {
         for stage in Stage::ALL {
             let mut s = Schedule::new(stage);
             match stage {
+                Stage::Direction => {
+                    s.add_systems(crate::systems::direction::build_directions);
+                }
+                Stage::Phase => {
+                    s.add_systems(crate::systems::phase::tabulate_phase.run_if(resource_exists::<crate::resources::tracking::Directions>));
+                }
                 Stage::Maket => add_maket_systems(&mut s),
-                Stage::Output => {
+                Stage::Radiative => {
                     s.add_systems(
+                        crate::systems::radiative::track_flux
+                            .run_if(resource_exists::<crate::resources::tracking::OpticsTables>)
+                            .run_if(resource_exists::<crate::resources::grid::CellGrid>)
+                            .run_if(no_stage_error),
+                    );
+                }
+                Stage::Output => {
+                    s.add_systems((
                         write_maket_products
                             .run_if(resource_exists::<OutputDir>)
                             .run_if(resource_exists::<crate::resources::grid::CellGrid>)
                             .run_if(resource_exists::<crate::resources::maket_report::MaketReport>)
                             .run_if(no_stage_error),
-                    );
+                        crate::systems::output::write_radiative_products
+                            .run_if(resource_exists::<OutputDir>)
+                            .run_if(resource_exists::<crate::radiative::products::RadiativeProducts>)
+                            .run_if(no_stage_error),
+                    ));
                 }
                 // Not implemented yet: the schedule exists so that ordering is fixed; it has no
                 // systems, so it does nothing (and `run` reports it as skipped).

@@ -5,5 +5,8 @@
 //! Phase, Radiative, Photon and Sensor have schedule labels and run conditions but no systems
 //! yet (see the open issues); a scene never silently gets results from them.
 
+pub mod direction;
 pub mod maket;
 pub mod output;
+pub mod phase;
+pub mod radiative;

@@ -134,3 +134,142 @@ fn write_maket(
     write_atomic(&dir.join("density.csv"), csv.as_bytes())?;
     Ok(())
 }
+
+/// Output · reads RadiativeProducts, GridSpec, CellGrid, FacetStore, Materials, SceneInfo ·
+/// writes `summary.json`, `brf.csv` and the radiative budget (`budget/cells.csv`,
+/// `budget/layers.csv`, `budget/elements.csv`) into `OutputDir`.
+#[allow(clippy::too_many_arguments)]
+pub fn write_radiative_products(
+    out: Res<OutputDir>,
+    products: Res<crate::radiative::products::RadiativeProducts>,
+    info: Res<crate::resources::scene::SceneInfo>,
+    settings: Res<crate::resources::tracking::RadiativeSettings>,
+    dirs: Res<crate::resources::tracking::Directions>,
+    spec: Res<GridSpec>,
+    grid: Res<CellGrid>,
+    facets: Res<FacetStore>,
+    mats: Res<Materials>,
+    mut errors: ResMut<StageErrors>,
+) {
+    if let Err(e) = write_radiative(&out.0, &products, &info, &settings, &dirs, &spec, &grid, &facets, &mats) {
+        errors.0.push(e);
+    }
+}
+
+#[allow(clippy::too_many_arguments)]
+fn write_radiative(
+    dir: &std::path::Path,
+    p: &crate::radiative::products::RadiativeProducts,
+    info: &crate::resources::scene::SceneInfo,
+    settings: &crate::resources::tracking::RadiativeSettings,
+    dirs: &crate::resources::tracking::Directions,
+    spec: &GridSpec,
+    grid: &CellGrid,
+    facets: &FacetStore,
+    mats: &Materials,
+) -> Result<(), String> {
+    std::fs::create_dir_all(dir.join("budget")).map_err(|e| format!("{}: cannot create output folder: {e}", dir.display()))?;
+    let summary = serde_json::json!({
+        "schema_version": 1,
+        "lumenscape_version": env!("CARGO_PKG_VERSION"),
+        "scene": info.name,
+        "scene_file": info.source.display().to_string(),
+        "settings": {
+            "preset": format!("{:?}", settings.preset),
+            "tracking": settings.tracking,
+            "per_direction_stores": settings.per_direction_stores,
+            "directions": dirs.set.tiling().len(),
+            "sectors": dirs.sector_row.len(),
+            "sun_zenith_deg": info.illumination.sun_zenith_deg,
+            "sun_azimuth_deg": info.illumination.sun_azimuth_deg,
+        },
+        "iterations": p.iterations,
+        "converged": p.converged,
+        "extrapolation_ratio": p.extrapolation_ratio,
+        "rays": p.rays,
+        "cell_crossings": p.crossings,
+        "tracking_seconds": p.tracking_seconds,
+        "bands": p.bands,
+    });
+    write_atomic(&dir.join("summary.json"), serde_json::to_string_pretty(&summary).map_err(|e| e.to_string())?.as_bytes())?;
+    let mut csv = String::from("band,zenith_deg,azimuth_deg,solid_angle_sr,kind,brf,hdrf\n");
+    for b in &p.bands {
+        for e in &b.brf {
+            let _ = writeln!(csv, "{},{:.6},{:.6},{:.6e},{},{:.8},{}", b.band, e.zenith_deg, e.azimuth_deg, e.solid_angle_sr, e.kind, e.brf, e.hdrf.map_or(String::new(), |h| format!("{h:.8}")));
+        }
+    }
+    write_atomic(&dir.join("brf.csv"), csv.as_bytes())?;
+    // Radiative budget per cell: absorbed and intercepted power per band, normalised by the
+    // incident power on the cell's horizontal area (physics.md §6.7 [rec]).
+    let raw = &p.raw;
+    let (w, nb) = (raw.n_channels, raw.n_bands);
+    let col_area = spec.cell.x * spec.cell.y;
+    let scene_area = col_area * (spec.n[0] * spec.n[1]) as f64;
+    let src_per_m2: Vec<f64> = (0..nb).map(|b| (raw.source[b] + if raw.has_sky { raw.source[nb + b] } else { 0.0 }) / scene_area).collect();
+    let band_sum = |v: &[f64], e: usize, b: usize| v[e * w + b] + if raw.has_sky { v[e * w + nb + b] } else { 0.0 };
+    let mut cells = String::from("i,j,k,band,fabs,fintercepted\n");
+    let mut layers = vec![vec![[0.0f64; 2]; nb]; spec.n[2]];
+    for c in 0..spec.n_cells() {
+        let [i, j, k] = spec.ijk(c);
+        let mut a = vec![0.0; nb];
+        let mut x = vec![0.0; nb];
+        for e in grid.turbid_start[c] as usize..grid.turbid_start[c + 1] as usize {
+            for b in 0..nb {
+                a[b] += band_sum(&raw.absorbed_turbid, e, b);
+                x[b] += band_sum(&raw.intercepted_turbid, e, b);
+            }
+        }
+        for b in 0..nb {
+            if a[b] != 0.0 || x[b] != 0.0 {
+                let norm = src_per_m2[b] * col_area;
+                let _ = writeln!(cells, "{i},{j},{k},{},{:.8e},{:.8e}", info.bands[b].name, a[b] / norm, x[b] / norm);
+                layers[k][b][0] += a[b] / (src_per_m2[b] * scene_area);
+                layers[k][b][1] += x[b] / (src_per_m2[b] * scene_area);
+            }
+        }
+    }
+    write_atomic(&dir.join("budget/cells.csv"), cells.as_bytes())?;
+    let mut lay = String::from("k,z_bottom_m,z_top_m,band,fabs,fintercepted\n");
+    for (k, l) in layers.iter().enumerate() {
+        for (b, v) in l.iter().enumerate() {
+            let z0 = spec.origin.z + k as f64 * spec.cell.z;
+            let _ = writeln!(lay, "{k},{z0:.4},{:.4},{},{:.8e},{:.8e}", z0 + spec.cell.z, info.bands[b].name, v[0], v[1]);
+        }
+    }
+    write_atomic(&dir.join("budget/layers.csv"), lay.as_bytes())?;
+    // Per element type and material.
+    let mut el: std::collections::BTreeMap<(String, String), Vec<[f64; 2]>> = Default::default();
+    for (e, t) in grid.turbid.iter().enumerate() {
+        let v = el.entry(("turbid".into(), mats.list[t.material as usize].name.clone())).or_insert_with(|| vec![[0.0; 2]; nb]);
+        for b in 0..nb {
+            v[b][0] += band_sum(&raw.absorbed_turbid, e, b);
+            v[b][1] += band_sum(&raw.intercepted_turbid, e, b);
+        }
+    }
+    for (fi, f) in facets.facets.iter().enumerate() {
+        let v = el.entry((format!("{:?}", f.kind).to_lowercase(), mats.list[f.material as usize].name.clone())).or_insert_with(|| vec![[0.0; 2]; nb]);
+        for b in 0..nb {
+            v[b][0] += band_sum(&raw.absorbed_facet, fi, b);
+            v[b][1] += band_sum(&raw.intercepted_facet, fi, b);
+        }
+    }
+    let n_cols = spec.n[0] * spec.n[1];
+    if raw.absorbed_ground.iter().any(|&v| v != 0.0) {
+        let v = el.entry(("ground".into(), "flat ground".into())).or_insert_with(|| vec![[0.0; 2]; nb]);
+        for c in 0..n_cols {
+            for b in 0..nb {
+                v[b][0] += band_sum(&raw.absorbed_ground, c, b);
+                v[b][1] += band_sum(&raw.intercepted_ground, c, b);
+            }
+        }
+    }
+    let mut els = String::from("element,material,band,fabs,fintercepted\n");
+    for ((kind, m), v) in &el {
+        for (b, x) in v.iter().enumerate() {
+            let norm = src_per_m2[b] * scene_area;
+            let _ = writeln!(els, "{kind},{m},{},{:.8e},{:.8e}", info.bands[b].name, x[0] / norm, x[1] / norm);
+        }
+    }
+    write_atomic(&dir.join("budget/elements.csv"), els.as_bytes())?;
+    Ok(())
+}

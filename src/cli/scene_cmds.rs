@@ -61,6 +61,9 @@ pub struct SceneOpts {
     /// No progress bars.
     #[arg(long, short)]
     pub quiet: bool,
+    /// Accuracy preset of the Radiative stage (overrides the scene's `radiative.preset`).
+    #[arg(long, value_enum)]
+    pub preset: Option<crate::scene::desc::Preset>,
 }
 
 impl SceneOpts {
@@ -68,6 +71,7 @@ impl SceneOpts {
         RunSettings {
             max_memory_bytes: self.max_memory.unwrap_or_else(default_max_memory),
             progress: !self.quiet && std::io::IsTerminal::is_terminal(&std::io::stderr()),
+            preset: self.preset,
         }
     }
 }

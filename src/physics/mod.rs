@@ -1,4 +1,7 @@
 //! Pure physics: formulas with their sources and units, no ECS.
+pub mod brdf;
+pub mod lad;
+pub mod phase;
 pub mod prospect;
 pub mod spectral;
 pub mod sun;

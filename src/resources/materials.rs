@@ -1,7 +1,14 @@
 //! The optical-property library of a scene, resolved to indices (resource `Materials`).
+//!
+//! Resolution turns every entry into per-band values: numbers are copied as given, and
+//! `ProspectLeaf` leaves are computed by PROSPECT (400–2500 nm at 1 nm) and integrated over each
+//! band's spectral response.
 
-use crate::scene::desc::{LadDesc, OpticsDesc};
+use crate::physics::prospect::{ProspectData, ProspectModel, ProspectParams, prospect};
+use crate::physics::spectral::SpectralBand;
+use crate::scene::desc::{BandDesc, LadDesc, OpticsDesc};
 use bevy_ecs::prelude::Resource;
+use std::collections::BTreeMap;
 
 /// Index of a material in [`Materials::list`].
 pub type MaterialId = u32;
@@ -58,6 +65,49 @@ impl Material {
     }
 }
 
+/// An optical property that cannot be resolved to per-band values, e.g. a `ProspectLeaf` seen
+/// by a band whose response reaches outside PROSPECT's 400–2500 nm.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+#[error("field `{field}`: {message}")]
+pub struct MaterialError {
+    /// Field path in the scene (`optics["leaf"]`).
+    pub field: String,
+    /// Why.
+    pub message: String,
+}
+
+/// Leaf reflectance and transmittance per band from PROSPECT (Jacquemoud & Baret 1990; Féret et
+/// al. 2008, 2017; `physics::prospect`): the 1 nm spectra R(λ), T(λ) over 400–2500 nm,
+/// averaged over each band's response S as ∫ S R dλ / ∫ S dλ (exact for the linear
+/// interpolants, `SpectralBand::band_average`; a monochromatic band takes the interpolated value
+/// at its wavelength). Returns `(reflectance, transmittance)`, one value per band; errors are
+/// messages (invalid parameters, or a band outside 400–2500 nm, named by `band_names`).
+pub fn prospect_leaf_bands(
+    model: ProspectModel,
+    params: &ProspectParams,
+    bands: &[SpectralBand],
+    band_names: &[String],
+) -> Result<(Vec<f64>, Vec<f64>), String> {
+    let leaf = prospect(model, params, ProspectData::builtin()).map_err(|e| e.to_string())?;
+    let r = leaf.reflectance_spectrum().map_err(|e| e.to_string())?;
+    let t = leaf.transmittance_spectrum().map_err(|e| e.to_string())?;
+    let mut out = (
+        Vec::with_capacity(bands.len()),
+        Vec::with_capacity(bands.len()),
+    );
+    for (b, band) in bands.iter().enumerate() {
+        let name = band_names.get(b).map_or("?", String::as_str);
+        let avg = |s| {
+            band.band_average(s).map_err(|e| {
+                format!("PROSPECT (400–2500 nm) cannot be evaluated in band `{name}`: {e}")
+            })
+        };
+        out.0.push(avg(&r)?);
+        out.1.push(avg(&t)?);
+    }
+    Ok(out)
+}
+
 /// All materials of a scene.
 #[derive(Debug, Clone, Default, Resource)]
 pub struct Materials {
@@ -66,8 +116,39 @@ pub struct Materials {
 }
 
 impl Materials {
-    /// Builds the library from a validated scene (`nb` bands). Names are unique (BTreeMap keys).
-    pub fn from_desc(optics: &std::collections::BTreeMap<String, OpticsDesc>, nb: usize) -> Self {
+    /// Builds the library from a validated scene: `bands` as written and their spectral
+    /// responses (`responses[b]` for `bands[b]`, used by `ProspectLeaf` leaves). Names are
+    /// unique (BTreeMap keys). Errors name the optics entry (PROSPECT outside a band).
+    pub fn from_desc(
+        optics: &BTreeMap<String, OpticsDesc>,
+        bands: &[BandDesc],
+        responses: &[SpectralBand],
+    ) -> Result<Self, MaterialError> {
+        let nb = bands.len();
+        let names: Vec<String> = bands.iter().map(|b| b.name.clone()).collect();
+        // Per-band leaf values of every leaf entry (Turbid entries refer to them by name).
+        let mut leaves: BTreeMap<&str, (Vec<f64>, Vec<f64>)> = BTreeMap::new();
+        for (name, o) in optics {
+            match o {
+                OpticsDesc::BiLambertian {
+                    reflectance,
+                    transmittance,
+                } => {
+                    leaves.insert(name, (reflectance.clone(), transmittance.clone()));
+                }
+                OpticsDesc::ProspectLeaf { .. } => {
+                    let (model, params) = o.prospect_params().expect("a ProspectLeaf entry");
+                    let rt = prospect_leaf_bands(model, &params, responses, &names).map_err(
+                        |message| MaterialError {
+                            field: format!("optics[\"{name}\"]"),
+                            message,
+                        },
+                    )?;
+                    leaves.insert(name, rt);
+                }
+                _ => {}
+            }
+        }
         let pad = |v: &Vec<f64>| {
             if v.is_empty() {
                 vec![0.0; nb]
@@ -89,25 +170,22 @@ impl Materials {
                 },
                 OpticsDesc::Rpv { .. } => MaterialKind::Rpv(o.clone()),
                 OpticsDesc::Hapke { .. } => MaterialKind::Hapke(o.clone()),
-                OpticsDesc::BiLambertian {
-                    reflectance,
-                    transmittance,
-                } => MaterialKind::Leaf {
-                    reflectance: reflectance.clone(),
-                    transmittance: transmittance.clone(),
-                },
+                OpticsDesc::BiLambertian { .. } | OpticsDesc::ProspectLeaf { .. } => {
+                    let (r, t) = leaves[name.as_str()].clone();
+                    MaterialKind::Leaf {
+                        reflectance: r,
+                        transmittance: t,
+                    }
+                }
                 OpticsDesc::Turbid {
                     leaf,
                     lad,
                     leaf_size_m,
                 } => {
-                    let (r, t) = match optics.get(leaf) {
-                        Some(OpticsDesc::BiLambertian {
-                            reflectance,
-                            transmittance,
-                        }) => (reflectance.clone(), transmittance.clone()),
-                        _ => (vec![0.0; nb], vec![0.0; nb]),
-                    };
+                    let (r, t) = leaves
+                        .get(leaf.as_str())
+                        .cloned()
+                        .unwrap_or_else(|| (vec![0.0; nb], vec![0.0; nb]));
                     MaterialKind::Turbid {
                         reflectance: r,
                         transmittance: t,
@@ -121,7 +199,7 @@ impl Materials {
                 kind,
             });
         }
-        Self { list }
+        Ok(Self { list })
     }
 
     /// Id of a named material (names were validated, so a miss is a programming error upstream).

@@ -1,7 +1,10 @@
 //! Resources: world data shared between stages.
 
+pub mod directions;
 pub mod facets;
 pub mod grid;
 pub mod maket_report;
 pub mod materials;
+pub mod phase_tables;
 pub mod scene;
+pub mod tracking;

@@ -1,7 +1,9 @@
 //! Scene-wide resources set by the spawn step: scene info, terrain, run settings, stage errors.
 
 use crate::geometry::terrain::Terrain;
-use crate::scene::desc::{BandDesc, BoundaryMode, IlluminationDesc};
+use crate::physics::spectral::SpectralBand;
+use crate::physics::sun::SolarPosition;
+use crate::scene::desc::{BandDesc, BoundaryMode};
 use bevy_ecs::prelude::Resource;
 use std::path::PathBuf;
 
@@ -14,10 +16,21 @@ pub struct SceneInfo {
     pub source: PathBuf,
     /// Seed of every random choice.
     pub seed: u64,
-    /// Bands.
+    /// Bands as written, except that a `sensor_band`/`srf_file` band given without
+    /// `wavelength_nm` gets its response's centroid there, nm (so `wavelength_nm` > 0 always).
     pub bands: Vec<BandDesc>,
-    /// Sun and sky.
-    pub illumination: IlluminationDesc,
+    /// Spectral response of each band (same order as `bands`): monochromatic, Gaussian, or the
+    /// tabulated SRF of a sensor band or SRF file (files are read once, at spawn).
+    pub band_responses: Vec<SpectralBand>,
+    /// Sun and sky, resolved: final sun angles whichever way the scene gave them.
+    pub illumination: Illumination,
+    /// The factor (1 AU / d)² that `illumination.irradiance_w_m2_um` was multiplied by (Earth–Sun
+    /// distance d at the scene's `sun_position` date); `None` when no correction was applied
+    /// (explicit angles, or `earth_sun_distance_correction: false`).
+    pub irradiance_distance_factor: Option<f64>,
+    /// The full NREL SPA result when the sun was given by `sun_position` (zenith, refraction,
+    /// compass azimuth, Earth–Sun distance, …); `None` for explicit angles.
+    pub solar_position: Option<SolarPosition>,
     /// Scene extent (x, y), metres.
     pub size: (f64, f64),
     /// Cell size, metres.
@@ -28,6 +41,24 @@ pub struct SceneInfo {
     pub subcells: u32,
     /// Boundary mode.
     pub boundary: BoundaryMode,
+}
+
+/// Sun and diffuse sky as the stages see them (resolved from `scene::desc::IlluminationDesc` at
+/// spawn): the date-and-place form is already turned into angles, and every list has one value
+/// per band.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Illumination {
+    /// Sun zenith angle of the ground→sun direction, degrees, in [0, 90) (the apparent,
+    /// refracted zenith when the scene asked for refraction).
+    pub sun_zenith_deg: f64,
+    /// Sun azimuth of the ground→sun direction, degrees, anticlockwise from +x (DART convention).
+    pub sun_azimuth_deg: f64,
+    /// Diffuse sky fraction SKYL = E_diff / (E_dir + E_diff) per band (0 when not given).
+    pub skyl: Vec<f64>,
+    /// Total bottom-of-atmosphere irradiance on a horizontal plane per band, W m⁻² µm⁻¹ (1 when
+    /// not given: products are then relative), including the Earth–Sun distance factor
+    /// `SceneInfo::irradiance_distance_factor` when one was applied.
+    pub irradiance_w_m2_um: Vec<f64>,
 }
 
 /// The ground shape (flat when the scene has no `Ground` with a DEM).
@@ -41,6 +72,9 @@ pub struct RunSettings {
     pub max_memory_bytes: u64,
     /// Show progress bars.
     pub progress: bool,
+    /// Accuracy preset chosen on the command line (overrides the scene's preset; the scene's
+    /// individual knobs still apply).
+    pub preset: Option<crate::scene::desc::Preset>,
 }
 
 impl Default for RunSettings {
@@ -48,6 +82,7 @@ impl Default for RunSettings {
         Self {
             max_memory_bytes: default_max_memory(),
             progress: false,
+            preset: None,
         }
     }
 }

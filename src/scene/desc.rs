@@ -4,6 +4,7 @@
 //! components. Every struct denies unknown fields; units are in field names (`_m`, `_deg`, `_nm`).
 //! `spawn` turns a validated [`SceneDesc`] into entities.
 
+use crate::physics::prospect::{ProspectModel, ProspectParams};
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
 
@@ -42,9 +43,46 @@ pub struct SceneDesc {
     /// Reserved for LiDAR instruments (not supported yet: rejected when present).
     #[serde(default, skip_serializing)]
     pub lidars: Option<serde::de::IgnoredAny>,
-    /// Reserved for the discrete-direction settings (not supported yet: rejected when present).
-    #[serde(default, skip_serializing)]
-    pub directions: Option<serde::de::IgnoredAny>,
+    /// Discrete directions (Direction stage): count, exact view directions, oversampled
+    /// regions, fictive directions, angular sectors. Default: 100 directions (DART default).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub directions: Option<crate::resources::directions::DirectionParams>,
+    /// Radiative-stage settings (preset and individual knobs).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub radiative: Option<RadiativeDesc>,
+}
+
+/// Accuracy presets of the Radiative stage (direction sampling of the phase tables, stopping
+/// thresholds, interception storage).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default, clap::ValueEnum)]
+pub enum Preset {
+    /// Fast look.
+    Preview,
+    /// DART's documented defaults.
+    #[default]
+    Default,
+    /// Reference accuracy (per-direction interception storage, tight thresholds).
+    Reference,
+}
+
+/// Radiative-stage settings of a scene; every knob overrides the preset's value.
+#[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
+#[serde(deny_unknown_fields, default)]
+pub struct RadiativeDesc {
+    /// Preset (default: `Default`); the CLI's `--preset` overrides it.
+    pub preset: Option<Preset>,
+    /// Maximum number of iterations.
+    pub max_iterations: Option<u32>,
+    /// Convergence threshold on the relative change of the scene albedo.
+    pub albedo_threshold: Option<f64>,
+    /// Ray-power threshold relative to the mean source ray.
+    pub ray_threshold: Option<f64>,
+    /// Spacing of the sun/sky launch points on the top plane, metres.
+    pub launch_spacing_m: Option<f64>,
+    /// Extrapolate the remaining scattering orders.
+    pub extrapolate: Option<bool>,
+    /// Store intercepted power per incident direction instead of per angular sector.
+    pub per_direction_stores: Option<bool>,
 }
 
 /// What happens to rays leaving the scene through a side (DART 5 paper §3, Fig. 4).
@@ -81,21 +119,48 @@ fn default_subcells() -> u32 {
     2
 }
 
-/// One spectral band.
+/// One spectral band and its spectral response S(λ).
+///
+/// Four forms, told apart by the fields given:
+/// * `wavelength_nm` alone (or `fwhm_nm: 0`): monochromatic;
+/// * `wavelength_nm` and `fwhm_nm` > 0: Gaussian response centred on `wavelength_nm`
+///   (an approximation of a real band, see `physics::spectral::SpectralBand::Gaussian`);
+/// * `sensor_band: ("sentinel2a_msi", "B04")`: the measured response of a band of the shipped
+///   sensor library (`assets/sensors/`);
+/// * `srf_file: "my_band.csv"`: a tabulated response read from a file.
+///
+/// The response is used by every optical value that depends on wavelength (`ProspectLeaf`
+/// leaves: ∫ S X dλ / ∫ S dλ). Plain per-band numbers (`reflectance: [...]`, …) are taken as
+/// given, whatever the response.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct BandDesc {
     /// Band name, used for image channels and CSV columns.
     pub name: String,
-    /// Central wavelength, nanometres.
+    /// Central wavelength, nanometres. Required for monochromatic and Gaussian bands. For a
+    /// `sensor_band` or `srf_file` band it is only the nominal wavelength and may be omitted (0):
+    /// the spawn step then uses the response's centroid ∫ λ S dλ / ∫ S dλ.
+    #[serde(default)]
     pub wavelength_nm: f64,
-    /// Full width at half maximum, nanometres (0 = monochromatic).
+    /// Full width at half maximum, nanometres (0 = monochromatic, > 0 = Gaussian). Must be 0
+    /// for a `sensor_band` or `srf_file` band.
     #[serde(default)]
     pub fwhm_nm: f64,
+    /// A band of the shipped sensor library as `(sensor, band)`. Sensors: `sentinel2a_msi`
+    /// (B01–B12, B8A), `landsat8_oli` (B1–B9), `modis_terra` (B1–B7); band names ignore case and
+    /// leading zeros (`B4` = `B04`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub sensor_band: Option<(String, String)>,
+    /// A tabulated spectral response: CSV file, path relative to the scene file's folder, with
+    /// a `wavelength_nm,response` (or `wavelength_um,response`) header, `#` comments allowed,
+    /// strictly increasing wavelengths and responses ≥ 0 (any scale; zero outside the table).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub srf_file: Option<String>,
 }
 
 /// A named optical property; every list holds one value per band.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
 pub enum OpticsDesc {
     /// Lambertian facet (DART 5 paper §3.1; physics.md §5.1).
     Lambertian {
@@ -142,9 +207,38 @@ pub enum OpticsDesc {
         /// Leaf hemispherical transmittance per band.
         transmittance: Vec<f64>,
     },
+    /// Bi-Lambertian leaf whose reflectance and transmittance are computed by PROSPECT-5 or
+    /// PROSPECT-D (Féret et al. 2008, 2017; physics.md §11) from the leaf's biochemistry, e.g.
+    /// `ProspectLeaf(model: D, n: 1.5, cab_ug_cm2: 40, car_ug_cm2: 8, cw_cm: 0.01,
+    /// cm_g_cm2: 0.009)`. Usable wherever a `BiLambertian` leaf is.
+    ///
+    /// The 400–2500 nm, 1 nm spectra are integrated over each band's response:
+    /// R_band = ∫ S R dλ / ∫ S dλ (the same for T; the 1 nm spectrum is linearly interpolated,
+    /// so a monochromatic band takes the interpolated value at its wavelength). Every band's
+    /// response must lie within 400–2500 nm.
+    ProspectLeaf {
+        /// PROSPECT version: `D` (PROSPECT-D) or `P5` (PROSPECT-5; also written `r#5`).
+        model: ProspectModel,
+        /// Mesophyll structure parameter N (≥ 1; typically 1–3).
+        n: f64,
+        /// Chlorophyll a+b content, µg cm⁻².
+        cab_ug_cm2: f64,
+        /// Carotenoid content, µg cm⁻².
+        car_ug_cm2: f64,
+        /// Anthocyanin content, µg cm⁻² (default 0; PROSPECT-D only, no effect with `P5`).
+        #[serde(default)]
+        anth_ug_cm2: f64,
+        /// Brown pigment content, arbitrary units (default 0; typically 0–1).
+        #[serde(default)]
+        cbrown: f64,
+        /// Equivalent water thickness, cm (≡ g cm⁻² of water).
+        cw_cm: f64,
+        /// Dry matter content (leaf mass per area), g cm⁻².
+        cm_g_cm2: f64,
+    },
     /// Turbid vegetation: leaf optics + leaf angle distribution + leaf size (physics.md §3).
     Turbid {
-        /// Name of a `BiLambertian` entry of the library.
+        /// Name of a `BiLambertian` or `ProspectLeaf` entry of the library.
         leaf: String,
         /// Leaf angle distribution.
         lad: LadDesc,
@@ -156,6 +250,37 @@ pub enum OpticsDesc {
 
 fn default_leaf_size() -> f64 {
     0.01
+}
+
+impl OpticsDesc {
+    /// The PROSPECT version and leaf parameters of a `ProspectLeaf` entry; `None` for the other
+    /// kinds.
+    pub fn prospect_params(&self) -> Option<(ProspectModel, ProspectParams)> {
+        match *self {
+            OpticsDesc::ProspectLeaf {
+                model,
+                n,
+                cab_ug_cm2,
+                car_ug_cm2,
+                anth_ug_cm2,
+                cbrown,
+                cw_cm,
+                cm_g_cm2,
+            } => Some((
+                model,
+                ProspectParams {
+                    n,
+                    cab_ug_cm2,
+                    car_ug_cm2,
+                    anth_ug_cm2,
+                    cbrown,
+                    cw_cm,
+                    cm_g_cm2,
+                },
+            )),
+            _ => None,
+        }
+    }
 }
 
 /// Leaf angle distribution (physics.md §3.2; de Wit 1965, Goel & Strebel 1984, Campbell 1990).
@@ -193,20 +318,97 @@ pub enum LadDesc {
 }
 
 /// Sun and diffuse sky.
+///
+/// The sun is given in exactly one of two ways (anything else is a validation error):
+/// * explicit angles: both `sun_zenith_deg` and `sun_azimuth_deg` (a bare value or `Some(…)`);
+/// * `sun_position`: a date, time and place, from which the spawn step computes the angles
+///   (NREL SPA) and, unless turned off, the Earth–Sun distance correction of
+///   `irradiance_w_m2_um`.
+///
+/// This is the authoring form only: the spawn step resolves it into
+/// `resources::scene::Illumination` (final angles, one value per band), which is what every
+/// stage reads.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct IlluminationDesc {
-    /// Sun zenith angle of the ground→sun direction, degrees, in [0, 90).
-    pub sun_zenith_deg: f64,
+    /// Sun zenith angle of the ground→sun direction, degrees, in [0, 90). Given together with
+    /// `sun_azimuth_deg`, and only when `sun_position` is not.
+    #[serde(default)]
+    pub sun_zenith_deg: Option<f64>,
     /// Sun azimuth of the ground→sun direction, degrees, anticlockwise from +x (DART convention).
-    pub sun_azimuth_deg: f64,
+    /// Given together with `sun_zenith_deg`, and only when `sun_position` is not.
+    #[serde(default)]
+    pub sun_azimuth_deg: Option<f64>,
+    /// Sun from date, time and place instead of explicit angles.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub sun_position: Option<SunPositionDesc>,
     /// Diffuse sky fraction SKYL = E_diff / (E_dir + E_diff) per band (default 0).
     #[serde(default)]
     pub skyl: Vec<f64>,
     /// Total bottom-of-atmosphere irradiance on a horizontal plane per band, W m⁻² µm⁻¹
-    /// (default 1: products are then relative).
+    /// (default 1: products are then relative), for a mean Earth–Sun distance of 1 AU when
+    /// `sun_position` applies the distance correction.
     #[serde(default)]
     pub irradiance_w_m2_um: Vec<f64>,
+}
+
+/// Sun position from a UTC date-time and a place, computed at spawn by the NREL Solar Position
+/// Algorithm (Reda & Andreas 2004, *Solar Energy* 76:577; `physics::sun::solar_position`,
+/// ±0.0003°), e.g. `sun_position: (utc: "2003-10-17T19:30:30", latitude_deg: 39.742476,
+/// longitude_deg: -105.1786, altitude_m: 1830.14)`.
+///
+/// The scene sun zenith is the apparent (refracted) topocentric zenith when `refraction` is on,
+/// the geometric one otherwise; the scene azimuth is φ = (β − γ) mod 360°, γ the compass
+/// azimuth of the sun (from north, clockwise) and β = `scene_x_bearing_deg` (physics.md §1.1,
+/// §12.1). A sun at or below the horizon (zenith ≥ 90°) is an error.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct SunPositionDesc {
+    /// UTC date-time `YYYY-MM-DDTHH:MM:SS` (a space may replace `T`; fractions of a second and a
+    /// trailing `Z` are accepted), year −2000…6000.
+    pub utc: String,
+    /// Geodetic latitude, degrees north, in [−90, 90].
+    pub latitude_deg: f64,
+    /// Longitude, degrees east of Greenwich, in [−180, 180] (west negative).
+    pub longitude_deg: f64,
+    /// Altitude of the scene above sea level, metres (default 0).
+    #[serde(default)]
+    pub altitude_m: f64,
+    /// Compass bearing of the scene's +x axis, degrees clockwise from north (default 90: +x
+    /// points east and +y north, DART's convention).
+    #[serde(default = "default_scene_x_bearing")]
+    pub scene_x_bearing_deg: f64,
+    /// Apply atmospheric refraction to the zenith angle (default true; Reda & Andreas 2004,
+    /// §3.14, with `pressure_hpa` and `temperature_c`).
+    #[serde(default = "yes")]
+    pub refraction: bool,
+    /// Annual mean local pressure for refraction, hPa (default 1013.25, sea level).
+    #[serde(default = "default_pressure_hpa")]
+    pub pressure_hpa: f64,
+    /// Annual mean local temperature for refraction, °C (default 15).
+    #[serde(default = "default_temperature_c")]
+    pub temperature_c: f64,
+    /// ΔT = TT − UT, seconds (default: the Espenak & Meeus 2006 estimate for the date,
+    /// `physics::sun::delta_t_estimate_s`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub delta_t_s: Option<f64>,
+    /// Scale `irradiance_w_m2_um` by (1 AU / d)², d the Earth–Sun distance at `utc`
+    /// (inverse-square law; default true). The factor applied is reported in
+    /// `resources::scene::SceneInfo::irradiance_distance_factor`.
+    #[serde(default = "yes")]
+    pub earth_sun_distance_correction: bool,
+}
+
+fn default_scene_x_bearing() -> f64 {
+    crate::physics::sun::DEFAULT_SCENE_X_BEARING_DEG
+}
+
+fn default_pressure_hpa() -> f64 {
+    1013.25
+}
+
+fn default_temperature_c() -> f64 {
+    15.0
 }
 
 /// Horizontal placement of one object, metres, in scene coordinates.

@@ -212,8 +212,12 @@ pub fn spawn_scene(
     src: &SceneSource,
 ) -> Result<(), SceneError> {
     validate(desc, src)?;
-    let nb = desc.bands.len();
-    let mut mats = Materials::from_desc(&desc.optics, nb);
+    // Band responses (SRF files read here), then per-band optics (PROSPECT leaves integrated
+    // over the responses) and the sun (date and place resolved to final angles).
+    let responses = super::resolve::band_responses(desc, src)?;
+    let mut mats = Materials::from_desc(&desc.optics, &desc.bands, &responses)
+        .map_err(|e| src.invalid(e.field, e.message))?;
+    let sun = super::resolve::illumination(desc, src)?;
     let mut warnings = Vec::new();
     let base_dir = src.base_dir();
     let size = desc.grid.size_m;
@@ -487,8 +491,11 @@ pub fn spawn_scene(
         name: desc.name.clone(),
         source: src.path.clone(),
         seed: desc.seed,
-        bands: desc.bands.clone(),
-        illumination: desc.illumination.clone(),
+        bands: super::resolve::bands_with_wavelengths(&desc.bands, &responses),
+        band_responses: responses,
+        illumination: sun.illumination,
+        irradiance_distance_factor: sun.irradiance_distance_factor,
+        solar_position: sun.solar_position,
         size,
         cell: g.cell_m,
         height: g.height_m,
@@ -496,6 +503,13 @@ pub fn spawn_scene(
         boundary: g.boundary,
     });
     world.insert_resource(mats);
+    world.insert_resource(crate::systems::direction::DirectionRequest(desc.directions.clone().unwrap_or_default()));
+    let preset = world
+        .get_resource::<crate::resources::scene::RunSettings>()
+        .and_then(|s| s.preset)
+        .or(desc.radiative.as_ref().and_then(|r| r.preset))
+        .unwrap_or_default();
+    world.insert_resource(crate::resources::tracking::RadiativeSettings::resolve(preset, desc.radiative.as_ref()));
     world.insert_resource(TerrainRes(terrain));
     world.insert_resource(Warnings(warnings));
     Ok(())

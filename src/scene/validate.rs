@@ -6,6 +6,7 @@ use super::desc::*;
 use super::error::{Location, SceneError};
 use super::locate::locate;
 use crate::geometry::polygon;
+use crate::physics::prospect::ProspectError;
 use std::path::{Path, PathBuf};
 
 /// The text a scene came from, to turn field paths into line numbers.
@@ -151,17 +152,23 @@ impl V<'_> {
                     | OpticsDesc::Rpv { .. }
                     | OpticsDesc::Hapke { .. }
                     | OpticsDesc::BiLambertian { .. }
+                    | OpticsDesc::ProspectLeaf { .. }
             ),
             OpticsRole::Turbid => matches!(o, OpticsDesc::Turbid { .. }),
-            OpticsRole::Leaf => matches!(o, OpticsDesc::BiLambertian { .. }),
+            OpticsRole::Leaf => matches!(
+                o,
+                OpticsDesc::BiLambertian { .. } | OpticsDesc::ProspectLeaf { .. }
+            ),
         };
         if ok {
             Ok(())
         } else {
             let want = match role {
-                OpticsRole::Facet => "a facet property (Lambertian, Rpv, Hapke or BiLambertian)",
+                OpticsRole::Facet => {
+                    "a facet property (Lambertian, Rpv, Hapke, BiLambertian or ProspectLeaf)"
+                }
                 OpticsRole::Turbid => "a Turbid property",
-                OpticsRole::Leaf => "a BiLambertian leaf property",
+                OpticsRole::Leaf => "a leaf property (BiLambertian or ProspectLeaf)",
             };
             Err(self.src.invalid(f, format!("`{name}` is not {want}")))
         }
@@ -344,11 +351,6 @@ pub fn validate(desc: &SceneDesc, src: &SceneSource) -> Result<(), SceneError> {
             desc.lidars.is_some(),
             "LiDAR arrives with the Photon stage",
         ),
-        (
-            "directions",
-            desc.directions.is_some(),
-            "the Direction stage is not wired into scenes yet",
-        ),
     ] {
         if present {
             return Err(SceneError::NotSupported {
@@ -356,6 +358,25 @@ pub fn validate(desc: &SceneDesc, src: &SceneSource) -> Result<(), SceneError> {
                 field: field.into(),
                 message: issue.into(),
             });
+        }
+    }
+    if let Some(dp) = &desc.directions
+        && let Err(e) = crate::resources::directions::DirectionSet::new(dp)
+    {
+        return Err(src.invalid(format!("directions.{}", e.field), e.reason));
+    }
+    if let Some(r) = &desc.radiative {
+        if let Some(x) = r.albedo_threshold {
+            v.positive("radiative.albedo_threshold", x)?;
+        }
+        if let Some(x) = r.ray_threshold {
+            v.non_negative("radiative.ray_threshold", x)?;
+        }
+        if let Some(x) = r.launch_spacing_m {
+            v.positive("radiative.launch_spacing_m", x)?;
+        }
+        if r.max_iterations == Some(0) {
+            return Err(src.invalid("radiative.max_iterations", "at least one iteration is needed"));
         }
     }
     // Grid.
@@ -397,8 +418,10 @@ pub fn validate(desc: &SceneDesc, src: &SceneSource) -> Result<(), SceneError> {
                 format!("duplicate band name `{}`", b.name),
             ));
         }
-        v.positive(&format!("bands[{i}].wavelength_nm"), b.wavelength_nm)?;
         v.non_negative(&format!("bands[{i}].fwhm_nm"), b.fwhm_nm)?;
+        // Response form, shipped sensor and band names (SRF files are read at spawn).
+        super::resolve::check_band(b)
+            .map_err(|(sub, m)| src.invalid(format!("bands[{i}].{sub}"), m))?;
     }
     // Optics.
     for (name, o) in &desc.optics {
@@ -464,6 +487,17 @@ pub fn validate(desc: &SceneDesc, src: &SceneSource) -> Result<(), SceneError> {
                     }
                 }
             }
+            OpticsDesc::ProspectLeaf { .. } => {
+                let (_, params) = o.prospect_params().expect("a ProspectLeaf entry");
+                params.validate().map_err(|e| match e {
+                    ProspectError::InvalidParameter {
+                        field,
+                        value,
+                        reason,
+                    } => src.invalid(format!("{f}.{field}"), format!("{reason}, got {value}")),
+                    other => src.invalid(f.clone(), other.to_string()),
+                })?;
+            }
             OpticsDesc::Rpv {
                 rho0,
                 k,
@@ -527,19 +561,48 @@ pub fn validate(desc: &SceneDesc, src: &SceneSource) -> Result<(), SceneError> {
             }
         }
     }
-    // Illumination.
+    // Illumination: the sun by explicit angles or by date and place, exactly one of the two.
     let il = &desc.illumination;
-    v.finite("illumination.sun_zenith_deg", il.sun_zenith_deg)?;
-    if !(0.0..90.0).contains(&il.sun_zenith_deg) {
-        return Err(src.invalid(
-            "illumination.sun_zenith_deg",
-            format!(
-                "sun zenith (ground→sun) must lie in [0°, 90°), got {}",
-                il.sun_zenith_deg
-            ),
-        ));
+    match (&il.sun_position, il.sun_zenith_deg, il.sun_azimuth_deg) {
+        (Some(p), None, None) => {
+            super::resolve::sun_from_position(p)
+                .map_err(|(sub, m)| src.invalid(format!("illumination.sun_position.{sub}"), m))?;
+        }
+        (Some(_), _, _) => {
+            return Err(src.invalid(
+                "illumination.sun_position",
+                "give the sun either by `sun_zenith_deg` and `sun_azimuth_deg` or by `sun_position`, not both",
+            ));
+        }
+        (None, Some(zenith), Some(azimuth)) => {
+            v.finite("illumination.sun_zenith_deg", zenith)?;
+            if !(0.0..90.0).contains(&zenith) {
+                return Err(src.invalid(
+                    "illumination.sun_zenith_deg",
+                    format!("sun zenith (ground→sun) must lie in [0°, 90°), got {zenith}"),
+                ));
+            }
+            v.finite("illumination.sun_azimuth_deg", azimuth)?;
+        }
+        (None, None, None) => {
+            return Err(src.invalid(
+                "illumination",
+                "the sun is missing: give `sun_zenith_deg` and `sun_azimuth_deg`, or `sun_position`",
+            ));
+        }
+        (None, Some(_), None) => {
+            return Err(src.invalid(
+                "illumination.sun_azimuth_deg",
+                "`sun_zenith_deg` is given without `sun_azimuth_deg`: give both",
+            ));
+        }
+        (None, None, Some(_)) => {
+            return Err(src.invalid(
+                "illumination.sun_zenith_deg",
+                "`sun_azimuth_deg` is given without `sun_zenith_deg`: give both",
+            ));
+        }
     }
-    v.finite("illumination.sun_azimuth_deg", il.sun_azimuth_deg)?;
     v.bands("illumination.skyl", &il.skyl, 0.0, 1.0, true)?;
     if !il.irradiance_w_m2_um.is_empty() {
         v.bands(

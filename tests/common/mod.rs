@@ -24,14 +24,15 @@ pub fn base_scene(size: (f64, f64), cell: (f64, f64, f64), boundary: BoundaryMod
         name: "test".into(),
         seed: 5,
         grid: GridDesc { size_m: size, cell_m: cell, height_m: None, subcells: 2, boundary },
-        bands: vec![BandDesc { name: "red".into(), wavelength_nm: 670.0, fwhm_nm: 0.0 }],
+        bands: vec![BandDesc { name: "red".into(), wavelength_nm: 670.0, fwhm_nm: 0.0, sensor_band: None, srf_file: None }],
         optics,
-        illumination: IlluminationDesc { sun_zenith_deg: 30.0, sun_azimuth_deg: 0.0, skyl: vec![], irradiance_w_m2_um: vec![] },
+        illumination: IlluminationDesc { sun_zenith_deg: Some(30.0), sun_azimuth_deg: Some(0.0), sun_position: None, skyl: vec![], irradiance_w_m2_um: vec![] },
         objects: vec![],
         atmosphere: None,
         sensors: None,
         lidars: None,
         directions: None,
+        radiative: None,
     }
 }
 

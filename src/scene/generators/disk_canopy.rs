@@ -240,7 +240,8 @@ pub fn disk_canopy(p: &DiskCanopyParams) -> Result<SceneDesc, String> {
         atmosphere: None,
         sensors: None,
         lidars: None,
-        directions: None,
+        directions: Some(rami_directions(p.sun_azimuth_deg)),
+        radiative: None,
     })
 }
 

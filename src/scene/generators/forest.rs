@@ -216,5 +216,6 @@ pub fn forest(p: &ForestParams) -> SceneDesc {
         sensors: None,
         lidars: None,
         directions: None,
+        radiative: None,
     }
 }

@@ -111,6 +111,8 @@ pub fn standard_optics(
             name: b.name.clone(),
             wavelength_nm: b.wavelength_nm,
             fwhm_nm: 0.0,
+            sensor_band: None,
+            srf_file: None,
         })
         .collect();
     let mut o = BTreeMap::new();
@@ -140,11 +142,33 @@ pub fn standard_optics(
     (bd, o)
 }
 
+/// DART directions (100, DART default) with the RAMI view directions made exact: principal
+/// plane, view zenith 0–75° every 15° on the sun side (view azimuth = sun azimuth) and the
+/// opposite side, and the same zeniths in the cross plane (sun azimuth ± 90°)
+/// (Pinty et al. 2004, RAMI-2 measurement protocol).
+pub fn rami_directions(sun_azimuth_deg: f64) -> crate::resources::directions::DirectionParams {
+    use crate::resources::directions::{DirectionParams, ExactDirection};
+    let mut exact = vec![ExactDirection { zenith_deg: 0.0, azimuth_deg: 0.0, label: Some("nadir".into()), solid_angle_sr: None }];
+    for (plane, az) in [("pp+", 0.0), ("pp-", 180.0), ("op+", 90.0), ("op-", 270.0)] {
+        for k in 1..=5 {
+            let z = 15.0 * k as f64;
+            exact.push(ExactDirection {
+                zenith_deg: z,
+                azimuth_deg: (sun_azimuth_deg + az).rem_euclid(360.0),
+                label: Some(format!("{plane}{z}")),
+                solid_angle_sr: None,
+            });
+        }
+    }
+    DirectionParams { exact, ..DirectionParams::default() }
+}
+
 /// Sun-only illumination.
 pub fn sun(zenith_deg: f64, azimuth_deg: f64) -> IlluminationDesc {
     IlluminationDesc {
-        sun_zenith_deg: zenith_deg,
-        sun_azimuth_deg: azimuth_deg,
+        sun_zenith_deg: Some(zenith_deg),
+        sun_azimuth_deg: Some(azimuth_deg),
+        sun_position: None,
         skyl: vec![],
         irradiance_w_m2_um: vec![],
     }

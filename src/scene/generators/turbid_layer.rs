@@ -72,6 +72,7 @@ pub fn turbid_layer(p: &TurbidLayerParams) -> SceneDesc {
         atmosphere: None,
         sensors: None,
         lidars: None,
-        directions: None,
+        directions: Some(rami_directions(p.sun_azimuth_deg)),
+        radiative: None,
     }
 }

@@ -133,5 +133,6 @@ pub fn urban(p: &UrbanParams) -> SceneDesc {
         sensors: None,
         lidars: None,
         directions: None,
+        radiative: None,
     }
 }

@@ -1,0 +1,156 @@
+//! Products of the Radiative stage (resource `RadiativeProducts`): reflectance factors per
+//! direction and band, albedo, absorbed and transmitted fractions, energy closure
+//! (physics.md §1.4, §6.7; design.md §5).
+
+use super::engine::RadiativeResult;
+use crate::resources::directions::DirectionSet;
+use bevy_ecs::prelude::Resource;
+use serde::Serialize;
+use std::f64::consts::PI;
+
+/// One reflectance factor.
+#[derive(Debug, Clone, Serialize)]
+pub struct BrfEntry {
+    /// View zenith (ground→sensor), degrees.
+    pub zenith_deg: f64,
+    /// View azimuth, degrees anticlockwise from +x.
+    pub azimuth_deg: f64,
+    /// Solid angle of the direction's sector, sr.
+    pub solid_angle_sr: f64,
+    /// Kind of direction (`regular`, `exact`, `oversampled`).
+    pub kind: &'static str,
+    /// Bidirectional reflectance factor under direct sun only: π L / (E_dir cos θs·…),
+    /// i.e. π W_j / (A ∫_{ΔΩ_j}|μ|dΩ E_dir,horizontal).
+    pub brf: f64,
+    /// Hemispherical–directional reflectance factor under sun + sky (present with sky light).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub hdrf: Option<f64>,
+}
+
+/// Products of one band.
+#[derive(Debug, Clone, Serialize)]
+pub struct BandProducts {
+    /// Band name.
+    pub band: String,
+    /// Scene albedo: exitance / incident irradiance (sun + sky).
+    pub albedo: f64,
+    /// Fraction absorbed by vegetation and facets other than the ground.
+    pub fabs: f64,
+    /// Fraction absorbed by the ground.
+    pub fabs_ground: f64,
+    /// Fraction intercepted by the ground (all orders): transmitted through the canopy.
+    pub ftran: f64,
+    /// Fraction booked as lost (thresholds, isolated sides, crossings).
+    pub flost: f64,
+    /// |1 − (absorbed + escaped + lost + remaining) / source|.
+    pub energy_closure: f64,
+    /// Reflectance factors for every upward direction.
+    pub brf: Vec<BrfEntry>,
+}
+
+/// The Radiative stage's products.
+#[derive(Debug, Clone, Serialize, Resource)]
+pub struct RadiativeProducts {
+    /// Per band.
+    pub bands: Vec<BandProducts>,
+    /// Iterations run.
+    pub iterations: u32,
+    /// Whether the convergence threshold was met.
+    pub converged: bool,
+    /// Geometric ratio of the last two iterations per band (sun channel).
+    pub extrapolation_ratio: Vec<f64>,
+    /// Rays traced.
+    pub rays: u64,
+    /// Cell crossings.
+    pub crossings: u64,
+    /// Wall time of the tracking, seconds.
+    pub tracking_seconds: f64,
+    /// Raw engine result (not serialised).
+    #[serde(skip)]
+    pub raw: RadiativeResult,
+}
+
+impl RadiativeProducts {
+    /// Builds the products; `area` is the scene's horizontal area (m²), `e_dir`/`e_diff` the
+    /// horizontal irradiances per band.
+    /// `ground_facet[f]` marks the facets of a DEM ground: their absorption counts as ground
+    /// absorption and their interception as transmission (`ftran`).
+    #[allow(clippy::too_many_arguments)]
+    pub fn new(raw: RadiativeResult, dirs: &DirectionSet, band_names: &[String], area: f64, e_dir: &[f64], e_diff: &[f64], ground_facet: &[bool], seconds: f64) -> Self {
+        let nb = raw.n_bands;
+        let w = raw.n_channels;
+        let tiling = dirs.tiling();
+        let sum_ch = |v: &[f64], b: usize| -> f64 {
+            let mut s = 0.0;
+            for (i, x) in v.iter().enumerate() {
+                let ch = i % w;
+                if ch % nb == b {
+                    s += x;
+                }
+            }
+            s
+        };
+        let mut bands = Vec::new();
+        for b in 0..nb {
+            let src = raw.source[b] + if raw.has_sky { raw.source[nb + b] } else { 0.0 };
+            let esc = sum_ch(&raw.escaped, b);
+            let facet_part = |v: &[f64], ground: bool| -> f64 {
+                let mut s = 0.0;
+                for (f, &g) in ground_facet.iter().enumerate() {
+                    if g == ground {
+                        s += v[f * w + b] + if raw.has_sky { v[f * w + nb + b] } else { 0.0 };
+                    }
+                }
+                s
+            };
+            let abs_v = sum_ch(&raw.absorbed_turbid, b) + facet_part(&raw.absorbed_facet, false);
+            let abs_g = sum_ch(&raw.absorbed_ground, b) + facet_part(&raw.absorbed_facet, true);
+            let lost = sum_ch(&raw.lost, b);
+            let rem = sum_ch(&raw.remaining, b);
+            let tran = sum_ch(&raw.intercepted_ground, b) + facet_part(&raw.intercepted_facet, true);
+            let closure = if src > 0.0 { (1.0 - (abs_v + abs_g + esc + lost + rem) / src).abs() } else { 0.0 };
+            let mut brf = Vec::new();
+            for (j, d) in tiling.iter().enumerate() {
+                if d.omega.z <= 0.0 {
+                    continue;
+                }
+                let sun = raw.escaped[j * w + b];
+                let sky = if raw.has_sky { raw.escaped[j * w + nb + b] } else { 0.0 };
+                let denom = area * d.projected_sr;
+                let brf_v = if e_dir[b] > 0.0 { PI * sun / (denom * e_dir[b]) } else { f64::NAN };
+                let hdrf = raw.has_sky.then(|| PI * (sun + sky) / (denom * (e_dir[b] + e_diff[b])));
+                brf.push(BrfEntry { zenith_deg: d.zenith_deg(), azimuth_deg: d.azimuth_deg(), solid_angle_sr: d.solid_angle_sr, kind: d.kind.name(), brf: brf_v, hdrf });
+            }
+            bands.push(BandProducts {
+                band: band_names.get(b).cloned().unwrap_or_default(),
+                albedo: esc / src,
+                fabs: abs_v / src,
+                fabs_ground: abs_g / src,
+                ftran: tran / src,
+                flost: lost / src,
+                energy_closure: closure,
+                brf,
+            });
+        }
+        Self {
+            bands,
+            iterations: raw.iterations,
+            converged: raw.converged,
+            extrapolation_ratio: raw.q.iter().take(nb).copied().collect(),
+            rays: raw.rays,
+            crossings: raw.crossings,
+            tracking_seconds: seconds,
+            raw,
+        }
+    }
+
+    /// The BRF entry of band `b` closest to a view direction (zenith, azimuth in degrees).
+    pub fn brf_at(&self, b: usize, zenith_deg: f64, azimuth_deg: f64) -> Option<&BrfEntry> {
+        let target = crate::resources::directions::direction_from_deg(zenith_deg, azimuth_deg);
+        self.bands.get(b)?.brf.iter().max_by(|x, y| {
+            let dx = crate::resources::directions::direction_from_deg(x.zenith_deg, x.azimuth_deg).dot(target);
+            let dy = crate::resources::directions::direction_from_deg(y.zenith_deg, y.azimuth_deg).dot(target);
+            dx.total_cmp(&dy)
+        })
+    }
+}

@@ -1,0 +1,56 @@
+//! Direction stage (DART 5 paper §2, "Direction" module): builds the discrete directions from
+//! the scene's `directions` section (physics.md §2), keeps the sun direction exact, and groups
+//! directions into interception slots (angular sectors, or one per direction).
+
+use crate::resources::directions::{DirectionParams, DirectionSet, direction_from_deg};
+use crate::resources::scene::{SceneInfo, StageErrors};
+use crate::resources::tracking::{Directions, RadiativeSettings};
+use bevy_ecs::prelude::*;
+use glam::DVec3;
+
+/// Smallest direction count of the reference preset.
+pub const REFERENCE_MIN_DIRECTIONS: usize = 400;
+
+/// The scene's direction parameters (resource inserted at spawn; defaults when absent).
+#[derive(Debug, Clone, Default, Resource)]
+pub struct DirectionRequest(pub DirectionParams);
+
+/// Direction · reads SceneInfo, DirectionRequest, RadiativeSettings · writes Directions.
+pub fn build_directions(info: Res<SceneInfo>, req: Res<DirectionRequest>, settings: Res<RadiativeSettings>, mut errors: ResMut<StageErrors>, mut commands: Commands) {
+    // The reference preset needs at least REFERENCE_MIN_DIRECTIONS directions (BRF within 1 %
+    // of DISORT at 75° view zenith in the NIR needs ≥ 400; see tests/radiative_oracles.rs).
+    let mut params = req.0.clone();
+    if settings.preset == crate::scene::desc::Preset::Reference && params.count < REFERENCE_MIN_DIRECTIONS {
+        params.count = REFERENCE_MIN_DIRECTIONS;
+    }
+    let set = match DirectionSet::new(&params) {
+        Ok(s) => s,
+        Err(e) => {
+            errors.0.push(e.to_string());
+            return;
+        }
+    };
+    let il = &info.illumination;
+    // Ground→sun vector; the beam propagates along its opposite.
+    let sun = -direction_from_deg(il.sun_zenith_deg, il.sun_azimuth_deg);
+    let tiling = set.tiling();
+    let (sector_of, sector_row) = if settings.per_direction_stores {
+        ((0..tiling.len()).map(|j| j as u16).collect::<Vec<u16>>(), (0..tiling.len()).collect::<Vec<usize>>())
+    } else {
+        let ns = set.n_sectors();
+        let sector_of: Vec<u16> = tiling.iter().map(|d| d.sector).collect();
+        // Representative row: the member closest to the solid-angle-weighted mean direction.
+        let mut mean = vec![DVec3::ZERO; ns];
+        for d in tiling {
+            mean[d.sector as usize] += d.omega * d.solid_angle_sr;
+        }
+        let rows = (0..ns)
+            .map(|s| {
+                let m = mean[s].normalize_or(DVec3::Z);
+                (0..tiling.len()).filter(|&j| tiling[j].sector as usize == s).max_by(|&a, &b| tiling[a].omega.dot(m).total_cmp(&tiling[b].omega.dot(m))).unwrap_or(0)
+            })
+            .collect();
+        (sector_of, rows)
+    };
+    commands.insert_resource(Directions { set, sun, sector_of, sector_row });
+}

@@ -1,0 +1,94 @@
+//! Phase stage (DART 5 paper §2, "Phase" module): for every turbid material a component of the
+//! scene uses, the fraction of intercepted power scattered from each incident direction (and the
+//! exact sun direction) into each discrete direction, per band (physics.md §2.5, §3.3); facet
+//! materials become Lambertian (R, T_d, T_dir) models. Only what the scene uses is tabulated.
+
+use crate::components::{ImportedMesh, TurbidCrown, TurbidPlot};
+use crate::physics::lad::{Lad, LeafAngleDistribution, LeafOptics};
+use crate::radiative::engine::TrackOptics;
+use crate::resources::materials::{MaterialKind, Materials};
+use crate::resources::phase_tables::vegetation_unit_tables;
+use crate::resources::scene::StageErrors;
+use crate::resources::tracking::{Directions, OpticsTables, RadiativeSettings};
+use crate::scene::desc::LadDesc;
+use bevy_ecs::prelude::*;
+
+/// Converts the authoring LAD into the physics LAD.
+pub fn lad_from_desc(l: &LadDesc) -> Lad {
+    match l {
+        LadDesc::Spherical => Lad::Spherical,
+        LadDesc::Uniform => Lad::Uniform,
+        LadDesc::Planophile => Lad::Planophile,
+        LadDesc::Erectophile => Lad::Erectophile,
+        LadDesc::Plagiophile => Lad::Plagiophile,
+        LadDesc::Extremophile => Lad::Extremophile,
+        LadDesc::Ellipsoidal { mean_angle_deg } => Lad::Ellipsoidal { mean_angle_deg: *mean_angle_deg },
+        LadDesc::Beta { mu, nu } => Lad::Beta { mu: *mu, nu: *nu },
+        LadDesc::Histogram { weights } => Lad::Histogram { bins: weights.clone() },
+    }
+}
+
+/// Phase · reads Materials, Directions, RadiativeSettings, TurbidCrown, TurbidPlot,
+/// ImportedMesh · writes OpticsTables.
+pub fn tabulate_phase(
+    mats: Res<Materials>,
+    dirs: Res<Directions>,
+    settings: Res<RadiativeSettings>,
+    crowns: Query<&TurbidCrown>,
+    plots: Query<&TurbidPlot>,
+    meshes: Query<&ImportedMesh>,
+    mut errors: ResMut<StageErrors>,
+    mut commands: Commands,
+) {
+    let mut used = vec![false; mats.list.len()];
+    for c in &crowns {
+        used[c.material as usize] = true;
+    }
+    for p in &plots {
+        used[p.material as usize] = true;
+    }
+    for m in &meshes {
+        for part in m.parts.iter().filter(|p| p.as_turbid) {
+            used[part.material as usize] = true;
+        }
+    }
+    let mut optics = Vec::with_capacity(mats.list.len());
+    let mut bytes = 0;
+    let mut renorm = 0.0f64;
+    for (id, m) in mats.list.iter().enumerate() {
+        let o = match &m.kind {
+            MaterialKind::Turbid { reflectance, transmittance, lad, .. } if used[id] => {
+                let lad = match LeafAngleDistribution::new(&lad_from_desc(lad)) {
+                    Ok(l) => l,
+                    Err(e) => {
+                        errors.0.push(format!("material `{}`: {e}", m.name));
+                        optics.push(TrackOptics::Unused);
+                        continue;
+                    }
+                };
+                let unit = vegetation_unit_tables(&dirs.set, &lad, None, Some(dirs.sun), &settings.tables);
+                let mut tables = Vec::new();
+                for b in 0..reflectance.len() {
+                    match unit.for_band(&LeafOptics::lambertian(reflectance[b], transmittance[b])) {
+                        Ok(t) => {
+                            bytes += t.bytes();
+                            renorm = renorm.max(t.max_renormalisation());
+                            tables.push(t);
+                        }
+                        Err(e) => errors.0.push(format!("material `{}`: {e}", m.name)),
+                    }
+                }
+                // Extinction uses the exact Ross G-function of the LAD (the tables' rows are
+                // renormalised to the albedo, so they need not share its binning).
+                let mut g: Vec<f64> = dirs.set.tiling().iter().map(|d| lad.g_function(d.omega.z)).collect();
+                g.push(lad.g_function(dirs.sun.z));
+                TrackOptics::Turbid { g, tables }
+            }
+            MaterialKind::Lambertian { reflectance, diffuse_transmittance, direct_transmittance } => TrackOptics::Lambert { r: reflectance.clone(), t: diffuse_transmittance.clone(), t_dir: direct_transmittance.clone() },
+            MaterialKind::Leaf { reflectance, transmittance } => TrackOptics::Lambert { r: reflectance.clone(), t: transmittance.clone(), t_dir: vec![0.0; reflectance.len()] },
+            _ => TrackOptics::Unused,
+        };
+        optics.push(o);
+    }
+    commands.insert_resource(OpticsTables { optics, bytes, max_renormalisation: renorm });
+}

@@ -1,0 +1,100 @@
+//! Radiative stage (DART 5 paper §3): discrete-ordinate flux tracking of sun and sky radiation
+//! through the Maket grid ([`crate::radiative::engine`]).
+//!
+//! Reads GridSpec, CellGrid, FacetStore, Directions, OpticsTables, RadiativeSettings,
+//! SceneInfo, Materials, TerrainRes, Ground; writes RadiativeProducts.
+
+use crate::components::Ground;
+use crate::geometry::terrain::Terrain;
+use crate::radiative::engine::{RadiativeInput, TrackOptics, run};
+use crate::radiative::products::RadiativeProducts;
+use crate::resources::facets::FacetStore;
+use crate::resources::grid::{CellGrid, GridSpec};
+use crate::resources::materials::{MaterialKind, Materials};
+use crate::resources::phase_tables::lambertian_facet_fractions;
+use crate::resources::scene::{SceneInfo, StageErrors, TerrainRes};
+use crate::resources::tracking::{Directions, OpticsTables, RadiativeSettings};
+use bevy_ecs::prelude::*;
+use rayon::prelude::*;
+
+/// Above this many (facet × direction) pairs, facets use the renormalised cosine fractions
+/// instead of exact projected solid angles (memory and set-up time).
+pub const EXACT_FRACTIONS_LIMIT: usize = 20_000_000;
+
+/// Radiative · reads the Maket grid, directions, tables and illumination · writes
+/// RadiativeProducts.
+#[allow(clippy::too_many_arguments)]
+pub fn track_flux(
+    info: Res<SceneInfo>,
+    spec: Res<GridSpec>,
+    grid: Res<CellGrid>,
+    facets: Res<FacetStore>,
+    dirs: Res<Directions>,
+    tables: Res<OpticsTables>,
+    settings: Res<RadiativeSettings>,
+    mats: Res<Materials>,
+    terrain: Res<TerrainRes>,
+    grounds: Query<&Ground>,
+    mut errors: ResMut<StageErrors>,
+    mut commands: Commands,
+) {
+    let nb = info.bands.len();
+    // Facet and ground models the tracker supports so far: Lambertian and bi-Lambertian.
+    let facet_ok = |m: u32| matches!(mats.list[m as usize].kind, MaterialKind::Lambertian { .. } | MaterialKind::Leaf { .. });
+    if let Some(f) = facets.facets.iter().find(|f| !facet_ok(f.material)) {
+        errors.0.push(format!("material `{}`: RPV and Hapke facets are not supported by the Radiative stage yet (use a Lambertian property)", mats.list[f.material as usize].name));
+        return;
+    }
+    let flat_ground = match (&terrain.0, grounds.iter().next()) {
+        (Terrain::Flat(_), Some(g)) => match &mats.list[g.optics as usize].kind {
+            MaterialKind::Lambertian { reflectance, .. } | MaterialKind::Leaf { reflectance, .. } => Some(reflectance.clone()),
+            _ => {
+                errors.0.push(format!("ground material `{}`: RPV and Hapke grounds are not supported by the Radiative stage yet", mats.list[g.optics as usize].name));
+                return;
+            }
+        },
+        _ => None,
+    };
+    let n_dirs = dirs.set.tiling().len();
+    let fractions: Vec<(Vec<f32>, Vec<f32>)> = if facets.facets.len() * n_dirs <= EXACT_FRACTIONS_LIMIT {
+        facets
+            .facets
+            .par_iter()
+            .map(|f| {
+                let n = (f.v[1] - f.v[0]).cross(f.v[2] - f.v[0]).normalize_or(glam::DVec3::Z);
+                let fr = lambertian_facet_fractions(&dirs.set, n);
+                (fr.front[..n_dirs].iter().map(|&x| x as f32).collect(), fr.back[..n_dirs].iter().map(|&x| x as f32).collect())
+            })
+            .collect()
+    } else {
+        Vec::new()
+    };
+    let il = &info.illumination;
+    let e_tot: Vec<f64> = (0..nb).map(|b| il.irradiance_w_m2_um.get(b).copied().unwrap_or(1.0)).collect();
+    let skyl: Vec<f64> = (0..nb).map(|b| il.skyl.get(b).copied().unwrap_or(0.0)).collect();
+    let e_dir: Vec<f64> = (0..nb).map(|b| e_tot[b] * (1.0 - skyl[b])).collect();
+    let e_diff: Vec<f64> = (0..nb).map(|b| e_tot[b] * skyl[b]).collect();
+    let optics: Vec<TrackOptics> = tables.optics.clone();
+    let input = RadiativeInput {
+        spec: &spec,
+        grid: &grid,
+        facets: &facets.facets,
+        facet_fractions: &fractions,
+        dirs: &dirs.set,
+        sector_of: &dirs.sector_of,
+        sector_row: &dirs.sector_row,
+        optics: &optics,
+        flat_ground,
+        sun: dirs.sun,
+        e_dir: e_dir.clone(),
+        e_diff: e_diff.clone(),
+        params: settings.tracking.clone(),
+    };
+    let t0 = std::time::Instant::now();
+    let raw = run(&input);
+    let secs = t0.elapsed().as_secs_f64();
+    let names: Vec<String> = info.bands.iter().map(|b| b.name.clone()).collect();
+    let area = spec.n[0] as f64 * spec.cell.x * spec.n[1] as f64 * spec.cell.y;
+    let ground_facet: Vec<bool> = facets.facets.iter().map(|f| f.kind == crate::resources::facets::FacetKind::Ground).collect();
+    commands.insert_resource(RadiativeProducts::new(raw, &dirs.set, &names, area, &e_dir, &e_diff, &ground_facet, secs));
+}
