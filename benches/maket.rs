@@ -15,17 +15,29 @@ use std::time::Instant;
 fn peak_rss_mib() -> f64 {
     std::fs::read_to_string("/proc/self/status")
         .ok()
-        .and_then(|s| s.lines().find(|l| l.starts_with("VmHWM:")).and_then(|l| l.split_whitespace().nth(1)?.parse::<f64>().ok()))
+        .and_then(|s| {
+            s.lines()
+                .find(|l| l.starts_with("VmHWM:"))
+                .and_then(|l| l.split_whitespace().nth(1)?.parse::<f64>().ok())
+        })
         .map_or(f64::NAN, |kib| kib / 1024.0)
 }
 
 fn main() {
     let small = std::env::args().any(|a| a == "--small");
     let (size, n) = if small { (200.0, 200) } else { (1000.0, 5000) };
-    let params = ForestParams { size_m: size, cell_m: 1.0, species: vec![broadleaf(n), conifer(n)], min_spacing_m: 4.0, seed: 11, ..Default::default() };
+    let params = ForestParams {
+        size_m: size,
+        cell_m: 1.0,
+        species: vec![broadleaf(n), conifer(n)],
+        min_spacing_m: 4.0,
+        seed: 11,
+        ..Default::default()
+    };
     let desc = forest(&params);
     let t0 = Instant::now();
-    let mut sim = Simulation::from_desc(&desc, &SceneSource::generated(), RunSettings::default()).expect("scene");
+    let mut sim = Simulation::from_desc(&desc, &SceneSource::generated(), RunSettings::default())
+        .expect("scene");
     let t_spawn = t0.elapsed().as_secs_f64();
     let t1 = Instant::now();
     sim.run_stage(Stage::Maket).expect("maket");
@@ -34,16 +46,35 @@ fn main() {
     let g = sim.resource::<CellGrid>();
     let mut worst = 0.0f64;
     for la in r.leaf_area.values() {
-        worst = worst.max((la.rasterised_m2.unwrap_or(0.0) - la.analytic_m2).abs() / la.analytic_m2);
+        worst =
+            worst.max((la.rasterised_m2.unwrap_or(0.0) - la.analytic_m2).abs() / la.analytic_m2);
     }
-    println!("maket bench: {size} m x {size} m, {} trees, cells {:?} ({} cells), threads {}", 2 * n, r.cells, r.n_cells, rayon::current_num_threads());
+    println!(
+        "maket bench: {size} m x {size} m, {} trees, cells {:?} ({} cells), threads {}",
+        2 * n,
+        r.cells,
+        r.n_cells,
+        rayon::current_num_threads()
+    );
     println!("  spawn (placement)        {t_spawn:8.3} s");
     println!("  maket stage              {t_maket:8.3} s");
     println!("  turbid entries           {:>10}", g.turbid.len());
-    println!("  cells with vegetation    {:>10}", r.turbid_cells.unwrap_or(0));
-    println!("  facets                   {:>10}", r.facet_count.values().sum::<u64>());
+    println!(
+        "  cells with vegetation    {:>10}",
+        r.turbid_cells.unwrap_or(0)
+    );
+    println!(
+        "  facets                   {:>10}",
+        r.facet_count.values().sum::<u64>()
+    );
     println!("  worst leaf-area error    {worst:10.2e} (relative)");
-    println!("  memory estimate (peak)   {:8.1} MiB", r.memory.peak_bytes as f64 / 1048576.0);
-    println!("  memory held after Maket  {:8.1} MiB", r.memory_used_bytes.unwrap_or(0) as f64 / 1048576.0);
+    println!(
+        "  memory estimate (peak)   {:8.1} MiB",
+        r.memory.peak_bytes as f64 / 1048576.0
+    );
+    println!(
+        "  memory held after Maket  {:8.1} MiB",
+        r.memory_used_bytes.unwrap_or(0) as f64 / 1048576.0
+    );
     println!("  process peak RSS         {:8.1} MiB", peak_rss_mib());
 }

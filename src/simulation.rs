@@ -45,7 +45,10 @@ impl Stage {
 
     /// True when the stage has systems in this version.
     pub fn implemented(self) -> bool {
-        matches!(self, Stage::Direction | Stage::Phase | Stage::Maket | Stage::Radiative | Stage::Output)
+        matches!(
+            self,
+            Stage::Direction | Stage::Phase | Stage::Maket | Stage::Radiative | Stage::Output
+        )
     }
 }
 
@@ -95,7 +98,10 @@ impl Simulation {
                     s.add_systems(crate::systems::direction::build_directions);
                 }
                 Stage::Phase => {
-                    s.add_systems(crate::systems::phase::tabulate_phase.run_if(resource_exists::<crate::resources::tracking::Directions>));
+                    s.add_systems(
+                        crate::systems::phase::tabulate_phase
+                            .run_if(resource_exists::<crate::resources::tracking::Directions>),
+                    );
                 }
                 Stage::Maket => add_maket_systems(&mut s),
                 Stage::Radiative => {
@@ -115,7 +121,9 @@ impl Simulation {
                             .run_if(no_stage_error),
                         crate::systems::output::write_radiative_products
                             .run_if(resource_exists::<OutputDir>)
-                            .run_if(resource_exists::<crate::radiative::products::RadiativeProducts>)
+                            .run_if(
+                                resource_exists::<crate::radiative::products::RadiativeProducts>,
+                            )
                             .run_if(no_stage_error),
                     ));
                 }

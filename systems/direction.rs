@@ -16,11 +16,19 @@ pub const REFERENCE_MIN_DIRECTIONS: usize = 400;
 pub struct DirectionRequest(pub DirectionParams);
 
 /// Direction · reads SceneInfo, DirectionRequest, RadiativeSettings · writes Directions.
-pub fn build_directions(info: Res<SceneInfo>, req: Res<DirectionRequest>, settings: Res<RadiativeSettings>, mut errors: ResMut<StageErrors>, mut commands: Commands) {
+pub fn build_directions(
+    info: Res<SceneInfo>,
+    req: Res<DirectionRequest>,
+    settings: Res<RadiativeSettings>,
+    mut errors: ResMut<StageErrors>,
+    mut commands: Commands,
+) {
     // The reference preset needs at least REFERENCE_MIN_DIRECTIONS directions (BRF within 1 %
     // of DISORT at 75° view zenith in the NIR needs ≥ 400; see tests/radiative_oracles.rs).
     let mut params = req.0.clone();
-    if settings.preset == crate::scene::desc::Preset::Reference && params.count < REFERENCE_MIN_DIRECTIONS {
+    if settings.preset == crate::scene::desc::Preset::Reference
+        && params.count < REFERENCE_MIN_DIRECTIONS
+    {
         params.count = REFERENCE_MIN_DIRECTIONS;
     }
     let set = match DirectionSet::new(&params) {
@@ -35,7 +43,10 @@ pub fn build_directions(info: Res<SceneInfo>, req: Res<DirectionRequest>, settin
     let sun = -direction_from_deg(il.sun_zenith_deg, il.sun_azimuth_deg);
     let tiling = set.tiling();
     let (sector_of, sector_row) = if settings.per_direction_stores {
-        ((0..tiling.len()).map(|j| j as u16).collect::<Vec<u16>>(), (0..tiling.len()).collect::<Vec<usize>>())
+        (
+            (0..tiling.len()).map(|j| j as u16).collect::<Vec<u16>>(),
+            (0..tiling.len()).collect::<Vec<usize>>(),
+        )
     } else {
         let ns = set.n_sectors();
         let sector_of: Vec<u16> = tiling.iter().map(|d| d.sector).collect();
@@ -47,10 +58,18 @@ pub fn build_directions(info: Res<SceneInfo>, req: Res<DirectionRequest>, settin
         let rows = (0..ns)
             .map(|s| {
                 let m = mean[s].normalize_or(DVec3::Z);
-                (0..tiling.len()).filter(|&j| tiling[j].sector as usize == s).max_by(|&a, &b| tiling[a].omega.dot(m).total_cmp(&tiling[b].omega.dot(m))).unwrap_or(0)
+                (0..tiling.len())
+                    .filter(|&j| tiling[j].sector as usize == s)
+                    .max_by(|&a, &b| tiling[a].omega.dot(m).total_cmp(&tiling[b].omega.dot(m)))
+                    .unwrap_or(0)
             })
             .collect();
         (sector_of, rows)
     };
-    commands.insert_resource(Directions { set, sun, sector_of, sector_row });
+    commands.insert_resource(Directions {
+        set,
+        sun,
+        sector_of,
+        sector_row,
+    });
 }

@@ -151,7 +151,9 @@ pub fn write_radiative_products(
     mats: Res<Materials>,
     mut errors: ResMut<StageErrors>,
 ) {
-    if let Err(e) = write_radiative(&out.0, &products, &info, &settings, &dirs, &spec, &grid, &facets, &mats) {
+    if let Err(e) = write_radiative(
+        &out.0, &products, &info, &settings, &dirs, &spec, &grid, &facets, &mats,
+    ) {
         errors.0.push(e);
     }
 }
@@ -168,7 +170,8 @@ fn write_radiative(
     facets: &FacetStore,
     mats: &Materials,
 ) -> Result<(), String> {
-    std::fs::create_dir_all(dir.join("budget")).map_err(|e| format!("{}: cannot create output folder: {e}", dir.display()))?;
+    std::fs::create_dir_all(dir.join("budget"))
+        .map_err(|e| format!("{}: cannot create output folder: {e}", dir.display()))?;
     let summary = serde_json::json!({
         "schema_version": 1,
         "lumenscape_version": env!("CARGO_PKG_VERSION"),
@@ -191,11 +194,26 @@ fn write_radiative(
         "tracking_seconds": p.tracking_seconds,
         "bands": p.bands,
     });
-    write_atomic(&dir.join("summary.json"), serde_json::to_string_pretty(&summary).map_err(|e| e.to_string())?.as_bytes())?;
+    write_atomic(
+        &dir.join("summary.json"),
+        serde_json::to_string_pretty(&summary)
+            .map_err(|e| e.to_string())?
+            .as_bytes(),
+    )?;
     let mut csv = String::from("band,zenith_deg,azimuth_deg,solid_angle_sr,kind,brf,hdrf\n");
     for b in &p.bands {
         for e in &b.brf {
-            let _ = writeln!(csv, "{},{:.6},{:.6},{:.6e},{},{:.8},{}", b.band, e.zenith_deg, e.azimuth_deg, e.solid_angle_sr, e.kind, e.brf, e.hdrf.map_or(String::new(), |h| format!("{h:.8}")));
+            let _ = writeln!(
+                csv,
+                "{},{:.6},{:.6},{:.6e},{},{:.8},{}",
+                b.band,
+                e.zenith_deg,
+                e.azimuth_deg,
+                e.solid_angle_sr,
+                e.kind,
+                e.brf,
+                e.hdrf.map_or(String::new(), |h| format!("{h:.8}"))
+            );
         }
     }
     write_atomic(&dir.join("brf.csv"), csv.as_bytes())?;
@@ -205,8 +223,12 @@ fn write_radiative(
     let (w, nb) = (raw.n_channels, raw.n_bands);
     let col_area = spec.cell.x * spec.cell.y;
     let scene_area = col_area * (spec.n[0] * spec.n[1]) as f64;
-    let src_per_m2: Vec<f64> = (0..nb).map(|b| (raw.source[b] + if raw.has_sky { raw.source[nb + b] } else { 0.0 }) / scene_area).collect();
-    let band_sum = |v: &[f64], e: usize, b: usize| v[e * w + b] + if raw.has_sky { v[e * w + nb + b] } else { 0.0 };
+    let src_per_m2: Vec<f64> = (0..nb)
+        .map(|b| (raw.source[b] + if raw.has_sky { raw.source[nb + b] } else { 0.0 }) / scene_area)
+        .collect();
+    let band_sum = |v: &[f64], e: usize, b: usize| {
+        v[e * w + b] + if raw.has_sky { v[e * w + nb + b] } else { 0.0 }
+    };
     let mut cells = String::from("i,j,k,band,fabs,fintercepted\n");
     let mut layers = vec![vec![[0.0f64; 2]; nb]; spec.n[2]];
     for c in 0..spec.n_cells() {
@@ -222,7 +244,13 @@ fn write_radiative(
         for b in 0..nb {
             if a[b] != 0.0 || x[b] != 0.0 {
                 let norm = src_per_m2[b] * col_area;
-                let _ = writeln!(cells, "{i},{j},{k},{},{:.8e},{:.8e}", info.bands[b].name, a[b] / norm, x[b] / norm);
+                let _ = writeln!(
+                    cells,
+                    "{i},{j},{k},{},{:.8e},{:.8e}",
+                    info.bands[b].name,
+                    a[b] / norm,
+                    x[b] / norm
+                );
                 layers[k][b][0] += a[b] / (src_per_m2[b] * scene_area);
                 layers[k][b][1] += x[b] / (src_per_m2[b] * scene_area);
             }
@@ -233,21 +261,35 @@ fn write_radiative(
     for (k, l) in layers.iter().enumerate() {
         for (b, v) in l.iter().enumerate() {
             let z0 = spec.origin.z + k as f64 * spec.cell.z;
-            let _ = writeln!(lay, "{k},{z0:.4},{:.4},{},{:.8e},{:.8e}", z0 + spec.cell.z, info.bands[b].name, v[0], v[1]);
+            let _ = writeln!(
+                lay,
+                "{k},{z0:.4},{:.4},{},{:.8e},{:.8e}",
+                z0 + spec.cell.z,
+                info.bands[b].name,
+                v[0],
+                v[1]
+            );
         }
     }
     write_atomic(&dir.join("budget/layers.csv"), lay.as_bytes())?;
     // Per element type and material.
     let mut el: std::collections::BTreeMap<(String, String), Vec<[f64; 2]>> = Default::default();
     for (e, t) in grid.turbid.iter().enumerate() {
-        let v = el.entry(("turbid".into(), mats.list[t.material as usize].name.clone())).or_insert_with(|| vec![[0.0; 2]; nb]);
+        let v = el
+            .entry(("turbid".into(), mats.list[t.material as usize].name.clone()))
+            .or_insert_with(|| vec![[0.0; 2]; nb]);
         for b in 0..nb {
             v[b][0] += band_sum(&raw.absorbed_turbid, e, b);
             v[b][1] += band_sum(&raw.intercepted_turbid, e, b);
         }
     }
     for (fi, f) in facets.facets.iter().enumerate() {
-        let v = el.entry((format!("{:?}", f.kind).to_lowercase(), mats.list[f.material as usize].name.clone())).or_insert_with(|| vec![[0.0; 2]; nb]);
+        let v = el
+            .entry((
+                format!("{:?}", f.kind).to_lowercase(),
+                mats.list[f.material as usize].name.clone(),
+            ))
+            .or_insert_with(|| vec![[0.0; 2]; nb]);
         for b in 0..nb {
             v[b][0] += band_sum(&raw.absorbed_facet, fi, b);
             v[b][1] += band_sum(&raw.intercepted_facet, fi, b);
@@ -255,7 +297,9 @@ fn write_radiative(
     }
     let n_cols = spec.n[0] * spec.n[1];
     if raw.absorbed_ground.iter().any(|&v| v != 0.0) {
-        let v = el.entry(("ground".into(), "flat ground".into())).or_insert_with(|| vec![[0.0; 2]; nb]);
+        let v = el
+            .entry(("ground".into(), "flat ground".into()))
+            .or_insert_with(|| vec![[0.0; 2]; nb]);
         for c in 0..n_cols {
             for b in 0..nb {
                 v[b][0] += band_sum(&raw.absorbed_ground, c, b);
@@ -267,7 +311,13 @@ fn write_radiative(
     for ((kind, m), v) in &el {
         for (b, x) in v.iter().enumerate() {
             let norm = src_per_m2[b] * scene_area;
-            let _ = writeln!(els, "{kind},{m},{},{:.8e},{:.8e}", info.bands[b].name, x[0] / norm, x[1] / norm);
+            let _ = writeln!(
+                els,
+                "{kind},{m},{},{:.8e},{:.8e}",
+                info.bands[b].name,
+                x[0] / norm,
+                x[1] / norm
+            );
         }
     }
     write_atomic(&dir.join("budget/elements.csv"), els.as_bytes())?;

@@ -22,9 +22,13 @@ pub fn lad_from_desc(l: &LadDesc) -> Lad {
         LadDesc::Erectophile => Lad::Erectophile,
         LadDesc::Plagiophile => Lad::Plagiophile,
         LadDesc::Extremophile => Lad::Extremophile,
-        LadDesc::Ellipsoidal { mean_angle_deg } => Lad::Ellipsoidal { mean_angle_deg: *mean_angle_deg },
+        LadDesc::Ellipsoidal { mean_angle_deg } => Lad::Ellipsoidal {
+            mean_angle_deg: *mean_angle_deg,
+        },
         LadDesc::Beta { mu, nu } => Lad::Beta { mu: *mu, nu: *nu },
-        LadDesc::Histogram { weights } => Lad::Histogram { bins: weights.clone() },
+        LadDesc::Histogram { weights } => Lad::Histogram {
+            bins: weights.clone(),
+        },
     }
 }
 
@@ -57,7 +61,12 @@ pub fn tabulate_phase(
     let mut renorm = 0.0f64;
     for (id, m) in mats.list.iter().enumerate() {
         let o = match &m.kind {
-            MaterialKind::Turbid { reflectance, transmittance, lad, .. } if used[id] => {
+            MaterialKind::Turbid {
+                reflectance,
+                transmittance,
+                lad,
+                ..
+            } if used[id] => {
                 let lad = match LeafAngleDistribution::new(&lad_from_desc(lad)) {
                     Ok(l) => l,
                     Err(e) => {
@@ -66,7 +75,8 @@ pub fn tabulate_phase(
                         continue;
                     }
                 };
-                let unit = vegetation_unit_tables(&dirs.set, &lad, None, Some(dirs.sun), &settings.tables);
+                let unit =
+                    vegetation_unit_tables(&dirs.set, &lad, None, Some(dirs.sun), &settings.tables);
                 let mut tables = Vec::new();
                 for b in 0..reflectance.len() {
                     match unit.for_band(&LeafOptics::lambertian(reflectance[b], transmittance[b])) {
@@ -80,15 +90,39 @@ pub fn tabulate_phase(
                 }
                 // Extinction uses the exact Ross G-function of the LAD (the tables' rows are
                 // renormalised to the albedo, so they need not share its binning).
-                let mut g: Vec<f64> = dirs.set.tiling().iter().map(|d| lad.g_function(d.omega.z)).collect();
+                let mut g: Vec<f64> = dirs
+                    .set
+                    .tiling()
+                    .iter()
+                    .map(|d| lad.g_function(d.omega.z))
+                    .collect();
                 g.push(lad.g_function(dirs.sun.z));
                 TrackOptics::Turbid { g, tables }
             }
-            MaterialKind::Lambertian { reflectance, diffuse_transmittance, direct_transmittance } => TrackOptics::Lambert { r: reflectance.clone(), t: diffuse_transmittance.clone(), t_dir: direct_transmittance.clone() },
-            MaterialKind::Leaf { reflectance, transmittance } => TrackOptics::Lambert { r: reflectance.clone(), t: transmittance.clone(), t_dir: vec![0.0; reflectance.len()] },
+            MaterialKind::Lambertian {
+                reflectance,
+                diffuse_transmittance,
+                direct_transmittance,
+            } => TrackOptics::Lambert {
+                r: reflectance.clone(),
+                t: diffuse_transmittance.clone(),
+                t_dir: direct_transmittance.clone(),
+            },
+            MaterialKind::Leaf {
+                reflectance,
+                transmittance,
+            } => TrackOptics::Lambert {
+                r: reflectance.clone(),
+                t: transmittance.clone(),
+                t_dir: vec![0.0; reflectance.len()],
+            },
             _ => TrackOptics::Unused,
         };
         optics.push(o);
     }
-    commands.insert_resource(OpticsTables { optics, bytes, max_renormalisation: renorm });
+    commands.insert_resource(OpticsTables {
+        optics,
+        bytes,
+        max_renormalisation: renorm,
+    });
 }

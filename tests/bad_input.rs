@@ -50,19 +50,27 @@ fn error_of(name: &str, text: &str) -> (SceneError, String) {
         Err(e) => e,
     };
     let msg = e.to_string();
-    assert!(msg.contains(&p.display().to_string()), "{name}: message does not name the file: {msg}");
+    assert!(
+        msg.contains(&p.display().to_string()),
+        "{name}: message does not name the file: {msg}"
+    );
     (e, msg)
 }
 
 fn line_of(e: &SceneError) -> Option<usize> {
     match e {
-        SceneError::Syntax { at, .. } | SceneError::Invalid { at, .. } | SceneError::NotSupported { at, .. } => at.line_col.map(|l| l.0),
+        SceneError::Syntax { at, .. }
+        | SceneError::Invalid { at, .. }
+        | SceneError::NotSupported { at, .. } => at.line_col.map(|l| l.0),
         SceneError::Io { .. } => None,
     }
 }
 
 fn line_containing(text: &str, needle: &str) -> usize {
-    text.lines().position(|l| l.contains(needle)).expect("needle in text") + 1
+    text.lines()
+        .position(|l| l.contains(needle))
+        .expect("needle in text")
+        + 1
 }
 
 #[test]
@@ -84,13 +92,19 @@ fn unknown_field_is_an_error_at_its_line() {
     let text = GOOD.replace("radius_x_m: 1.5,", "radius_x_m: 1.5, radius_z_m: 2.0,");
     let (e, msg) = error_of("unknown.ron", &text);
     assert!(msg.contains("radius_z_m"), "{msg}");
-    assert_eq!(line_of(&e), Some(line_containing(&text, "radius_z_m")), "{msg}");
+    assert_eq!(
+        line_of(&e),
+        Some(line_containing(&text, "radius_z_m")),
+        "{msg}"
+    );
 }
 
 #[test]
 fn missing_files_are_reported() {
     let p = dir().join("does_not_exist.ron");
-    let e = Simulation::load(&p, RunSettings::default()).err().expect("error");
+    let e = Simulation::load(&p, RunSettings::default())
+        .err()
+        .expect("error");
     assert!(matches!(e, SceneError::Io { .. }));
     assert!(e.to_string().contains("does_not_exist.ron"));
     let text = GOOD.replace("Ground((optics: \"soil\")),", "Ground((optics: \"soil\", topography: RasterFile((path: \"nope.asc\", format: EsriAscii)))),");
@@ -105,24 +119,81 @@ fn missing_files_are_reported() {
 #[test]
 fn negative_and_nan_densities_and_sizes_are_rejected_with_their_field() {
     for (name, from, to, field) in [
-        ("neg_density.ron", "LeafAreaDensity(0.8)", "LeafAreaDensity(-0.8)", "foliage"),
-        ("nan_density.ron", "LeafAreaDensity(0.8)", "LeafAreaDensity(NaN)", "foliage"),
-        ("neg_radius.ron", "radius_x_m: 1.5", "radius_x_m: -1.5", "radius_x_m"),
-        ("nan_height.ron", "height_m: 3.0", "height_m: NaN", "height_m"),
-        ("zero_cell.ron", "cell_m: (1.0, 1.0, 1.0)", "cell_m: (1.0, 0.0, 1.0)", "cell_m"),
-        ("neg_cell.ron", "cell_m: (1.0, 1.0, 1.0)", "cell_m: (-1.0, 1.0, 1.0)", "cell_m"),
-        ("bad_sun.ron", "sun_zenith_deg: 30.0", "sun_zenith_deg: 95.0", "sun_zenith_deg"),
+        (
+            "neg_density.ron",
+            "LeafAreaDensity(0.8)",
+            "LeafAreaDensity(-0.8)",
+            "foliage",
+        ),
+        (
+            "nan_density.ron",
+            "LeafAreaDensity(0.8)",
+            "LeafAreaDensity(NaN)",
+            "foliage",
+        ),
+        (
+            "neg_radius.ron",
+            "radius_x_m: 1.5",
+            "radius_x_m: -1.5",
+            "radius_x_m",
+        ),
+        (
+            "nan_height.ron",
+            "height_m: 3.0",
+            "height_m: NaN",
+            "height_m",
+        ),
+        (
+            "zero_cell.ron",
+            "cell_m: (1.0, 1.0, 1.0)",
+            "cell_m: (1.0, 0.0, 1.0)",
+            "cell_m",
+        ),
+        (
+            "neg_cell.ron",
+            "cell_m: (1.0, 1.0, 1.0)",
+            "cell_m: (-1.0, 1.0, 1.0)",
+            "cell_m",
+        ),
+        (
+            "bad_sun.ron",
+            "sun_zenith_deg: 30.0",
+            "sun_zenith_deg: 95.0",
+            "sun_zenith_deg",
+        ),
         ("bad_version.ron", "version: 1", "version: 7", "version"),
-        ("bad_optics_ref.ron", "optics: \"veg\"", "optics: \"vegg\"", "optics"),
-        ("wrong_band_count.ron", "reflectance: [0.1]", "reflectance: [0.1, 0.2]", "reflectance"),
-        ("non_whole_cells.ron", "size_m: (10.0, 10.0)", "size_m: (10.5, 10.0)", "cell_m"),
+        (
+            "bad_optics_ref.ron",
+            "optics: \"veg\"",
+            "optics: \"vegg\"",
+            "optics",
+        ),
+        (
+            "wrong_band_count.ron",
+            "reflectance: [0.1]",
+            "reflectance: [0.1, 0.2]",
+            "reflectance",
+        ),
+        (
+            "non_whole_cells.ron",
+            "size_m: (10.0, 10.0)",
+            "size_m: (10.5, 10.0)",
+            "cell_m",
+        ),
     ] {
         let text = GOOD.replace(from, to);
         assert_ne!(text, GOOD, "{name}: replacement did not apply");
         let (e, msg) = error_of(name, &text);
         assert!(matches!(e, SceneError::Invalid { .. }), "{name}: {msg}");
-        assert!(msg.contains(field), "{name}: message does not name `{field}`: {msg}");
-        assert_eq!(line_of(&e), Some(line_containing(&text, to)), "{name}: {msg}");
+        assert!(
+            msg.contains(field),
+            "{name}: message does not name `{field}`: {msg}"
+        );
+        assert_eq!(
+            line_of(&e),
+            Some(line_containing(&text, to)),
+            "{name}: {msg}"
+        );
     }
 }
 
@@ -161,7 +232,11 @@ fn degenerate_triangles_are_skipped_with_a_counted_warning_and_empty_meshes_fail
     sim.run_stage(lumenscape::simulation::Stage::Maket).unwrap();
     let r = sim.resource::<lumenscape::resources::maket_report::MaketReport>();
     assert_eq!(r.facet_count.get("leaf"), Some(&1), "{r:?}");
-    assert!(r.warnings.iter().any(|w| w.contains("2 degenerate")), "{:?}", r.warnings);
+    assert!(
+        r.warnings.iter().any(|w| w.contains("2 degenerate")),
+        "{:?}",
+        r.warnings
+    );
     write("empty.obj", "# nothing\n");
     let text = GOOD.replace("Ground((optics: \"soil\")),", "Ground((optics: \"soil\")), Mesh((path: \"empty.obj\", groups: [(group: \"a\", optics: \"leaf\")])),");
     let (_, msg) = error_of("empty.ron", &text);
@@ -173,16 +248,29 @@ fn cli_exits_non_zero_with_file_line_and_field() {
     let exe = env!("CARGO_BIN_EXE_lumenscape");
     let text = GOOD.replace("radius_x_m: 1.5", "radius_x_m: -1.5");
     let p = write("cli_bad.ron", &text);
-    let out = Command::new(exe).args(["check", p.to_str().unwrap()]).output().unwrap();
+    let out = Command::new(exe)
+        .args(["check", p.to_str().unwrap()])
+        .output()
+        .unwrap();
     assert!(!out.status.success());
     let err = String::from_utf8_lossy(&out.stderr);
     let line = line_containing(&text, "radius_x_m");
-    assert!(err.contains(&format!("{}:{line}:", p.display())) && err.contains("radius_x_m"), "{err}");
+    assert!(
+        err.contains(&format!("{}:{line}:", p.display())) && err.contains("radius_x_m"),
+        "{err}"
+    );
     assert!(!err.contains("panicked"), "{err}");
     // Good scene: exit 0, summary on stdout.
     let p = write("cli_good.ron", GOOD);
-    let out = Command::new(exe).args(["check", p.to_str().unwrap()]).output().unwrap();
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    let out = Command::new(exe)
+        .args(["check", p.to_str().unwrap()])
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
     assert!(String::from_utf8_lossy(&out.stdout).contains("leaf area `veg`"));
 }
 
@@ -191,11 +279,27 @@ fn grids_above_the_memory_limit_are_refused_before_allocation() {
     let exe = env!("CARGO_BIN_EXE_lumenscape");
     let p = write("mem.ron", GOOD);
     let out_dir = dir().join("mem_out");
-    let out = Command::new(exe).args(["maket", p.to_str().unwrap(), "--max-memory", "1K", "--out", out_dir.to_str().unwrap()]).output().unwrap();
+    let out = Command::new(exe)
+        .args([
+            "maket",
+            p.to_str().unwrap(),
+            "--max-memory",
+            "1K",
+            "--out",
+            out_dir.to_str().unwrap(),
+        ])
+        .output()
+        .unwrap();
     assert!(!out.status.success());
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(err.contains("--max-memory"), "{err}");
-    assert!(!out_dir.join("maket.json").exists(), "no product after a refused run");
-    let out = Command::new(exe).args(["maket", p.to_str().unwrap(), "--max-memory", "lots"]).output().unwrap();
+    assert!(
+        !out_dir.join("maket.json").exists(),
+        "no product after a refused run"
+    );
+    let out = Command::new(exe)
+        .args(["maket", p.to_str().unwrap(), "--max-memory", "lots"])
+        .output()
+        .unwrap();
     assert!(!out.status.success());
 }

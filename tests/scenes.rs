@@ -11,10 +11,24 @@ use lumenscape::simulation::Simulation;
 use std::path::PathBuf;
 
 fn scenes() -> Vec<PathBuf> {
-    let mut v: Vec<PathBuf> = std::fs::read_dir(asset("assets/scenes")).unwrap().map(|e| e.unwrap().path()).filter(|p| p.extension().is_some_and(|e| e == "ron")).collect();
+    let mut v: Vec<PathBuf> = std::fs::read_dir(asset("assets/scenes"))
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .filter(|p| p.extension().is_some_and(|e| e == "ron"))
+        .collect();
     v.sort();
-    for name in ["default.ron", "turbid_layer.ron", "disk_canopy.ron", "forest_dem.ron", "urban.ron", "mesh_import.ron"] {
-        assert!(v.iter().any(|p| p.ends_with(name)), "missing example scene {name}");
+    for name in [
+        "default.ron",
+        "turbid_layer.ron",
+        "disk_canopy.ron",
+        "forest_dem.ron",
+        "urban.ron",
+        "mesh_import.ron",
+    ] {
+        assert!(
+            v.iter().any(|p| p.ends_with(name)),
+            "missing example scene {name}"
+        );
     }
     v
 }
@@ -24,7 +38,8 @@ fn every_example_scene_round_trips_through_ron() {
     for p in scenes() {
         let (desc, _) = load_scene(&p).unwrap_or_else(|e| panic!("{e}"));
         let text = to_ron(&desc);
-        let again = parse_scene(&text, &p).unwrap_or_else(|e| panic!("{}: re-parse failed: {e}\n{text}", p.display()));
+        let again = parse_scene(&text, &p)
+            .unwrap_or_else(|e| panic!("{}: re-parse failed: {e}\n{text}", p.display()));
         assert_eq!(desc, again, "{}", p.display());
     }
 }
@@ -35,13 +50,45 @@ fn every_example_scene_runs_and_writes_products() {
     for p in scenes() {
         let mut sim = Simulation::load(&p, Default::default()).unwrap_or_else(|e| panic!("{e}"));
         let out = out_root.join(p.file_stem().unwrap());
-        sim.run(Some(&out)).unwrap_or_else(|e| panic!("{}: {e}", p.display()));
+        sim.run(Some(&out))
+            .unwrap_or_else(|e| panic!("{}: {e}", p.display()));
         let r = sim.resource::<MaketReport>().clone();
         for (m, la) in &r.leaf_area {
             let got = la.rasterised_m2.unwrap_or(0.0);
-            assert!((got - la.analytic_m2).abs() <= 1e-6 * la.analytic_m2, "{}: `{m}` {got} vs {}", p.display(), la.analytic_m2);
+            assert!(
+                (got - la.analytic_m2).abs() <= 1e-6 * la.analytic_m2,
+                "{}: `{m}` {got} vs {}",
+                p.display(),
+                la.analytic_m2
+            );
         }
-        for f in ["maket.json", "lai.exr", "dsm.exr", "density.csv"] {
+        // Energy closes on every example scene (absorbed + escaped + lost = sources).
+        let rp = sim.resource::<lumenscape::radiative::products::RadiativeProducts>();
+        for b in &rp.bands {
+            assert!(
+                b.energy_closure <= 1e-9,
+                "{}: band {} energy closure {:e}",
+                p.display(),
+                b.band,
+                b.energy_closure
+            );
+            assert!(
+                b.brf.iter().all(|e| e.brf.is_finite()),
+                "{}: NaN BRF",
+                p.display()
+            );
+        }
+        for f in [
+            "maket.json",
+            "lai.exr",
+            "dsm.exr",
+            "density.csv",
+            "summary.json",
+            "brf.csv",
+            "budget/cells.csv",
+            "budget/layers.csv",
+            "budget/elements.csv",
+        ] {
             assert!(out.join(f).is_file(), "{}: {f} missing", p.display());
         }
         // No temporary file is left behind.
@@ -53,14 +100,31 @@ fn every_example_scene_runs_and_writes_products() {
         let spec = sim.resource::<GridSpec>().clone();
         let (nx, ny, chans) = read_exr_channels(&out.join("lai.exr")).unwrap();
         assert_eq!((nx, ny), (spec.n[0], spec.n[1]));
-        let total = chans.iter().find(|(n, _)| n == "lai.total").expect("total channel");
+        let total = chans
+            .iter()
+            .find(|(n, _)| n == "lai.total")
+            .expect("total channel");
         let la: f64 = total.1.iter().map(|v| *v as f64).sum::<f64>() * spec.cell.x * spec.cell.y;
-        let expected: f64 = r.leaf_area.values().map(|l| l.rasterised_m2.unwrap_or(0.0)).sum();
-        assert!((la - expected).abs() <= 1e-5 * expected.max(1e-9), "{}: LAI map {la} vs {expected}", p.display());
+        let expected: f64 = r
+            .leaf_area
+            .values()
+            .map(|l| l.rasterised_m2.unwrap_or(0.0))
+            .sum();
+        assert!(
+            (la - expected).abs() <= 1e-5 * expected.max(1e-9),
+            "{}: LAI map {la} vs {expected}",
+            p.display()
+        );
         let g = sim.resource::<CellGrid>();
-        assert!(g.turbid.iter().all(|e| e.density.is_finite() && e.density >= 0.0));
+        assert!(
+            g.turbid
+                .iter()
+                .all(|e| e.density.is_finite() && e.density >= 0.0)
+        );
         // maket.json parses back.
-        let j: serde_json::Value = serde_json::from_str(&std::fs::read_to_string(out.join("maket.json")).unwrap()).unwrap();
+        let j: serde_json::Value =
+            serde_json::from_str(&std::fs::read_to_string(out.join("maket.json")).unwrap())
+                .unwrap();
         assert_eq!(j["n_cells"].as_u64(), Some(spec.n_cells() as u64));
     }
     let _ = std::fs::remove_dir_all(out_root);
@@ -71,13 +135,22 @@ fn generators_give_valid_scenes_that_round_trip() {
     use lumenscape::scene::generators::*;
     let descs = vec![
         turbid_layer::turbid_layer(&Default::default()),
-        disk_canopy::disk_canopy(&disk_canopy::DiskCanopyParams { size_m: 1.0, ..Default::default() }).unwrap(),
+        disk_canopy::disk_canopy(&disk_canopy::DiskCanopyParams {
+            size_m: 1.0,
+            ..Default::default()
+        })
+        .unwrap(),
         forest::forest(&Default::default()),
-        forest::forest(&forest::ForestParams { slope_deg: 12.0, size_jitter: 0.3, ..Default::default() }),
+        forest::forest(&forest::ForestParams {
+            slope_deg: 12.0,
+            size_jitter: 0.3,
+            ..Default::default()
+        }),
         urban::urban(&Default::default()),
     ];
     for d in descs {
-        lumenscape::scene::validate::validate(&d, &lumenscape::scene::SceneSource::generated()).unwrap();
+        lumenscape::scene::validate::validate(&d, &lumenscape::scene::SceneSource::generated())
+            .unwrap();
         let again = parse_scene(&to_ron(&d), std::path::Path::new("<generated>")).unwrap();
         assert_eq!(d, again);
     }
@@ -87,20 +160,47 @@ fn generators_give_valid_scenes_that_round_trip() {
 fn disk_canopy_has_the_requested_leaf_area_and_no_intersecting_disks() {
     use lumenscape::scene::desc::ObjectDesc;
     use lumenscape::scene::generators::disk_canopy::*;
-    let p = DiskCanopyParams { lai: 2.0, size_m: 1.0, ..Default::default() };
+    let p = DiskCanopyParams {
+        lai: 2.0,
+        size_m: 1.0,
+        ..Default::default()
+    };
     let d = disk_canopy(&p).unwrap();
-    let ObjectDesc::Leaves(l) = &d.objects[1] else { panic!() };
+    let ObjectDesc::Leaves(l) = &d.objects[1] else {
+        panic!()
+    };
     let n = l.disks.len() as f64;
     let lai = n * std::f64::consts::PI * l.radius_m * l.radius_m / (p.size_m * p.size_m);
     // Rounding the disk count: |LAI error| ≤ πr²/(2 X²).
-    assert!((lai - 2.0).abs() <= std::f64::consts::PI * 0.0025 / 2.0 + 1e-12, "{lai}");
-    let disks: Vec<(glam::DVec3, glam::DVec3)> = l.disks.iter().map(|d| (glam::DVec3::new(d.0, d.1, d.2), glam::DVec3::new(d.3, d.4, d.5))).collect();
+    assert!(
+        (lai - 2.0).abs() <= std::f64::consts::PI * 0.0025 / 2.0 + 1e-12,
+        "{lai}"
+    );
+    let disks: Vec<(glam::DVec3, glam::DVec3)> = l
+        .disks
+        .iter()
+        .map(|d| {
+            (
+                glam::DVec3::new(d.0, d.1, d.2),
+                glam::DVec3::new(d.3, d.4, d.5),
+            )
+        })
+        .collect();
     for i in 0..disks.len() {
         for j in i + 1..disks.len() {
             let mut dd = disks[j].0 - disks[i].0;
             dd.x -= p.size_m * (dd.x / p.size_m).round();
             dd.y -= p.size_m * (dd.y / p.size_m).round();
-            assert!(!disks_intersect(disks[i].0, disks[i].1, disks[i].0 + dd, disks[j].1, l.radius_m), "disks {i} and {j} intersect");
+            assert!(
+                !disks_intersect(
+                    disks[i].0,
+                    disks[i].1,
+                    disks[i].0 + dd,
+                    disks[j].1,
+                    l.radius_m
+                ),
+                "disks {i} and {j} intersect"
+            );
         }
         // Inside the canopy layer.
         let half = l.radius_m * (1.0 - disks[i].1.z * disks[i].1.z).sqrt();
@@ -108,5 +208,8 @@ fn disk_canopy_has_the_requested_leaf_area_and_no_intersecting_disks() {
     }
     // Spherical LAD: mean |cos| of the normal = 1/2 (the normal's zenith is uniform in cosine).
     let mean_cos = disks.iter().map(|d| d.1.z).sum::<f64>() / n;
-    assert!((mean_cos - 0.5).abs() < 4.0 * (1.0 / 12f64).sqrt() / n.sqrt(), "{mean_cos}");
+    assert!(
+        (mean_cos - 0.5).abs() < 4.0 * (1.0 / 12f64).sqrt() / n.sqrt(),
+        "{mean_cos}"
+    );
 }

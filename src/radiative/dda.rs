@@ -71,7 +71,17 @@ impl Dda {
             }
             t_max[a] = t_max[a].max(0.0);
         }
-        Some(Self { cell, step, t_max, t: 0.0, origin: p, dir: d, lo, size, n })
+        Some(Self {
+            cell,
+            step,
+            t_max,
+            t: 0.0,
+            origin: p,
+            dir: d,
+            lo,
+            size,
+            n,
+        })
     }
 
     /// Linear index of the current cell.
@@ -129,7 +139,14 @@ mod tests {
     use crate::scene::desc::BoundaryMode;
 
     fn spec() -> GridSpec {
-        GridSpec { n: [4, 3, 2], cell: DVec3::new(1.0, 2.0, 0.5), origin: DVec3::new(0.0, 0.0, 10.0), subcells: 2, boundary: BoundaryMode::Repetitive, topography_offset: (0.0, 0.0) }
+        GridSpec {
+            n: [4, 3, 2],
+            cell: DVec3::new(1.0, 2.0, 0.5),
+            origin: DVec3::new(0.0, 0.0, 10.0),
+            subcells: 2,
+            boundary: BoundaryMode::Repetitive,
+            topography_offset: (0.0, 0.0),
+        }
     }
 
     #[test]
@@ -156,7 +173,14 @@ mod tests {
 
     #[test]
     fn ray_along_a_vertex_diagonal_never_has_zero_length_segments() {
-        let s = GridSpec { n: [5, 5, 5], cell: DVec3::ONE, origin: DVec3::ZERO, subcells: 2, boundary: BoundaryMode::Isolated, topography_offset: (0.0, 0.0) };
+        let s = GridSpec {
+            n: [5, 5, 5],
+            cell: DVec3::ONE,
+            origin: DVec3::ZERO,
+            subcells: 2,
+            boundary: BoundaryMode::Isolated,
+            topography_offset: (0.0, 0.0),
+        };
         let d = DVec3::new(1.0, 1.0, -1.0).normalize();
         let mut dda = Dda::new(&s, DVec3::new(0.0, 0.0, 5.0), d).unwrap();
         let mut count = 0;
@@ -169,6 +193,9 @@ mod tests {
                 break;
             }
         }
-        assert_eq!(count, 5, "diagonal through vertices visits one cell per layer");
+        assert_eq!(
+            count, 5,
+            "diagonal through vertices visits one cell per layer"
+        );
     }
 }

@@ -91,15 +91,32 @@ impl TrackingParams {
     /// DART's documented defaults (pytools4dart XSD): 20 iterations, albedo threshold 1e-3,
     /// light-propagation threshold 1e-7, extrapolation on, 1000 crossings.
     pub fn dart_default() -> Self {
-        Self { max_iterations: 20, albedo_threshold: 1e-3, ray_threshold: 1e-7, launch_spacing_m: None, extrapolate: true, max_crossings: 1000 }
+        Self {
+            max_iterations: 20,
+            albedo_threshold: 1e-3,
+            ray_threshold: 1e-7,
+            launch_spacing_m: None,
+            extrapolate: true,
+            max_crossings: 1000,
+        }
     }
     /// Fast look: 10 iterations, threshold 1e-2.
     pub fn preview() -> Self {
-        Self { max_iterations: 10, albedo_threshold: 1e-2, ray_threshold: 1e-6, ..Self::dart_default() }
+        Self {
+            max_iterations: 10,
+            albedo_threshold: 1e-2,
+            ray_threshold: 1e-6,
+            ..Self::dart_default()
+        }
     }
     /// Reference accuracy: 100 iterations, threshold 1e-6, ray threshold 1e-10.
     pub fn reference() -> Self {
-        Self { max_iterations: 100, albedo_threshold: 1e-6, ray_threshold: 1e-10, ..Self::dart_default() }
+        Self {
+            max_iterations: 100,
+            albedo_threshold: 1e-6,
+            ray_threshold: 1e-10,
+            ..Self::dart_default()
+        }
     }
 }
 
@@ -189,23 +206,45 @@ const DENSE_LIMIT: usize = 1 << 20;
 /// hash map otherwise). Accumulation inside a chunk is sequential, so results do not depend on
 /// scheduling.
 enum KeyAcc {
-    Dense { width: usize, data: Vec<f64>, touched: Vec<u32> },
-    Sparse { width: usize, index: std::collections::HashMap<u32, usize>, keys: Vec<u32>, data: Vec<f64> },
+    Dense {
+        width: usize,
+        data: Vec<f64>,
+        touched: Vec<u32>,
+    },
+    Sparse {
+        width: usize,
+        index: std::collections::HashMap<u32, usize>,
+        keys: Vec<u32>,
+        data: Vec<f64>,
+    },
 }
 
 impl KeyAcc {
     fn new(n_keys: usize, width: usize) -> Self {
         if n_keys * width <= DENSE_LIMIT {
-            KeyAcc::Dense { width, data: vec![0.0; n_keys * width], touched: Vec::new() }
+            KeyAcc::Dense {
+                width,
+                data: vec![0.0; n_keys * width],
+                touched: Vec::new(),
+            }
         } else {
-            KeyAcc::Sparse { width, index: Default::default(), keys: Vec::new(), data: Vec::new() }
+            KeyAcc::Sparse {
+                width,
+                index: Default::default(),
+                keys: Vec::new(),
+                data: Vec::new(),
+            }
         }
     }
 
     #[inline]
     fn get(&mut self, key: u32) -> &mut [f64] {
         match self {
-            KeyAcc::Dense { width, data, touched } => {
+            KeyAcc::Dense {
+                width,
+                data,
+                touched,
+            } => {
                 let s = key as usize * *width;
                 let rec = &mut data[s..s + *width];
                 if rec.iter().all(|&v| v == 0.0) {
@@ -213,7 +252,12 @@ impl KeyAcc {
                 }
                 rec
             }
-            KeyAcc::Sparse { width, index, keys, data } => {
+            KeyAcc::Sparse {
+                width,
+                index,
+                keys,
+                data,
+            } => {
                 let w = *width;
                 let off = *index.entry(key).or_insert_with(|| {
                     keys.push(key);
@@ -228,7 +272,11 @@ impl KeyAcc {
     /// Visits every record that was touched, in first-touch order.
     fn for_each(&self, mut f: impl FnMut(u32, &[f64])) {
         match self {
-            KeyAcc::Dense { width, data, touched } => {
+            KeyAcc::Dense {
+                width,
+                data,
+                touched,
+            } => {
                 let mut seen = std::collections::HashSet::new();
                 for &k in touched {
                     if seen.insert(k) {
@@ -237,7 +285,9 @@ impl KeyAcc {
                     }
                 }
             }
-            KeyAcc::Sparse { width, keys, data, .. } => {
+            KeyAcc::Sparse {
+                width, keys, data, ..
+            } => {
                 for (i, &k) in keys.iter().enumerate() {
                     f(k, &data[i * *width..(i + 1) * *width]);
                 }
@@ -315,12 +365,23 @@ impl Ctx<'_> {
     }
 
     fn slot_of(&self, dir: usize) -> usize {
-        if dir == self.n_dirs { self.n_slots - 1 } else { self.inp.sector_of[dir] as usize }
+        if dir == self.n_dirs {
+            self.n_slots - 1
+        } else {
+            self.inp.sector_of[dir] as usize
+        }
     }
 
     /// Traces one ray; `pw` holds the channel powers and is consumed.
     #[allow(clippy::too_many_arguments)]
-    fn trace(&self, mut p: DVec3, dir: usize, mut skip_facet: Option<u32>, pw: &mut [f64], out: &mut ChunkOut) {
+    fn trace(
+        &self,
+        mut p: DVec3,
+        dir: usize,
+        mut skip_facet: Option<u32>,
+        pw: &mut [f64],
+        out: &mut ChunkOut,
+    ) {
         let spec = self.inp.spec;
         let grid = self.inp.grid;
         let d = self.omega[dir];
@@ -364,7 +425,10 @@ impl Ctx<'_> {
                     t1 = th.max(t0);
                 }
                 // Turbid attenuation over [t0, t1].
-                let (ts, te) = (grid.turbid_start[c] as usize, grid.turbid_start[c + 1] as usize);
+                let (ts, te) = (
+                    grid.turbid_start[c] as usize,
+                    grid.turbid_start[c + 1] as usize,
+                );
                 if te > ts && t1 > t0 {
                     let ell = t1 - t0;
                     let mut k = 0.0;
@@ -389,7 +453,11 @@ impl Ctx<'_> {
                                 continue;
                             }
                             let share = self.g(tm, dir) * e.density as f64 / k;
-                            let rec = out.tur.as_mut().expect("accumulator").get(e_idx as u32 * self.n_slots as u32 + slot);
+                            let rec = out
+                                .tur
+                                .as_mut()
+                                .expect("accumulator")
+                                .get(e_idx as u32 * self.n_slots as u32 + slot);
                             for (r, v) in rec.iter_mut().zip(pw.iter()) {
                                 *r += v * frac * share;
                             }
@@ -459,11 +527,18 @@ impl Ctx<'_> {
                     Exit::Bottom => {
                         let hp = dda.point(dda.t);
                         if self.inp.flat_ground.is_some() {
-                            let i = ((hp.x - spec.origin.x) / spec.cell.x).floor().clamp(0.0, (spec.n[0] - 1) as f64) as usize;
-                            let j = ((hp.y - spec.origin.y) / spec.cell.y).floor().clamp(0.0, (spec.n[1] - 1) as f64) as usize;
+                            let i = ((hp.x - spec.origin.x) / spec.cell.x)
+                                .floor()
+                                .clamp(0.0, (spec.n[0] - 1) as f64)
+                                as usize;
+                            let j = ((hp.y - spec.origin.y) / spec.cell.y)
+                                .floor()
+                                .clamp(0.0, (spec.n[1] - 1) as f64)
+                                as usize;
                             out.gnd_key.push((i + spec.n[0] * j) as u32);
                             out.gnd_val.extend_from_slice(pw);
-                            out.gnd_val.extend_from_slice(&[hp.x, hp.y, hp.z, pw.iter().sum()]);
+                            out.gnd_val
+                                .extend_from_slice(&[hp.x, hp.y, hp.z, pw.iter().sum()]);
                         } else {
                             add(&mut out.lost, pw);
                         }
@@ -480,11 +555,19 @@ impl Ctx<'_> {
                             return;
                         }
                         let mut q = dda.point(dda.t);
-                        let (len, off) = if axis == 0 { (self.size.0, spec.topography_offset.0) } else { (self.size.1, spec.topography_offset.1) };
+                        let (len, off) = if axis == 0 {
+                            (self.size.0, spec.topography_offset.0)
+                        } else {
+                            (self.size.1, spec.topography_offset.1)
+                        };
                         // Leaving through +x re-enters at x = 0 where the ground is `off` lower.
                         q[axis] -= s as f64 * len;
                         q.z -= s as f64 * off;
-                        q[axis] = if s > 0 { spec.origin[axis] } else { spec.origin[axis] + len };
+                        q[axis] = if s > 0 {
+                            spec.origin[axis]
+                        } else {
+                            spec.origin[axis] + len
+                        };
                         if q.z > spec.top() {
                             if dir < self.n_dirs && d.z > 0.0 {
                                 let base = dir * self.w;
@@ -532,7 +615,11 @@ pub fn half_barycentres(k: f64, ell: f64) -> (f64, f64) {
     let mean = |a: f64, b: f64| -> f64 {
         let (ea, eb) = ((-k * a).exp(), (-k * b).exp());
         let den = ea - eb;
-        if den <= 0.0 { 0.5 * (a + b) } else { (a * ea - b * eb) / den + 1.0 / k }
+        if den <= 0.0 {
+            0.5 * (a + b)
+        } else {
+            (a * ea - b * eb) / den + 1.0 / k
+        }
     };
     (mean(0.0, s_half), mean(s_half, ell))
 }
@@ -607,10 +694,16 @@ pub fn run(inp: &RadiativeInput) -> RadiativeResult {
             entry_cell[e as usize] = c as u32;
         }
     }
-    let size = (spec.n[0] as f64 * spec.cell.x, spec.n[1] as f64 * spec.cell.y);
+    let size = (
+        spec.n[0] as f64 * spec.cell.x,
+        spec.n[1] as f64 * spec.cell.y,
+    );
     let area = size.0 * size.1;
     // Launch grid on the top plane.
-    let spacing = inp.params.launch_spacing_m.unwrap_or(spec.cell.x.min(spec.cell.y) / 4.0);
+    let spacing = inp
+        .params
+        .launch_spacing_m
+        .unwrap_or(spec.cell.x.min(spec.cell.y) / 4.0);
     let nlx = ((size.0 / spacing).round() as usize).max(1);
     let nly = ((size.1 / spacing).round() as usize).max(1);
     let da = area / (nlx * nly) as f64;
@@ -621,9 +714,22 @@ pub fn run(inp: &RadiativeInput) -> RadiativeResult {
             source[nb + b] = inp.e_diff[b] * area;
         }
     }
-    let n_source_rays = (nlx * nly) as f64 * (1.0 + if has_sky { n_dirs as f64 / 2.0 } else { 0.0 });
+    let n_source_rays =
+        (nlx * nly) as f64 * (1.0 + if has_sky { n_dirs as f64 / 2.0 } else { 0.0 });
     let min_ray = inp.params.ray_threshold * source.iter().sum::<f64>() / n_source_rays;
-    let ctx = Ctx { inp, w, nb, n_dirs, n_slots, omega, tur_mat, g_flat, entry_cell, size, min_ray };
+    let ctx = Ctx {
+        inp,
+        w,
+        nb,
+        n_dirs,
+        n_slots,
+        omega,
+        tur_mat,
+        g_flat,
+        entry_cell,
+        size,
+        min_ray,
+    };
     let mut res = RadiativeResult {
         n_channels: w,
         n_bands: nb,
@@ -642,7 +748,11 @@ pub fn run(inp: &RadiativeInput) -> RadiativeResult {
     };
     // --- Iteration 1: sources. Launch points in fixed chunks of rows.
     let top = spec.top();
-    let sky_dirs: Vec<usize> = if has_sky { (0..n_dirs).filter(|&j| ctx.omega[j].z < 0.0).collect() } else { Vec::new() };
+    let sky_dirs: Vec<usize> = if has_sky {
+        (0..n_dirs).filter(|&j| ctx.omega[j].z < 0.0).collect()
+    } else {
+        Vec::new()
+    };
     let rows: Vec<usize> = (0..nly).collect();
     let outs: Vec<ChunkOut> = rows
         .par_chunks(chunk_len(nly))
@@ -651,7 +761,11 @@ pub fn run(inp: &RadiativeInput) -> RadiativeResult {
             let mut pw = vec![0.0; w];
             for &jy in chunk {
                 for ix in 0..nlx {
-                    let p = DVec3::new(spec.origin.x + (ix as f64 + 0.5) * size.0 / nlx as f64, spec.origin.y + (jy as f64 + 0.5) * size.1 / nly as f64, top);
+                    let p = DVec3::new(
+                        spec.origin.x + (ix as f64 + 0.5) * size.0 / nlx as f64,
+                        spec.origin.y + (jy as f64 + 0.5) * size.1 / nly as f64,
+                        top,
+                    );
                     pw.iter_mut().for_each(|v| *v = 0.0);
                     for b in 0..nb {
                         pw[b] = inp.e_dir[b] * da;
@@ -663,7 +777,8 @@ pub fn run(inp: &RadiativeInput) -> RadiativeResult {
                         pw.iter_mut().for_each(|v| *v = 0.0);
                         // L_sky = E_diff/π; power = L ΔA ∫_{ΔΩ}|μ|dΩ (physics.md §6.1).
                         for b in 0..nb {
-                            pw[nb + b] = inp.e_diff[b] / std::f64::consts::PI * da * tiling[j].projected_sr;
+                            pw[nb + b] =
+                                inp.e_diff[b] / std::f64::consts::PI * da * tiling[j].projected_sr;
                         }
                         ctx.trace(p, j, None, &mut pw, &mut out);
                     }
@@ -678,13 +793,29 @@ pub fn run(inp: &RadiativeInput) -> RadiativeResult {
     res.escaped_per_iteration.push(last.clone());
     res.iterations = 1;
     // Facet fractions fallback (renormalised cosine) computed once if not provided.
-    let approx_fractions: Vec<(Vec<f32>, Vec<f32>)> = if inp.facet_fractions.len() == inp.facets.len() {
-        Vec::new()
+    let approx_fractions: Vec<(Vec<f32>, Vec<f32>)> =
+        if inp.facet_fractions.len() == inp.facets.len() {
+            Vec::new()
+        } else {
+            inp.facets
+                .par_iter()
+                .map(|f| cosine_fractions(&ctx, f))
+                .collect()
+        };
+    let fractions: &[(Vec<f32>, Vec<f32>)] = if approx_fractions.is_empty() {
+        inp.facet_fractions
     } else {
-        inp.facets.par_iter().map(|f| cosine_fractions(&ctx, f)).collect()
+        &approx_fractions
     };
-    let fractions: &[(Vec<f32>, Vec<f32>)] = if approx_fractions.is_empty() { inp.facet_fractions } else { &approx_fractions };
-    let ground_fr: Vec<f64> = (0..n_dirs).map(|j| if ctx.omega[j].z > 0.0 { tiling[j].projected_sr / std::f64::consts::PI } else { 0.0 }).collect();
+    let ground_fr: Vec<f64> = (0..n_dirs)
+        .map(|j| {
+            if ctx.omega[j].z > 0.0 {
+                tiling[j].projected_sr / std::f64::consts::PI
+            } else {
+                0.0
+            }
+        })
+        .collect();
     // --- Scattering iterations.
     let mut prev_pending = pending(&stores, w);
     let mut prev_estimate = f64::NAN;
@@ -707,15 +838,30 @@ pub fn run(inp: &RadiativeInput) -> RadiativeResult {
         res.escaped_per_iteration.push(esc.clone());
         let now = pending(&stores, w);
         for ch in 0..w {
-            res.q[ch] = if pend[ch] > 0.0 { now[ch] / pend[ch] } else { 0.0 };
+            res.q[ch] = if pend[ch] > 0.0 {
+                now[ch] / pend[ch]
+            } else {
+                0.0
+            };
         }
         last_inc = Increments::diff(&before, &res);
         // Extrapolated albedo estimate (all channels).
         let esc_total: f64 = res.escaped.iter().sum();
-        let extra: f64 = (0..w).map(|ch| if res.q[ch] < 1.0 { esc[ch] * res.q[ch] / (1.0 - res.q[ch]) } else { 0.0 }).sum();
+        let extra: f64 = (0..w)
+            .map(|ch| {
+                if res.q[ch] < 1.0 {
+                    esc[ch] * res.q[ch] / (1.0 - res.q[ch])
+                } else {
+                    0.0
+                }
+            })
+            .sum();
         let estimate = (esc_total + extra) / source.iter().sum::<f64>();
         prev_pending = now;
-        if res.iterations >= 3 && (estimate - prev_estimate).abs() <= inp.params.albedo_threshold * estimate.abs().max(1e-300) {
+        if res.iterations >= 3
+            && (estimate - prev_estimate).abs()
+                <= inp.params.albedo_threshold * estimate.abs().max(1e-300)
+        {
             res.converged = true;
             break;
         }
@@ -727,7 +873,11 @@ pub fn run(inp: &RadiativeInput) -> RadiativeResult {
         let mut fac = vec![0.0; w];
         for ch in 0..w {
             let q = res.q[ch];
-            fac[ch] = if q > 0.0 && q < 1.0 { q / (1.0 - q) } else { 0.0 };
+            fac[ch] = if q > 0.0 && q < 1.0 {
+                q / (1.0 - q)
+            } else {
+                0.0
+            };
         }
         last_inc.apply(&mut res, &fac);
         for ch in 0..w {
@@ -770,7 +920,12 @@ fn new_stores(ctx: &Ctx) -> Stores {
 /// Power intercepted and not yet scattered or absorbed, per channel.
 fn pending(s: &Stores, w: usize) -> Vec<f64> {
     let mut p = vec![0.0; w];
-    for (chunk, out) in [(&s.tur, 0), (&s.fac_front, 0), (&s.fac_back, 0), (&s.gnd, 0)] {
+    for (chunk, out) in [
+        (&s.tur, 0),
+        (&s.fac_front, 0),
+        (&s.fac_back, 0),
+        (&s.gnd, 0),
+    ] {
         let _ = out;
         for (i, v) in chunk.iter().enumerate() {
             p[i % w] += v;
@@ -808,7 +963,8 @@ impl Increments {
         }
     }
     fn diff(a: &Self, r: &RadiativeResult) -> Self {
-        let d = |x: &Vec<f64>, y: &Vec<f64>| y.iter().zip(x).map(|(b, a)| b - a).collect::<Vec<f64>>();
+        let d =
+            |x: &Vec<f64>, y: &Vec<f64>| y.iter().zip(x).map(|(b, a)| b - a).collect::<Vec<f64>>();
         Self {
             escaped: d(&a.escaped, &r.escaped),
             absorbed_turbid: d(&a.absorbed_turbid, &r.absorbed_turbid),
@@ -842,12 +998,22 @@ impl Increments {
     fn total(&self, ch: usize) -> f64 {
         let w = self.w;
         let s = |v: &Vec<f64>| v.iter().skip(ch).step_by(w).sum::<f64>();
-        s(&self.escaped) + s(&self.absorbed_turbid) + s(&self.absorbed_facet) + s(&self.absorbed_ground) + s(&self.lost)
+        s(&self.escaped)
+            + s(&self.absorbed_turbid)
+            + s(&self.absorbed_facet)
+            + s(&self.absorbed_ground)
+            + s(&self.lost)
     }
 }
 
 /// Merges chunk outputs (in order) into the stores and the result.
-fn merge(ctx: &Ctx, outs: Vec<ChunkOut>, st: &mut Stores, res: &mut RadiativeResult, esc: &mut [f64]) {
+fn merge(
+    ctx: &Ctx,
+    outs: Vec<ChunkOut>,
+    st: &mut Stores,
+    res: &mut RadiativeResult,
+    esc: &mut [f64],
+) {
     let w = ctx.w;
     let ns = ctx.n_slots;
     for out in outs {
@@ -890,12 +1056,19 @@ fn merge(ctx: &Ctx, outs: Vec<ChunkOut>, st: &mut Stores, res: &mut RadiativeRes
             };
             for ch in 0..w {
                 let b = ch % ctx.nb;
-                let (rb, tb) = (rr.get(b).copied().unwrap_or(0.0), tt.get(b).copied().unwrap_or(0.0));
+                let (rb, tb) = (
+                    rr.get(b).copied().unwrap_or(0.0),
+                    tt.get(b).copied().unwrap_or(0.0),
+                );
                 let i = v[ch];
                 res.intercepted_facet[f as usize * w + ch] += i;
                 res.absorbed_facet[f as usize * w + ch] += i * (1.0 - rb - tb);
                 // Reflected to the incidence side, transmitted to the other side.
-                let (to_front, to_back) = if from_front { (rb * i, tb * i) } else { (tb * i, rb * i) };
+                let (to_front, to_back) = if from_front {
+                    (rb * i, tb * i)
+                } else {
+                    (tb * i, rb * i)
+                };
                 st.fac_front[r as usize * w + ch] += to_front;
                 st.fac_back[r as usize * w + ch] += to_back;
             }
@@ -937,18 +1110,34 @@ fn merge(ctx: &Ctx, outs: Vec<ChunkOut>, st: &mut Stores, res: &mut RadiativeRes
 
 /// Renormalised-cosine Lambertian fractions (used when exact fractions were not provided).
 fn cosine_fractions(ctx: &Ctx, f: &Facet) -> (Vec<f32>, Vec<f32>) {
-    let n = (f.v[1] - f.v[0]).cross(f.v[2] - f.v[0]).normalize_or(DVec3::Z);
+    let n = (f.v[1] - f.v[0])
+        .cross(f.v[2] - f.v[0])
+        .normalize_or(DVec3::Z);
     let tiling = ctx.inp.dirs.tiling();
-    let mut fr: Vec<f64> = tiling.iter().map(|d| n.dot(d.omega).max(0.0) * d.solid_angle_sr).collect();
-    let mut bk: Vec<f64> = tiling.iter().map(|d| (-n.dot(d.omega)).max(0.0) * d.solid_angle_sr).collect();
+    let mut fr: Vec<f64> = tiling
+        .iter()
+        .map(|d| n.dot(d.omega).max(0.0) * d.solid_angle_sr)
+        .collect();
+    let mut bk: Vec<f64> = tiling
+        .iter()
+        .map(|d| (-n.dot(d.omega)).max(0.0) * d.solid_angle_sr)
+        .collect();
     let (sf, sb): (f64, f64) = (fr.iter().sum(), bk.iter().sum());
     fr.iter_mut().for_each(|x| *x /= sf);
     bk.iter_mut().for_each(|x| *x /= sb);
-    (fr.iter().map(|&x| x as f32).collect(), bk.iter().map(|&x| x as f32).collect())
+    (
+        fr.iter().map(|&x| x as f32).collect(),
+        bk.iter().map(|&x| x as f32).collect(),
+    )
 }
 
 /// Iteration i: scatters every store of iteration i−1 along every tiling direction.
-fn emit(ctx: &Ctx, st: &Stores, fractions: &[(Vec<f32>, Vec<f32>)], ground_fr: &[f64]) -> Vec<ChunkOut> {
+fn emit(
+    ctx: &Ctx,
+    st: &Stores,
+    fractions: &[(Vec<f32>, Vec<f32>)],
+    ground_fr: &[f64],
+) -> Vec<ChunkOut> {
     let w = ctx.w;
     let nb = ctx.nb;
     let ns = ctx.n_slots;
@@ -963,10 +1152,15 @@ fn emit(ctx: &Ctx, st: &Stores, fractions: &[(Vec<f32>, Vec<f32>)], ground_fr: &
     let active: Vec<usize> = (0..n_t + n_f + n_g)
         .filter(|&k| {
             if k < n_t {
-                st.tur[k * ns * w..(k + 1) * ns * w].iter().any(|&v| v > 0.0)
+                st.tur[k * ns * w..(k + 1) * ns * w]
+                    .iter()
+                    .any(|&v| v > 0.0)
             } else if k < n_t + n_f {
                 let r = k - n_t;
-                st.fac_front[r * w..(r + 1) * w].iter().chain(&st.fac_back[r * w..(r + 1) * w]).any(|&v| v > 0.0)
+                st.fac_front[r * w..(r + 1) * w]
+                    .iter()
+                    .chain(&st.fac_back[r * w..(r + 1) * w])
+                    .any(|&v| v > 0.0)
             } else {
                 let c = k - n_t - n_f;
                 st.gnd[c * w..(c + 1) * w].iter().any(|&v| v > 0.0)
@@ -985,14 +1179,21 @@ fn emit(ctx: &Ctx, st: &Stores, fractions: &[(Vec<f32>, Vec<f32>)], ground_fr: &
                 let mut intercepted = vec![0.0; w];
                 if k < n_t {
                     let e = &grid.turbid[k];
-                    let TrackOptics::Turbid { tables, .. } = &ctx.inp.optics[e.material as usize] else { continue };
+                    let TrackOptics::Turbid { tables, .. } = &ctx.inp.optics[e.material as usize]
+                    else {
+                        continue;
+                    };
                     for slot in 0..ns {
                         let base = (k * ns + slot) * w;
                         let wv = &st.tur[base..base + w];
                         if wv.iter().all(|&v| v == 0.0) {
                             continue;
                         }
-                        let row = if slot == ns - 1 { tables[0].sun_row().unwrap_or(0) } else { ctx.inp.sector_row[slot] };
+                        let row = if slot == ns - 1 {
+                            tables[0].sun_row().unwrap_or(0)
+                        } else {
+                            ctx.inp.sector_row[slot]
+                        };
                         for ch in 0..w {
                             let val = wv[ch];
                             if val == 0.0 {
@@ -1008,8 +1209,16 @@ fn emit(ctx: &Ctx, st: &Stores, fractions: &[(Vec<f32>, Vec<f32>)], ground_fr: &
                     let p = &st.tur_pts[k];
                     let cell = ctx.entry_cell[k] as usize;
                     let centre = cell_centre(spec, cell);
-                    origin_up = if p[3] > 0.0 { DVec3::new(p[0], p[1], p[2]) / p[3] } else { centre };
-                    origin_dn = if p[7] > 0.0 { DVec3::new(p[4], p[5], p[6]) / p[7] } else { centre };
+                    origin_up = if p[3] > 0.0 {
+                        DVec3::new(p[0], p[1], p[2]) / p[3]
+                    } else {
+                        centre
+                    };
+                    origin_dn = if p[7] > 0.0 {
+                        DVec3::new(p[4], p[5], p[6]) / p[7]
+                    } else {
+                        centre
+                    };
                     skip = None;
                     normal = None;
                     for ch in 0..w {
@@ -1039,7 +1248,11 @@ fn emit(ctx: &Ctx, st: &Stores, fractions: &[(Vec<f32>, Vec<f32>)], ground_fr: &
                     let p = &st.fac_pts[r];
                     let fa = &ctx.inp.facets[f as usize];
                     let centroid = (fa.v[0] + fa.v[1] + fa.v[2]) / 3.0;
-                    let o = if p[3] > 0.0 { DVec3::new(p[0], p[1], p[2]) / p[3] } else { centroid };
+                    let o = if p[3] > 0.0 {
+                        DVec3::new(p[0], p[1], p[2]) / p[3]
+                    } else {
+                        centroid
+                    };
                     origin_up = o;
                     origin_dn = o;
                     skip = Some(f);
@@ -1058,7 +1271,11 @@ fn emit(ctx: &Ctx, st: &Stores, fractions: &[(Vec<f32>, Vec<f32>)], ground_fr: &
                         }
                     }
                     let p = &st.gnd_pts[c];
-                    let o = if p[3] > 0.0 { DVec3::new(p[0], p[1], p[2]) / p[3] } else { cell_centre(spec, c) };
+                    let o = if p[3] > 0.0 {
+                        DVec3::new(p[0], p[1], p[2]) / p[3]
+                    } else {
+                        cell_centre(spec, c)
+                    };
                     origin_up = DVec3::new(o.x, o.y, spec.origin.z);
                     origin_dn = origin_up;
                     skip = None;
@@ -1082,7 +1299,11 @@ fn emit(ctx: &Ctx, st: &Stores, fractions: &[(Vec<f32>, Vec<f32>)], ground_fr: &
                         continue;
                     }
                     pw.copy_from_slice(v);
-                    let mut origin = if tiling[j].omega.z > 0.0 { origin_up } else { origin_dn };
+                    let mut origin = if tiling[j].omega.z > 0.0 {
+                        origin_up
+                    } else {
+                        origin_dn
+                    };
                     if let Some(n) = normal {
                         // Start just off the facet on the side the ray leaves through.
                         let side = n.dot(tiling[j].omega).signum();

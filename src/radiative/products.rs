@@ -76,7 +76,16 @@ impl RadiativeProducts {
     /// `ground_facet[f]` marks the facets of a DEM ground: their absorption counts as ground
     /// absorption and their interception as transmission (`ftran`).
     #[allow(clippy::too_many_arguments)]
-    pub fn new(raw: RadiativeResult, dirs: &DirectionSet, band_names: &[String], area: f64, e_dir: &[f64], e_diff: &[f64], ground_facet: &[bool], seconds: f64) -> Self {
+    pub fn new(
+        raw: RadiativeResult,
+        dirs: &DirectionSet,
+        band_names: &[String],
+        area: f64,
+        e_dir: &[f64],
+        e_diff: &[f64],
+        ground_facet: &[bool],
+        seconds: f64,
+    ) -> Self {
         let nb = raw.n_bands;
         let w = raw.n_channels;
         let tiling = dirs.tiling();
@@ -107,19 +116,41 @@ impl RadiativeProducts {
             let abs_g = sum_ch(&raw.absorbed_ground, b) + facet_part(&raw.absorbed_facet, true);
             let lost = sum_ch(&raw.lost, b);
             let rem = sum_ch(&raw.remaining, b);
-            let tran = sum_ch(&raw.intercepted_ground, b) + facet_part(&raw.intercepted_facet, true);
-            let closure = if src > 0.0 { (1.0 - (abs_v + abs_g + esc + lost + rem) / src).abs() } else { 0.0 };
+            let tran =
+                sum_ch(&raw.intercepted_ground, b) + facet_part(&raw.intercepted_facet, true);
+            let closure = if src > 0.0 {
+                (1.0 - (abs_v + abs_g + esc + lost + rem) / src).abs()
+            } else {
+                0.0
+            };
             let mut brf = Vec::new();
             for (j, d) in tiling.iter().enumerate() {
                 if d.omega.z <= 0.0 {
                     continue;
                 }
                 let sun = raw.escaped[j * w + b];
-                let sky = if raw.has_sky { raw.escaped[j * w + nb + b] } else { 0.0 };
+                let sky = if raw.has_sky {
+                    raw.escaped[j * w + nb + b]
+                } else {
+                    0.0
+                };
                 let denom = area * d.projected_sr;
-                let brf_v = if e_dir[b] > 0.0 { PI * sun / (denom * e_dir[b]) } else { f64::NAN };
-                let hdrf = raw.has_sky.then(|| PI * (sun + sky) / (denom * (e_dir[b] + e_diff[b])));
-                brf.push(BrfEntry { zenith_deg: d.zenith_deg(), azimuth_deg: d.azimuth_deg(), solid_angle_sr: d.solid_angle_sr, kind: d.kind.name(), brf: brf_v, hdrf });
+                let brf_v = if e_dir[b] > 0.0 {
+                    PI * sun / (denom * e_dir[b])
+                } else {
+                    f64::NAN
+                };
+                let hdrf = raw
+                    .has_sky
+                    .then(|| PI * (sun + sky) / (denom * (e_dir[b] + e_diff[b])));
+                brf.push(BrfEntry {
+                    zenith_deg: d.zenith_deg(),
+                    azimuth_deg: d.azimuth_deg(),
+                    solid_angle_sr: d.solid_angle_sr,
+                    kind: d.kind.name(),
+                    brf: brf_v,
+                    hdrf,
+                });
             }
             bands.push(BandProducts {
                 band: band_names.get(b).cloned().unwrap_or_default(),
@@ -148,8 +179,10 @@ impl RadiativeProducts {
     pub fn brf_at(&self, b: usize, zenith_deg: f64, azimuth_deg: f64) -> Option<&BrfEntry> {
         let target = crate::resources::directions::direction_from_deg(zenith_deg, azimuth_deg);
         self.bands.get(b)?.brf.iter().max_by(|x, y| {
-            let dx = crate::resources::directions::direction_from_deg(x.zenith_deg, x.azimuth_deg).dot(target);
-            let dy = crate::resources::directions::direction_from_deg(y.zenith_deg, y.azimuth_deg).dot(target);
+            let dx = crate::resources::directions::direction_from_deg(x.zenith_deg, x.azimuth_deg)
+                .dot(target);
+            let dy = crate::resources::directions::direction_from_deg(y.zenith_deg, y.azimuth_deg)
+                .dot(target);
             dx.total_cmp(&dy)
         })
     }

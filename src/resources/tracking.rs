@@ -25,10 +25,19 @@ impl RadiativeSettings {
     pub fn resolve(preset: Preset, scene: Option<&RadiativeDesc>) -> Self {
         let (tracking, tables, per_dir) = match preset {
             Preset::Preview => (TrackingParams::preview(), TableParams::preview(), false),
-            Preset::Default => (TrackingParams::dart_default(), TableParams::dart_default(), false),
+            Preset::Default => (
+                TrackingParams::dart_default(),
+                TableParams::dart_default(),
+                false,
+            ),
             Preset::Reference => (TrackingParams::reference(), TableParams::reference(), true),
         };
-        let mut s = Self { preset, tracking, tables, per_direction_stores: per_dir };
+        let mut s = Self {
+            preset,
+            tracking,
+            tables,
+            per_direction_stores: per_dir,
+        };
         if let Some(r) = scene {
             if let Some(x) = r.max_iterations {
                 s.tracking.max_iterations = x;

@@ -390,7 +390,11 @@ pub fn spawn_scene(
                     warnings.push(format!("{}: {w}", path.display()));
                 }
                 if mesh.skipped_non_triangle > 0 {
-                    warnings.push(format!("{}: skipped {} non-triangle primitives", path.display(), mesh.skipped_non_triangle));
+                    warnings.push(format!(
+                        "{}: skipped {} non-triangle primitives",
+                        path.display(),
+                        mesh.skipped_non_triangle
+                    ));
                 }
                 let rep = mesh.clean_triangles();
                 if rep.removed_degenerate + rep.removed_non_finite > 0 {
@@ -503,13 +507,18 @@ pub fn spawn_scene(
         boundary: g.boundary,
     });
     world.insert_resource(mats);
-    world.insert_resource(crate::systems::direction::DirectionRequest(desc.directions.clone().unwrap_or_default()));
+    world.insert_resource(crate::systems::direction::DirectionRequest(
+        desc.directions.clone().unwrap_or_default(),
+    ));
     let preset = world
         .get_resource::<crate::resources::scene::RunSettings>()
         .and_then(|s| s.preset)
         .or(desc.radiative.as_ref().and_then(|r| r.preset))
         .unwrap_or_default();
-    world.insert_resource(crate::resources::tracking::RadiativeSettings::resolve(preset, desc.radiative.as_ref()));
+    world.insert_resource(crate::resources::tracking::RadiativeSettings::resolve(
+        preset,
+        desc.radiative.as_ref(),
+    ));
     world.insert_resource(TerrainRes(terrain));
     world.insert_resource(Warnings(warnings));
     Ok(())

@@ -376,7 +376,10 @@ pub fn validate(desc: &SceneDesc, src: &SceneSource) -> Result<(), SceneError> {
             v.positive("radiative.launch_spacing_m", x)?;
         }
         if r.max_iterations == Some(0) {
-            return Err(src.invalid("radiative.max_iterations", "at least one iteration is needed"));
+            return Err(src.invalid(
+                "radiative.max_iterations",
+                "at least one iteration is needed",
+            ));
         }
     }
     // Grid.

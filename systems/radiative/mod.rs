@@ -40,14 +40,20 @@ pub fn track_flux(
 ) {
     let nb = info.bands.len();
     // Facet and ground models the tracker supports so far: Lambertian and bi-Lambertian.
-    let facet_ok = |m: u32| matches!(mats.list[m as usize].kind, MaterialKind::Lambertian { .. } | MaterialKind::Leaf { .. });
+    let facet_ok = |m: u32| {
+        matches!(
+            mats.list[m as usize].kind,
+            MaterialKind::Lambertian { .. } | MaterialKind::Leaf { .. }
+        )
+    };
     if let Some(f) = facets.facets.iter().find(|f| !facet_ok(f.material)) {
         errors.0.push(format!("material `{}`: RPV and Hapke facets are not supported by the Radiative stage yet (use a Lambertian property)", mats.list[f.material as usize].name));
         return;
     }
     let flat_ground = match (&terrain.0, grounds.iter().next()) {
         (Terrain::Flat(_), Some(g)) => match &mats.list[g.optics as usize].kind {
-            MaterialKind::Lambertian { reflectance, .. } | MaterialKind::Leaf { reflectance, .. } => Some(reflectance.clone()),
+            MaterialKind::Lambertian { reflectance, .. }
+            | MaterialKind::Leaf { reflectance, .. } => Some(reflectance.clone()),
             _ => {
                 errors.0.push(format!("ground material `{}`: RPV and Hapke grounds are not supported by the Radiative stage yet", mats.list[g.optics as usize].name));
                 return;
@@ -56,22 +62,32 @@ pub fn track_flux(
         _ => None,
     };
     let n_dirs = dirs.set.tiling().len();
-    let fractions: Vec<(Vec<f32>, Vec<f32>)> = if facets.facets.len() * n_dirs <= EXACT_FRACTIONS_LIMIT {
-        facets
-            .facets
-            .par_iter()
-            .map(|f| {
-                let n = (f.v[1] - f.v[0]).cross(f.v[2] - f.v[0]).normalize_or(glam::DVec3::Z);
-                let fr = lambertian_facet_fractions(&dirs.set, n);
-                (fr.front[..n_dirs].iter().map(|&x| x as f32).collect(), fr.back[..n_dirs].iter().map(|&x| x as f32).collect())
-            })
-            .collect()
-    } else {
-        Vec::new()
-    };
+    let fractions: Vec<(Vec<f32>, Vec<f32>)> =
+        if facets.facets.len() * n_dirs <= EXACT_FRACTIONS_LIMIT {
+            facets
+                .facets
+                .par_iter()
+                .map(|f| {
+                    let n = (f.v[1] - f.v[0])
+                        .cross(f.v[2] - f.v[0])
+                        .normalize_or(glam::DVec3::Z);
+                    let fr = lambertian_facet_fractions(&dirs.set, n);
+                    (
+                        fr.front[..n_dirs].iter().map(|&x| x as f32).collect(),
+                        fr.back[..n_dirs].iter().map(|&x| x as f32).collect(),
+                    )
+                })
+                .collect()
+        } else {
+            Vec::new()
+        };
     let il = &info.illumination;
-    let e_tot: Vec<f64> = (0..nb).map(|b| il.irradiance_w_m2_um.get(b).copied().unwrap_or(1.0)).collect();
-    let skyl: Vec<f64> = (0..nb).map(|b| il.skyl.get(b).copied().unwrap_or(0.0)).collect();
+    let e_tot: Vec<f64> = (0..nb)
+        .map(|b| il.irradiance_w_m2_um.get(b).copied().unwrap_or(1.0))
+        .collect();
+    let skyl: Vec<f64> = (0..nb)
+        .map(|b| il.skyl.get(b).copied().unwrap_or(0.0))
+        .collect();
     let e_dir: Vec<f64> = (0..nb).map(|b| e_tot[b] * (1.0 - skyl[b])).collect();
     let e_diff: Vec<f64> = (0..nb).map(|b| e_tot[b] * skyl[b]).collect();
     let optics: Vec<TrackOptics> = tables.optics.clone();
@@ -95,6 +111,19 @@ pub fn track_flux(
     let secs = t0.elapsed().as_secs_f64();
     let names: Vec<String> = info.bands.iter().map(|b| b.name.clone()).collect();
     let area = spec.n[0] as f64 * spec.cell.x * spec.n[1] as f64 * spec.cell.y;
-    let ground_facet: Vec<bool> = facets.facets.iter().map(|f| f.kind == crate::resources::facets::FacetKind::Ground).collect();
-    commands.insert_resource(RadiativeProducts::new(raw, &dirs.set, &names, area, &e_dir, &e_diff, &ground_facet, secs));
+    let ground_facet: Vec<bool> = facets
+        .facets
+        .iter()
+        .map(|f| f.kind == crate::resources::facets::FacetKind::Ground)
+        .collect();
+    commands.insert_resource(RadiativeProducts::new(
+        raw,
+        &dirs.set,
+        &names,
+        area,
+        &e_dir,
+        &e_diff,
+        &ground_facet,
+        secs,
+    ));
 }

@@ -16,17 +16,55 @@ pub fn asset(rel: &str) -> PathBuf {
 /// A one-band scene with leaf, turbid, soil and wall optics and no objects.
 pub fn base_scene(size: (f64, f64), cell: (f64, f64, f64), boundary: BoundaryMode) -> SceneDesc {
     let mut optics = BTreeMap::new();
-    optics.insert("leaf".to_string(), OpticsDesc::BiLambertian { reflectance: vec![0.05], transmittance: vec![0.02] });
-    optics.insert("veg".to_string(), OpticsDesc::Turbid { leaf: "leaf".into(), lad: LadDesc::Spherical, leaf_size_m: 0.01 });
-    optics.insert("soil".to_string(), OpticsDesc::Lambertian { reflectance: vec![0.1], diffuse_transmittance: vec![], direct_transmittance: vec![] });
+    optics.insert(
+        "leaf".to_string(),
+        OpticsDesc::BiLambertian {
+            reflectance: vec![0.05],
+            transmittance: vec![0.02],
+        },
+    );
+    optics.insert(
+        "veg".to_string(),
+        OpticsDesc::Turbid {
+            leaf: "leaf".into(),
+            lad: LadDesc::Spherical,
+            leaf_size_m: 0.01,
+        },
+    );
+    optics.insert(
+        "soil".to_string(),
+        OpticsDesc::Lambertian {
+            reflectance: vec![0.1],
+            diffuse_transmittance: vec![],
+            direct_transmittance: vec![],
+        },
+    );
     SceneDesc {
         version: 1,
         name: "test".into(),
         seed: 5,
-        grid: GridDesc { size_m: size, cell_m: cell, height_m: None, subcells: 2, boundary },
-        bands: vec![BandDesc { name: "red".into(), wavelength_nm: 670.0, fwhm_nm: 0.0, sensor_band: None, srf_file: None }],
+        grid: GridDesc {
+            size_m: size,
+            cell_m: cell,
+            height_m: None,
+            subcells: 2,
+            boundary,
+        },
+        bands: vec![BandDesc {
+            name: "red".into(),
+            wavelength_nm: 670.0,
+            fwhm_nm: 0.0,
+            sensor_band: None,
+            srf_file: None,
+        }],
         optics,
-        illumination: IlluminationDesc { sun_zenith_deg: Some(30.0), sun_azimuth_deg: Some(0.0), sun_position: None, skyl: vec![], irradiance_w_m2_um: vec![] },
+        illumination: IlluminationDesc {
+            sun_zenith_deg: Some(30.0),
+            sun_azimuth_deg: Some(0.0),
+            sun_position: None,
+            skyl: vec![],
+            irradiance_w_m2_um: vec![],
+        },
         objects: vec![],
         atmosphere: None,
         sensors: None,
@@ -38,13 +76,20 @@ pub fn base_scene(size: (f64, f64), cell: (f64, f64, f64), boundary: BoundaryMod
 
 /// Spawns and runs the Maket stage.
 pub fn run_maket(desc: &SceneDesc) -> Simulation {
-    let mut sim = Simulation::from_desc(desc, &SceneSource::generated(), RunSettings::default()).expect("scene spawns");
+    let mut sim = Simulation::from_desc(desc, &SceneSource::generated(), RunSettings::default())
+        .expect("scene spawns");
     sim.run_stage(Stage::Maket).expect("maket runs");
     sim
 }
 
 /// A crown description.
-pub fn crown(shape: CrownShape, rx: f64, ry: Option<f64>, h: f64, foliage: FoliageDesc) -> CrownDesc {
+pub fn crown(
+    shape: CrownShape,
+    rx: f64,
+    ry: Option<f64>,
+    h: f64,
+    foliage: FoliageDesc,
+) -> CrownDesc {
     CrownDesc {
         shape,
         base_height_m: 1.3,

@@ -148,7 +148,12 @@ pub fn standard_optics(
 /// (Pinty et al. 2004, RAMI-2 measurement protocol).
 pub fn rami_directions(sun_azimuth_deg: f64) -> crate::resources::directions::DirectionParams {
     use crate::resources::directions::{DirectionParams, ExactDirection};
-    let mut exact = vec![ExactDirection { zenith_deg: 0.0, azimuth_deg: 0.0, label: Some("nadir".into()), solid_angle_sr: None }];
+    let mut exact = vec![ExactDirection {
+        zenith_deg: 0.0,
+        azimuth_deg: 0.0,
+        label: Some("nadir".into()),
+        solid_angle_sr: None,
+    }];
     for (plane, az) in [("pp+", 0.0), ("pp-", 180.0), ("op+", 90.0), ("op-", 270.0)] {
         for k in 1..=5 {
             let z = 15.0 * k as f64;
@@ -160,7 +165,10 @@ pub fn rami_directions(sun_azimuth_deg: f64) -> crate::resources::directions::Di
             });
         }
     }
-    DirectionParams { exact, ..DirectionParams::default() }
+    DirectionParams {
+        exact,
+        ..DirectionParams::default()
+    }
 }
 
 /// Sun-only illumination.

@@ -1,0 +1,408 @@
+//! Radiative stage against truths we did not compute: DISORT (assets/reference), analytic
+//! solutions (Lambertian ground, Beer's law, single-scattering closed form), energy closure,
+//! hard cases and thread-count determinism.
+
+mod common;
+use common::*;
+use lumenscape::physics::lad::{Lad, LeafAngleDistribution};
+use lumenscape::radiative::products::RadiativeProducts;
+use lumenscape::resources::scene::RunSettings;
+use lumenscape::scene::SceneSource;
+use lumenscape::scene::desc::*;
+use lumenscape::scene::generators::turbid_layer::{TurbidLayerParams, turbid_layer};
+use lumenscape::scene::generators::{BandOptics, rami_directions};
+use lumenscape::simulation::Simulation;
+
+fn run(desc: &SceneDesc, preset: Option<Preset>) -> RadiativeProducts {
+    let settings = RunSettings {
+        preset,
+        ..Default::default()
+    };
+    let mut sim = Simulation::from_desc(desc, &SceneSource::generated(), settings)
+        .unwrap_or_else(|e| panic!("{e}"));
+    sim.run(None).unwrap_or_else(|e| panic!("{e}"));
+    sim.resource::<RadiativeProducts>().clone()
+}
+
+fn assert_closes(p: &RadiativeProducts, tol: f64, what: &str) {
+    for b in &p.bands {
+        assert!(
+            b.energy_closure <= tol,
+            "{what}: band {} energy closure {:e} > {tol:e}",
+            b.band,
+            b.energy_closure
+        );
+        assert!(
+            b.albedo.is_finite() && b.fabs.is_finite() && b.ftran.is_finite(),
+            "{what}: NaN in {b:?}"
+        );
+        for e in &b.brf {
+            assert!(e.brf.is_finite() && e.brf >= 0.0, "{what}: BRF {e:?}");
+        }
+    }
+}
+
+fn layer(lai: f64, sza: f64, cell: f64, bands: Vec<BandOptics>, lad: LadDesc) -> SceneDesc {
+    turbid_layer(&TurbidLayerParams {
+        lai,
+        lad,
+        bands,
+        height_m: 2.0,
+        cell_m: cell,
+        size_m: 1.0,
+        sun_zenith_deg: sza,
+        sun_azimuth_deg: 0.0,
+    })
+}
+
+/// BRF of the entry nearest to view zenith `vz` in the principal plane (vz > 0: sun side).
+fn brf_pp(p: &RadiativeProducts, b: usize, vz: f64, sun_az: f64) -> f64 {
+    let az = if vz >= 0.0 { sun_az } else { sun_az + 180.0 };
+    let e = p.brf_at(b, vz.abs(), az).unwrap();
+    assert!(
+        (e.zenith_deg - vz.abs()).abs() < 1e-9,
+        "exact view direction {vz} missing: nearest {e:?}"
+    );
+    e.brf
+}
+
+#[test]
+fn turbid_canopy_matches_disort_with_the_reference_preset() {
+    let text = std::fs::read_to_string(asset("assets/reference/turbid_canopy_disort.csv")).unwrap();
+    let rows: Vec<Vec<String>> = text
+        .lines()
+        .skip(1)
+        .map(|l| l.split(',').map(String::from).collect())
+        .collect();
+    let mut worst_brf: f64 = 0.0;
+    let mut worst_alb: f64 = 0.0;
+    for lai in [1.0, 3.0] {
+        for sza in [0.0, 20.0] {
+            // 0.2 m cells (optical depth 0.15 per cell at LAI 3): the spatial discretisation error
+            // is below 0.4 % here; 400 directions (reference preset minimum) for the angular part.
+            let p = run(
+                &layer(
+                    lai,
+                    sza,
+                    0.2,
+                    vec![BandOptics::red(), BandOptics::nir()],
+                    LadDesc::Spherical,
+                ),
+                Some(Preset::Reference),
+            );
+            assert_closes(&p, 1e-9, "disort case");
+            for (b, band) in ["red", "nir"].iter().enumerate() {
+                for r in rows.iter().filter(|r| {
+                    r[0].parse::<f64>().unwrap() == lai
+                        && r[1] == *band
+                        && r[2].parse::<f64>().unwrap() == sza
+                }) {
+                    let vz: f64 = r[3].parse().unwrap();
+                    let want: f64 = r[4].parse().unwrap();
+                    let got = brf_pp(&p, b, vz, 0.0);
+                    let err = (got / want - 1.0).abs();
+                    worst_brf = worst_brf.max(err);
+                    assert!(
+                        err < 0.01,
+                        "LAI {lai} sza {sza} {band} vz {vz}: BRF {got} vs DISORT {want} ({:.2} %)",
+                        100.0 * err
+                    );
+                    let alb: f64 = r[5].parse().unwrap();
+                    let e = (p.bands[b].albedo / alb - 1.0).abs();
+                    worst_alb = worst_alb.max(e);
+                    assert!(
+                        e < 0.005,
+                        "LAI {lai} sza {sza} {band}: albedo {} vs DISORT {alb}",
+                        p.bands[b].albedo
+                    );
+                    let tran: f64 = r[6].parse::<f64>().unwrap() + r[7].parse::<f64>().unwrap();
+                    assert!(
+                        (p.bands[b].ftran - tran).abs() < 0.005 * tran,
+                        "ftran {} vs {tran}",
+                        p.bands[b].ftran
+                    );
+                }
+            }
+        }
+    }
+    eprintln!(
+        "DISORT, reference preset: worst BRF error {:.3} %, worst albedo error {:.3} %",
+        100.0 * worst_brf,
+        100.0 * worst_alb
+    );
+}
+
+#[test]
+fn flat_lambertian_ground_has_brf_equal_to_reflectance_everywhere() {
+    for (sza, skyl) in [(0.0, 0.0), (30.0, 0.3), (85.0, 0.0), (89.0, 0.5)] {
+        let mut d = base_scene((4.0, 4.0), (1.0, 1.0, 1.0), BoundaryMode::Repetitive);
+        d.objects.push(ObjectDesc::Ground(GroundDesc {
+            optics: "soil".into(),
+            topography: TopographyDesc::Flat,
+        }));
+        d.illumination.sun_zenith_deg = Some(sza);
+        d.illumination.skyl = vec![skyl];
+        d.directions = Some(rami_directions(0.0));
+        let p = run(&d, None);
+        assert_closes(&p, 1e-9, "flat ground");
+        let b = &p.bands[0];
+        for e in &b.brf {
+            assert!((e.brf - 0.1).abs() < 1e-6, "sza {sza}: BRF {e:?}");
+            if let Some(h) = e.hdrf {
+                assert!((h - 0.1).abs() < 1e-6, "sza {sza}: HDRF {e:?}");
+            }
+        }
+        assert!(
+            (b.albedo - 0.1).abs() < 1e-9 && (b.fabs_ground - 0.9).abs() < 1e-9,
+            "{b:?}"
+        );
+        // One scattering iteration suffices: the next changes nothing.
+        assert!(p.iterations <= 3, "{} iterations", p.iterations);
+    }
+}
+
+#[test]
+fn black_leaves_transmit_the_direct_beam_by_beers_law_for_every_lad() {
+    let lads = [
+        LadDesc::Spherical,
+        LadDesc::Uniform,
+        LadDesc::Planophile,
+        LadDesc::Erectophile,
+        LadDesc::Plagiophile,
+        LadDesc::Extremophile,
+        LadDesc::Ellipsoidal {
+            mean_angle_deg: 30.0,
+        },
+        LadDesc::Beta {
+            mu: 2.770,
+            nu: 1.172,
+        },
+    ];
+    for lad in lads {
+        for sza in [0.0, 37.0, 70.0] {
+            let black = BandOptics {
+                name: "b".into(),
+                wavelength_nm: 500.0,
+                leaf_r: 0.0,
+                leaf_t: 0.0,
+                soil_r: 0.0,
+            };
+            let d = layer(2.0, sza, 0.5, vec![black], lad.clone());
+            let p = run(&d, None);
+            assert_closes(&p, 1e-9, "black leaves");
+            let g = LeafAngleDistribution::new(&match &lad {
+                LadDesc::Spherical => Lad::Spherical,
+                LadDesc::Uniform => Lad::Uniform,
+                LadDesc::Planophile => Lad::Planophile,
+                LadDesc::Erectophile => Lad::Erectophile,
+                LadDesc::Plagiophile => Lad::Plagiophile,
+                LadDesc::Extremophile => Lad::Extremophile,
+                LadDesc::Ellipsoidal { mean_angle_deg } => Lad::Ellipsoidal {
+                    mean_angle_deg: *mean_angle_deg,
+                },
+                LadDesc::Beta { mu, nu } => Lad::Beta { mu: *mu, nu: *nu },
+                LadDesc::Histogram { weights } => Lad::Histogram {
+                    bins: weights.clone(),
+                },
+            })
+            .unwrap()
+            .g_function(sza.to_radians().cos());
+            let expected = (-g * 2.0 / sza.to_radians().cos()).exp();
+            let got = p.bands[0].ftran;
+            assert!(
+                (got - expected).abs() < 1e-6,
+                "{lad:?} sza {sza}: T = {got} vs exp(-G LAI/μ) = {expected}"
+            );
+            assert!((p.bands[0].fabs - (1.0 - expected)).abs() < 1e-6);
+        }
+    }
+}
+
+#[test]
+fn single_scattering_over_black_soil_converges_to_the_closed_form() {
+    // physics.md §13 test 4: spherical LAD, ρ = τ = 0.45, sun (30°, φ = 0); first order only.
+    let cases = [
+        (1.0, 0.0, 0.0, 0.09497),
+        (1.0, 30.0, 0.0, 0.11862),
+        (1.0, 30.0, 180.0, 0.08517),
+        (3.0, 0.0, 0.0, 0.13831),
+        (3.0, 30.0, 0.0, 0.16778),
+        (3.0, 30.0, 180.0, 0.12047),
+    ];
+    let mut errs = Vec::new();
+    for cell in [0.5, 0.1] {
+        let mut worst: f64 = 0.0;
+        for lai in [1.0, 3.0] {
+            let band = BandOptics {
+                name: "g".into(),
+                wavelength_nm: 550.0,
+                leaf_r: 0.45,
+                leaf_t: 0.45,
+                soil_r: 0.0,
+            };
+            let mut d = layer(lai, 30.0, cell, vec![band], LadDesc::Spherical);
+            // Sources then one scattering iteration: the exitance is exactly first order.
+            d.radiative = Some(RadiativeDesc {
+                max_iterations: Some(2),
+                extrapolate: Some(false),
+                ..Default::default()
+            });
+            let p = run(&d, None);
+            assert_closes(&p, 1e-9, "single scattering");
+            for &(l, vz, daz, want) in cases.iter().filter(|c| c.0 == lai) {
+                let _ = l;
+                let e = p.brf_at(0, vz, daz).unwrap();
+                worst = worst.max((e.brf / want - 1.0).abs());
+            }
+        }
+        errs.push(worst);
+    }
+    eprintln!(
+        "single-scattering BRF worst relative error: {:.3} % (0.5 m cells), {:.3} % (0.1 m cells)",
+        100.0 * errs[0],
+        100.0 * errs[1]
+    );
+    // Discretisation-limited: the error shrinks with the cell size and is below 0.5 % at 0.1 m.
+    assert!(errs[1] < errs[0] && errs[1] < 0.005, "{errs:?}");
+}
+
+#[test]
+fn hard_cases_keep_energy_closed_without_nan() {
+    // Grazing sun, grazing view, leaf albedo 0.999, very dense and very thin cells.
+    let near_white = BandOptics {
+        name: "w".into(),
+        wavelength_nm: 800.0,
+        leaf_r: 0.5,
+        leaf_t: 0.499,
+        soil_r: 0.3,
+    };
+    for (what, d) in [
+        (
+            "sun 85°",
+            layer(3.0, 85.0, 0.5, vec![BandOptics::nir()], LadDesc::Spherical),
+        ),
+        (
+            "sun 89°",
+            layer(3.0, 89.0, 0.5, vec![BandOptics::nir()], LadDesc::Planophile),
+        ),
+        (
+            "albedo 0.999",
+            layer(3.0, 30.0, 0.5, vec![near_white], LadDesc::Spherical),
+        ),
+        (
+            "dense u_f = 50",
+            turbid_layer(&TurbidLayerParams {
+                lai: 25.0,
+                height_m: 0.5,
+                cell_m: 0.25,
+                size_m: 1.0,
+                ..Default::default()
+            }),
+        ),
+        ("thin cells", {
+            let mut d = layer(1.0, 40.0, 0.5, vec![BandOptics::red()], LadDesc::Spherical);
+            d.grid.cell_m = (0.5, 0.5, 0.02);
+            d
+        }),
+        ("view 89°", {
+            let mut d = layer(2.0, 30.0, 0.5, vec![BandOptics::red()], LadDesc::Spherical);
+            d.directions.as_mut().unwrap().exact.push(
+                lumenscape::resources::directions::ExactDirection::new(89.0, 0.0),
+            );
+            d
+        }),
+        (
+            "sun through cell vertices",
+            layer(
+                1.0,
+                (2f64.sqrt()).atan().to_degrees(),
+                0.5,
+                vec![BandOptics::red()],
+                LadDesc::Spherical,
+            ),
+        ),
+    ] {
+        let p = run(&d, None);
+        assert_closes(&p, 1e-9, what);
+        let b = &p.bands[0];
+        assert!(
+            b.albedo > 0.0 && b.albedo < 1.0,
+            "{what}: albedo {}",
+            b.albedo
+        );
+        if what == "albedo 0.999" {
+            // Almost nothing is absorbed by leaves, the soil absorbs 70 % of what reaches it.
+            assert!(
+                p.converged,
+                "{what}: did not converge in {} iterations",
+                p.iterations
+            );
+        }
+    }
+}
+
+#[test]
+fn facets_in_cell_faces_and_isolated_sides_keep_energy_closed() {
+    let mut d = base_scene((6.0, 6.0), (1.0, 1.0, 1.0), BoundaryMode::Isolated);
+    d.objects.push(ObjectDesc::Ground(GroundDesc {
+        optics: "soil".into(),
+        topography: TopographyDesc::Flat,
+    }));
+    d.optics.insert(
+        "wall".into(),
+        OpticsDesc::Lambertian {
+            reflectance: vec![0.3],
+            diffuse_transmittance: vec![],
+            direct_transmittance: vec![],
+        },
+    );
+    d.objects.push(ObjectDesc::Building(BuildingDesc {
+        footprint: FootprintDesc::Box((1.0, 1.0, 4.0, 3.0)),
+        wall_height_m: 3.0,
+        roof: RoofDesc::Flat,
+        wall_optics: "wall".into(),
+        roof_optics: "wall".into(),
+    }));
+    d.grid.height_m = Some(5.0);
+    let p = run(&d, None);
+    assert_closes(&p, 1e-9, "building in cell faces");
+    assert!(p.bands[0].flost > 0.0, "isolated scene loses side exits");
+}
+
+#[test]
+fn products_are_bit_identical_on_1_2_and_8_threads() {
+    let d = lumenscape::scene::generators::forest::forest(
+        &lumenscape::scene::generators::forest::ForestParams {
+            size_m: 12.0,
+            species: vec![
+                lumenscape::scene::generators::forest::broadleaf(2),
+                lumenscape::scene::generators::forest::conifer(2),
+            ],
+            ..Default::default()
+        },
+    );
+    let go = |n| {
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(n)
+            .build()
+            .unwrap();
+        pool.install(|| {
+            let p = run(&d, Some(Preset::Preview));
+            let r = p.raw;
+            (
+                r.escaped.iter().map(|v| v.to_bits()).collect::<Vec<_>>(),
+                r.absorbed_turbid
+                    .iter()
+                    .map(|v| v.to_bits())
+                    .collect::<Vec<_>>(),
+                r.absorbed_facet
+                    .iter()
+                    .map(|v| v.to_bits())
+                    .collect::<Vec<_>>(),
+            )
+        })
+    };
+    let one = go(1);
+    assert_eq!(one, go(2));
+    assert_eq!(one, go(8));
+}
