@@ -4,33 +4,13 @@
 //! materials become Lambertian (R, T_d, T_dir) models. Only what the scene uses is tabulated.
 
 use crate::components::{ImportedMesh, TurbidCrown, TurbidPlot};
-use crate::physics::lad::{Lad, LeafAngleDistribution, LeafOptics};
+use crate::physics::lad::{LeafAngleDistribution, LeafOptics};
 use crate::radiative::engine::TrackOptics;
 use crate::resources::materials::{MaterialKind, Materials};
 use crate::resources::phase_tables::vegetation_unit_tables;
 use crate::resources::scene::StageErrors;
 use crate::resources::tracking::{Directions, OpticsTables, RadiativeSettings};
-use crate::scene::desc::LadDesc;
 use bevy_ecs::prelude::*;
-
-/// Converts the authoring LAD into the physics LAD.
-pub fn lad_from_desc(l: &LadDesc) -> Lad {
-    match l {
-        LadDesc::Spherical => Lad::Spherical,
-        LadDesc::Uniform => Lad::Uniform,
-        LadDesc::Planophile => Lad::Planophile,
-        LadDesc::Erectophile => Lad::Erectophile,
-        LadDesc::Plagiophile => Lad::Plagiophile,
-        LadDesc::Extremophile => Lad::Extremophile,
-        LadDesc::Ellipsoidal { mean_angle_deg } => Lad::Ellipsoidal {
-            mean_angle_deg: *mean_angle_deg,
-        },
-        LadDesc::Beta { mu, nu } => Lad::Beta { mu: *mu, nu: *nu },
-        LadDesc::Histogram { weights } => Lad::Histogram {
-            bins: weights.clone(),
-        },
-    }
-}
 
 /// Phase · reads Materials, Directions, RadiativeSettings, TurbidCrown, TurbidPlot,
 /// ImportedMesh · writes OpticsTables.
@@ -67,7 +47,7 @@ pub fn tabulate_phase(
                 lad,
                 ..
             } if used[id] => {
-                let lad = match LeafAngleDistribution::new(&lad_from_desc(lad)) {
+                let lad = match LeafAngleDistribution::new(lad) {
                     Ok(l) => l,
                     Err(e) => {
                         errors.0.push(format!("material `{}`: {e}", m.name));

@@ -468,7 +468,7 @@ fn facet_to_turbid_keeps_leaf_area_and_inclinations() {
     let m = mats.list.iter().find(|m| m.name.contains("leaf@")).unwrap();
     match &m.kind {
         lumenscape::resources::materials::MaterialKind::Turbid {
-            lad: LadDesc::Histogram { weights },
+            lad: LadDesc::Histogram { bins: weights },
             ..
         } => {
             assert!(

@@ -4,7 +4,7 @@
 
 mod common;
 use common::*;
-use lumenscape::physics::lad::{Lad, LeafAngleDistribution};
+use lumenscape::physics::lad::LeafAngleDistribution;
 use lumenscape::radiative::products::RadiativeProducts;
 use lumenscape::resources::scene::RunSettings;
 use lumenscape::scene::SceneSource;
@@ -190,23 +190,9 @@ fn black_leaves_transmit_the_direct_beam_by_beers_law_for_every_lad() {
             let d = layer(2.0, sza, 0.5, vec![black], lad.clone());
             let p = run(&d, None);
             assert_closes(&p, 1e-9, "black leaves");
-            let g = LeafAngleDistribution::new(&match &lad {
-                LadDesc::Spherical => Lad::Spherical,
-                LadDesc::Uniform => Lad::Uniform,
-                LadDesc::Planophile => Lad::Planophile,
-                LadDesc::Erectophile => Lad::Erectophile,
-                LadDesc::Plagiophile => Lad::Plagiophile,
-                LadDesc::Extremophile => Lad::Extremophile,
-                LadDesc::Ellipsoidal { mean_angle_deg } => Lad::Ellipsoidal {
-                    mean_angle_deg: *mean_angle_deg,
-                },
-                LadDesc::Beta { mu, nu } => Lad::Beta { mu: *mu, nu: *nu },
-                LadDesc::Histogram { weights } => Lad::Histogram {
-                    bins: weights.clone(),
-                },
-            })
-            .unwrap()
-            .g_function(sza.to_radians().cos());
+            let g = LeafAngleDistribution::new(&lad)
+                .unwrap()
+                .g_function(sza.to_radians().cos());
             let expected = (-g * 2.0 / sza.to_radians().cos()).exp();
             let got = p.bands[0].ftran;
             assert!(

@@ -1,7 +1,7 @@
 //! The `lumenscape` command-line tool.
 
 use clap::{Parser, Subcommand};
-use lumenscape::cli::{generate, prospect, scene_cmds, sun};
+use lumenscape::cli::{directions, generate, prospect, scene_cmds, sun};
 use std::io::Write;
 use std::process::ExitCode;
 
@@ -27,6 +27,8 @@ enum Command {
     Prospect(prospect::Args),
     /// Sun position (NREL SPA) for a date, time and place, in the scene's angle convention.
     Sun(sun::Args),
+    /// Print the discrete directions (zenith, azimuth, solid angle, kind, sector) as JSON or CSV.
+    Directions(directions::Args),
 }
 
 fn plain(message: String) -> scene_cmds::CliError {
@@ -44,6 +46,7 @@ fn main() -> ExitCode {
         Command::Generate(a) => generate::run(a, &mut out),
         Command::Prospect(a) => prospect::run(a, &mut out).map_err(plain),
         Command::Sun(a) => sun::run(a, &mut out).map_err(plain),
+        Command::Directions(a) => directions::run(a, &mut out).map_err(plain),
     };
     let _ = out.flush();
     match res {

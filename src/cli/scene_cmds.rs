@@ -188,6 +188,41 @@ fn report_after_plan(sim: &mut Simulation) -> MaketReport {
         .expect("resources exist after planning")
 }
 
+/// (bytes, directions, slots) the Direction/Phase/Radiative stages will need.
+fn radiative_estimate(sim: &mut Simulation, report: &MaketReport) -> (u64, usize, usize) {
+    use crate::resources::tracking::RadiativeSettings;
+    use crate::systems::direction::{DirectionRequest, REFERENCE_MIN_DIRECTIONS};
+    let settings = sim.resource::<RadiativeSettings>().clone();
+    let mut params = sim.resource::<DirectionRequest>().0.clone();
+    if settings.preset == crate::scene::desc::Preset::Reference {
+        params.count = params.count.max(REFERENCE_MIN_DIRECTIONS);
+    }
+    let Ok(set) = crate::resources::directions::DirectionSet::new(&params) else {
+        return (0, 0, 0);
+    };
+    let n_dirs = set.tiling().len();
+    let slots = if settings.per_direction_stores {
+        n_dirs
+    } else {
+        set.n_sectors()
+    } + 1;
+    let info = sim.resource::<crate::resources::scene::SceneInfo>().clone();
+    let sky = info.illumination.skyl.iter().any(|&s| s > 0.0);
+    let n_facets = report.facet_count.values().sum::<u64>() as usize;
+    let est = crate::systems::radiative::memory_estimate(
+        n_dirs,
+        slots,
+        info.bands.len(),
+        sky,
+        report.leaf_area.len(),
+        report.memory.turbid_entries_max as usize,
+        report.memory.facet_refs_max as usize,
+        n_facets,
+        report.cells[0] * report.cells[1],
+    );
+    (est, n_dirs, slots)
+}
+
 /// Runs `check`.
 pub fn check(args: &CheckArgs, out: &mut dyn Write) -> Result<(), CliError> {
     let mut sim = Simulation::load(&args.opts.scene, args.opts.settings())?;
@@ -203,11 +238,22 @@ pub fn check(args: &CheckArgs, out: &mut dyn Write) -> Result<(), CliError> {
         });
     }
     let report = report_after_plan(&mut sim);
+    let rad = radiative_estimate(&mut sim, &report);
     if args.json {
-        writeln!(out, "{}", serde_json::to_string_pretty(&report)?)?;
+        let mut v = serde_json::to_value(&report)?;
+        v["radiative_memory_estimate_bytes"] = rad.0.into();
+        v["directions"] = rad.1.into();
+        writeln!(out, "{}", serde_json::to_string_pretty(&v)?)?;
     } else {
         writeln!(out, "{}: scene is valid", args.opts.scene.display())?;
         print_report(&report, out)?;
+        writeln!(
+            out,
+            "radiative stage: {} directions, {} interception slots, memory estimate {} (phase tables, stores, products)",
+            rad.1,
+            rad.2,
+            human_bytes(rad.0)
+        )?;
     }
     planned?;
     Ok(())

@@ -283,39 +283,10 @@ impl OpticsDesc {
     }
 }
 
-/// Leaf angle distribution (physics.md §3.2; de Wit 1965, Goel & Strebel 1984, Campbell 1990).
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-pub enum LadDesc {
-    /// f(θ) = sin θ.
-    Spherical,
-    /// f(θ) = 2/π.
-    Uniform,
-    /// f(θ) = (2/π)(1 + cos 2θ).
-    Planophile,
-    /// f(θ) = (2/π)(1 − cos 2θ).
-    Erectophile,
-    /// f(θ) = (2/π)(1 − cos 4θ).
-    Plagiophile,
-    /// f(θ) = (2/π)(1 + cos 4θ).
-    Extremophile,
-    /// Campbell ellipsoidal distribution given by its mean leaf inclination, degrees.
-    Ellipsoidal {
-        /// Mean leaf inclination from horizontal, degrees.
-        mean_angle_deg: f64,
-    },
-    /// Goel & Strebel beta distribution of t = 2θ/π.
-    Beta {
-        /// Shape parameter μ.
-        mu: f64,
-        /// Shape parameter ν.
-        nu: f64,
-    },
-    /// Area weights of equal-width inclination bins over [0°, 90°] (normalised on use).
-    Histogram {
-        /// Relative weights, one per bin.
-        weights: Vec<f64>,
-    },
-}
+/// Leaf angle distribution of the scene format: the physics type itself (physics.md §3.2),
+/// written e.g. `Spherical`, `Ellipsoidal(mean_angle_deg: 57.3)`, `Beta(mu: 2.77, nu: 1.172)`,
+/// `Histogram(bins: [...])`.
+pub use crate::physics::lad::Lad as LadDesc;
 
 /// Sun and diffuse sky.
 ///

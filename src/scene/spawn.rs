@@ -445,7 +445,7 @@ pub fn spawn_scene(
                                 reflectance: r,
                                 transmittance: t,
                                 lad: LadDesc::Histogram {
-                                    weights: inclination_histogram(&g.triangles),
+                                    bins: inclination_histogram(&g.triangles),
                                 },
                                 leaf_size_m: 0.0,
                             },

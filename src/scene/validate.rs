@@ -536,30 +536,9 @@ pub fn validate(desc: &SceneDesc, src: &SceneSource) -> Result<(), SceneError> {
             } => {
                 v.optics_ref(&format!("{f}.leaf"), leaf, OpticsRole::Leaf)?;
                 v.non_negative(&format!("{f}.leaf_size_m"), *leaf_size_m)?;
-                let lf = format!("{f}.lad");
-                match lad {
-                    LadDesc::Ellipsoidal { mean_angle_deg } => {
-                        v.finite(&lf, *mean_angle_deg)?;
-                        if !(*mean_angle_deg > 1.0 && *mean_angle_deg < 89.0) {
-                            return Err(src.invalid(
-                                lf,
-                                format!(
-                                    "mean leaf angle must lie in (1°, 89°), got {mean_angle_deg}"
-                                ),
-                            ));
-                        }
-                    }
-                    LadDesc::Beta { mu, nu } => {
-                        v.positive(&lf, *mu)?;
-                        v.positive(&lf, *nu)?;
-                    }
-                    LadDesc::Histogram { weights } => {
-                        if weights.is_empty() {
-                            return Err(src.invalid(lf, "histogram needs at least one bin"));
-                        }
-                        v.weights(&lf, weights)?;
-                    }
-                    _ => {}
+                // The physics type validates itself (parameter ranges, normalisable pdf).
+                if let Err(e) = crate::physics::lad::LeafAngleDistribution::new(lad) {
+                    return Err(src.invalid(format!("{f}.lad"), e.to_string()));
                 }
             }
         }

@@ -51,29 +51,11 @@ impl Default for DiskCanopyParams {
     }
 }
 
-/// Leaf-inclination pdf f(θ) on [0, π/2] (physics.md §3.2; de Wit 1965). Beta and ellipsoidal
-/// LADs are not sampled by this generator yet (error).
-pub fn inclination_pdf(lad: &LadDesc, t: f64) -> Result<f64, String> {
-    let k = 2.0 / PI;
-    Ok(match lad {
-        LadDesc::Spherical => t.sin(),
-        LadDesc::Uniform => k,
-        LadDesc::Planophile => k * (1.0 + (2.0 * t).cos()),
-        LadDesc::Erectophile => k * (1.0 - (2.0 * t).cos()),
-        LadDesc::Plagiophile => k * (1.0 - (4.0 * t).cos()),
-        LadDesc::Extremophile => k * (1.0 + (4.0 * t).cos()),
-        LadDesc::Histogram { weights } => {
-            let n = weights.len();
-            let s: f64 = weights.iter().sum();
-            weights[((t / FRAC_PI_2 * n as f64) as usize).min(n - 1)] / s * n as f64 / FRAC_PI_2
-        }
-        other => return Err(format!("disk-canopy cannot sample the LAD {other:?} yet")),
-    })
-}
-
 /// Tabulated inverse CDF of the inclination (4096 bins, linear within a bin).
 fn inclination_table(lad: &LadDesc) -> Result<Vec<f64>, String> {
     const N: usize = 4096;
+    let dist = crate::physics::lad::LeafAngleDistribution::new(lad).map_err(|e| e.to_string())?;
+    let inclination_pdf = |_: &LadDesc, t: f64| -> Result<f64, String> { Ok(dist.pdf(t)) };
     let mut cdf = vec![0.0; N + 1];
     for i in 0..N {
         let (a, b) = (

@@ -1,0 +1,143 @@
+//! Radiative speed against error (harness = false). For the turbid-layer scene (LAI 3, red and
+//! NIR, sun zenith 20°, 1 m × 1 m periodic) it runs each preset × direction count × cell size and
+//! prints wall time, cell crossings per second per core, the process peak RSS and the worst BRF
+//! and albedo errors against the DISORT oracle (assets/reference/turbid_canopy_disort.csv); then
+//! the forest scene's timing. `cargo bench --bench radiative` (`-- --quick` for fewer rows).
+
+use lumenscape::radiative::products::RadiativeProducts;
+use lumenscape::resources::scene::RunSettings;
+use lumenscape::scene::SceneSource;
+use lumenscape::scene::desc::{LadDesc, Preset};
+use lumenscape::scene::generators::turbid_layer::{TurbidLayerParams, turbid_layer};
+use lumenscape::scene::generators::{BandOptics, forest};
+use lumenscape::simulation::Simulation;
+use std::time::Instant;
+
+fn peak_rss_mib() -> f64 {
+    std::fs::read_to_string("/proc/self/status")
+        .ok()
+        .and_then(|s| {
+            s.lines()
+                .find(|l| l.starts_with("VmHWM:"))
+                .and_then(|l| l.split_whitespace().nth(1)?.parse::<f64>().ok())
+        })
+        .map_or(f64::NAN, |kib| kib / 1024.0)
+}
+
+fn main() {
+    let quick = std::env::args().any(|a| a == "--quick");
+    let threads = rayon::current_num_threads();
+    let oracle = std::fs::read_to_string(concat!(
+        env!("CARGO_MANIFEST_DIR"),
+        "/assets/reference/turbid_canopy_disort.csv"
+    ))
+    .expect("oracle");
+    let rows: Vec<Vec<String>> = oracle
+        .lines()
+        .skip(1)
+        .map(|l| l.split(',').map(String::from).collect())
+        .filter(|r: &Vec<String>| r[0] == "3" && r[2] == "20")
+        .collect();
+    println!("turbid layer LAI 3, sun 20°, red+NIR, {threads} threads");
+    println!(
+        "{:>9} {:>5} {:>6} {:>9} {:>6} {:>14} {:>10} {:>11} {:>11}",
+        "preset",
+        "dirs",
+        "cell",
+        "wall_s",
+        "iters",
+        "Mcross/s/core",
+        "peakRSS",
+        "worstBRF%",
+        "worstAlb%"
+    );
+    let presets = if quick {
+        vec![Preset::Default]
+    } else {
+        vec![Preset::Preview, Preset::Default, Preset::Reference]
+    };
+    for preset in presets {
+        for dirs in [100usize, 400] {
+            for cell in [0.5, 0.2] {
+                let mut d = turbid_layer(&TurbidLayerParams {
+                    lai: 3.0,
+                    lad: LadDesc::Spherical,
+                    bands: vec![BandOptics::red(), BandOptics::nir()],
+                    height_m: 2.0,
+                    cell_m: cell,
+                    size_m: 1.0,
+                    sun_zenith_deg: 20.0,
+                    sun_azimuth_deg: 0.0,
+                });
+                d.directions.as_mut().unwrap().count = dirs;
+                let t0 = Instant::now();
+                let mut sim = Simulation::from_desc(
+                    &d,
+                    &SceneSource::generated(),
+                    RunSettings {
+                        preset: Some(preset),
+                        ..Default::default()
+                    },
+                )
+                .unwrap();
+                sim.run(None).unwrap();
+                let wall = t0.elapsed().as_secs_f64();
+                let p = sim.resource::<RadiativeProducts>().clone();
+                let (mut wb, mut wa) = (0.0f64, 0.0f64);
+                for r in &rows {
+                    let b = if r[1] == "red" { 0 } else { 1 };
+                    let vz: f64 = r[3].parse().unwrap();
+                    let az = if vz >= 0.0 { 0.0 } else { 180.0 };
+                    let got = p.brf_at(b, vz.abs(), az).unwrap().brf;
+                    wb = wb.max((got / r[4].parse::<f64>().unwrap() - 1.0).abs());
+                    wa = wa.max((p.bands[b].albedo / r[5].parse::<f64>().unwrap() - 1.0).abs());
+                }
+                let rate = p.crossings as f64 / p.tracking_seconds / threads as f64 / 1e6;
+                let n = if preset == Preset::Reference {
+                    dirs.max(400)
+                } else {
+                    dirs
+                };
+                println!(
+                    "{:>9} {:>5} {:>6} {:>9.3} {:>6} {:>14.2} {:>8.1}MiB {:>11.3} {:>11.3}",
+                    format!("{preset:?}"),
+                    n,
+                    cell,
+                    wall,
+                    p.iterations,
+                    rate,
+                    peak_rss_mib(),
+                    100.0 * wb,
+                    100.0 * wa
+                );
+            }
+        }
+    }
+    // Forest scene (no oracle): timing and throughput.
+    let f = forest::forest(&forest::ForestParams {
+        size_m: 40.0,
+        ..Default::default()
+    });
+    for preset in [Preset::Preview, Preset::Default] {
+        let t0 = Instant::now();
+        let mut sim = Simulation::from_desc(
+            &f,
+            &SceneSource::generated(),
+            RunSettings {
+                preset: Some(preset),
+                ..Default::default()
+            },
+        )
+        .unwrap();
+        sim.run(None).unwrap();
+        let wall = t0.elapsed().as_secs_f64();
+        let p = sim.resource::<RadiativeProducts>().clone();
+        println!(
+            "forest 40 m, 24 trees, 1 m cells, {preset:?}: wall {wall:.2} s, {} iterations, {:.2} Mcrossings/s/core, closure {:.1e}, peak RSS {:.1} MiB",
+            p.iterations,
+            p.crossings as f64 / p.tracking_seconds / threads as f64 / 1e6,
+            p.bands.iter().map(|b| b.energy_closure).fold(0.0, f64::max),
+            peak_rss_mib()
+        );
+    }
+}
