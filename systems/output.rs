@@ -321,5 +321,121 @@ fn write_radiative(
         }
     }
     write_atomic(&dir.join("budget/elements.csv"), els.as_bytes())?;
+    write_images(dir, p, info, dirs, spec)?;
     Ok(())
+}
+
+/// Orthographic images (DART 5 paper §5; physics.md §8.1): one multi-channel EXR per exact
+/// view direction, `images/view_<zenith>_<azimuth>.exr`, channels `brf.<band>` (and
+/// `hdrf.<band>` with sky light), one pixel per grid column; the BRF of pixel (i, j) is
+/// π W_ij / (A_pixel ∫_{ΔΩ}|μ|dΩ E_dir). The image mean equals the direction's BRF. A PNG
+/// quick-look of the first band (linear grey scale from 0 to the image maximum) goes alongside.
+fn write_images(
+    dir: &std::path::Path,
+    p: &crate::radiative::products::RadiativeProducts,
+    info: &crate::resources::scene::SceneInfo,
+    dirs: &crate::resources::tracking::Directions,
+    spec: &GridSpec,
+) -> Result<(), String> {
+    let raw = &p.raw;
+    let (w, nb) = (raw.n_channels, raw.n_bands);
+    let (nx, ny) = (spec.n[0], spec.n[1]);
+    let npx = nx * ny;
+    if raw.images.is_empty() {
+        return Ok(());
+    }
+    std::fs::create_dir_all(dir.join("images"))
+        .map_err(|e| format!("{}: cannot create images folder: {e}", dir.display()))?;
+    let a_px = spec.cell.x * spec.cell.y;
+    let area = a_px * npx as f64;
+    let e_dir: Vec<f64> = (0..nb).map(|b| raw.source[b] / area).collect();
+    let e_diff: Vec<f64> = (0..nb)
+        .map(|b| {
+            if raw.has_sky {
+                raw.source[nb + b] / area
+            } else {
+                0.0
+            }
+        })
+        .collect();
+    let mut img = 0usize;
+    for d in dirs.set.tiling() {
+        if !(matches!(
+            d.kind,
+            crate::resources::directions::DirectionKind::Exact { .. }
+        ) && d.omega.z > 0.0)
+        {
+            continue;
+        }
+        let mut channels = Vec::new();
+        for b in 0..nb {
+            let mut brf = vec![0.0; npx];
+            let mut hdrf = vec![0.0; npx];
+            for px in 0..npx {
+                let base = (img * npx + px) * w;
+                let sun = raw.images[base + b];
+                let sky = if raw.has_sky {
+                    raw.images[base + nb + b]
+                } else {
+                    0.0
+                };
+                let denom = a_px * d.projected_sr;
+                brf[px] = if e_dir[b] > 0.0 {
+                    std::f64::consts::PI * sun / (denom * e_dir[b])
+                } else {
+                    0.0
+                };
+                hdrf[px] = std::f64::consts::PI * (sun + sky) / (denom * (e_dir[b] + e_diff[b]));
+            }
+            if b == 0 {
+                let name = format!("view_{:05.1}_{:05.1}", d.zenith_deg(), d.azimuth_deg());
+                write_png(
+                    &dir.join("images").join(format!("{name}.png")),
+                    nx,
+                    ny,
+                    &brf,
+                )?;
+            }
+            channels.push((format!("brf.{:02}_{}", b, info.bands[b].name), brf));
+            if raw.has_sky {
+                channels.push((format!("hdrf.{:02}_{}", b, info.bands[b].name), hdrf));
+            }
+        }
+        let name = format!("view_{:05.1}_{:05.1}", d.zenith_deg(), d.azimuth_deg());
+        write_exr_layers(
+            &dir.join("images").join(format!("{name}.exr")),
+            nx,
+            ny,
+            &[ExrLayer {
+                name: "reflectance".into(),
+                channels,
+            }],
+        )?;
+        img += 1;
+    }
+    Ok(())
+}
+
+/// 8-bit grey PNG of `v` (indexed `i + nx·j`, +y up), scaled linearly from 0 to its maximum.
+fn write_png(path: &std::path::Path, nx: usize, ny: usize, v: &[f64]) -> Result<(), String> {
+    let max = v.iter().cloned().fold(0.0, f64::max).max(1e-300);
+    let mut data = vec![0u8; nx * ny];
+    for j in 0..ny {
+        for i in 0..nx {
+            data[i + nx * (ny - 1 - j)] =
+                (255.0 * (v[i + nx * j] / max).clamp(0.0, 1.0)).round() as u8;
+        }
+    }
+    let mut buf = Vec::new();
+    {
+        let mut enc = png::Encoder::new(&mut buf, nx as u32, ny as u32);
+        enc.set_color(png::ColorType::Grayscale);
+        enc.set_depth(png::BitDepth::Eight);
+        let mut wr = enc
+            .write_header()
+            .map_err(|e| format!("{}: {e}", path.display()))?;
+        wr.write_image_data(&data)
+            .map_err(|e| format!("{}: {e}", path.display()))?;
+    }
+    write_atomic(path, &buf)
 }

@@ -392,3 +392,60 @@ fn products_are_bit_identical_on_1_2_and_8_threads() {
     assert_eq!(one, go(2));
     assert_eq!(one, go(8));
 }
+
+#[test]
+fn orthographic_images_average_to_the_direction_brf() {
+    let d = lumenscape::scene::generators::forest::forest(
+        &lumenscape::scene::generators::forest::ForestParams {
+            size_m: 12.0,
+            species: vec![
+                lumenscape::scene::generators::forest::broadleaf(2),
+                lumenscape::scene::generators::forest::conifer(2),
+            ],
+            ..Default::default()
+        },
+    );
+    let mut d = d;
+    d.directions = Some(rami_directions(225.0));
+    let out = std::env::temp_dir().join(format!("lumenscape-img-{}", std::process::id()));
+    let mut sim = Simulation::from_desc(
+        &d,
+        &SceneSource::generated(),
+        RunSettings {
+            preset: Some(Preset::Preview),
+            ..Default::default()
+        },
+    )
+    .unwrap();
+    sim.run(Some(&out)).unwrap();
+    let p = sim.resource::<RadiativeProducts>().clone();
+    let mut n = 0;
+    for e in std::fs::read_dir(out.join("images")).unwrap() {
+        let path = e.unwrap().path();
+        if path.extension().is_some_and(|x| x == "exr") {
+            let (nx, ny, ch) = lumenscape::io::exr_out::read_exr_channels(&path).unwrap();
+            let name = path.file_stem().unwrap().to_string_lossy().to_string();
+            let parts: Vec<f64> = name
+                .trim_start_matches("view_")
+                .split('_')
+                .map(|s| s.parse().unwrap())
+                .collect();
+            for (b, band) in ["red", "nir"].iter().enumerate() {
+                let c = ch
+                    .iter()
+                    .find(|(k, _)| k.ends_with(&format!("brf.{b:02}_{band}")))
+                    .expect("band channel");
+                let mean = c.1.iter().map(|v| *v as f64).sum::<f64>() / (nx * ny) as f64;
+                let want = p.brf_at(b, parts[0], parts[1]).unwrap().brf;
+                assert!(
+                    (mean - want).abs() <= 1e-5 * want.max(1e-3),
+                    "{name} {band}: image mean {mean} vs BRF {want}"
+                );
+            }
+            assert!(out.join("images").join(format!("{name}.png")).is_file());
+            n += 1;
+        }
+    }
+    assert_eq!(n, 21, "one image per exact view direction");
+    let _ = std::fs::remove_dir_all(out);
+}

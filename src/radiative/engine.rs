@@ -139,6 +139,9 @@ pub struct RadiativeInput<'a> {
     pub sector_row: &'a [usize],
     /// Optics per material id.
     pub optics: &'a [TrackOptics],
+    /// Image index of each tiling direction (`u32::MAX`: no image); images have one pixel per
+    /// column of the grid.
+    pub image_of: &'a [u32],
     /// Flat ground material (Lambertian reflectance per band), if the ground is the plane z0.
     pub flat_ground: Option<Vec<f64>>,
     /// Propagation vector of the direct sun beam (downward).
@@ -165,6 +168,8 @@ pub struct RadiativeResult {
     pub source: Vec<f64>,
     /// Power escaping through the top per tiling direction, `[dir][channel]`, W (extrapolated).
     pub escaped: Vec<f64>,
+    /// Orthographic images: `[image][pixel i + nx·j][channel]` escaped power, W (extrapolated).
+    pub images: Vec<f64>,
     /// Escaped power per iteration (scene total per channel), for convergence reports.
     pub escaped_per_iteration: Vec<Vec<f64>>,
     /// Power absorbed per turbid entry (index of `CellGrid::turbid`), W.
@@ -315,6 +320,9 @@ struct ChunkOut {
     gnd_key: Vec<u32>,
     gnd_val: Vec<f64>,
     escaped: Vec<f64>,
+    /// Image events: (image, pixel); values: W.
+    img_key: Vec<(u32, u32)>,
+    img_val: Vec<f64>,
     lost: Vec<f64>,
     absorbed_turbid: Vec<(u32, usize)>,
     absorbed_facet: Vec<(u32, usize)>,
@@ -356,9 +364,19 @@ struct Ctx<'a> {
     entry_cell: Vec<u32>,
     size: (f64, f64),
     min_ray: f64,
+    /// Phase rows averaged over each interception slot: `[turbid material][band][slot][dir]`.
+    slot_rows: Vec<f64>,
 }
 
 impl Ctx<'_> {
+    /// Phase row of an interception slot (tiling sectors only).
+    #[inline]
+    fn slot_row(&self, tm: usize, band: usize, slot: usize) -> &[f64] {
+        let n_sec = self.n_slots - 1;
+        let base = ((tm * self.nb + band) * n_sec + slot) * self.n_dirs;
+        &self.slot_rows[base..base + self.n_dirs]
+    }
+
     #[inline]
     fn g(&self, tm: u32, dir: usize) -> f64 {
         self.g_flat[tm as usize * (self.n_dirs + 1) + dir]
@@ -370,6 +388,40 @@ impl Ctx<'_> {
         } else {
             self.inp.sector_of[dir] as usize
         }
+    }
+
+    /// Books power leaving the scene top at `p` along tiling direction `dir`: scene exitance,
+    /// and the orthographic image of that direction if it has one (the exit point is projected
+    /// along the direction onto the reference plane z0, wrapped in repetitive scenes).
+    fn escape(&self, p: DVec3, dir: usize, pw: &[f64], out: &mut ChunkOut) {
+        if dir >= self.n_dirs {
+            add(&mut out.lost, pw);
+            return;
+        }
+        let base = dir * self.w;
+        for (ch, v) in pw.iter().enumerate() {
+            out.escaped[base + ch] += v;
+        }
+        let img = self.inp.image_of.get(dir).copied().unwrap_or(u32::MAX);
+        if img == u32::MAX {
+            return;
+        }
+        let spec = self.inp.spec;
+        let d = self.omega[dir];
+        let (nx, ny) = (spec.n[0], spec.n[1]);
+        let mut x = p.x - (p.z - spec.origin.z) * d.x / d.z - spec.origin.x;
+        let mut y = p.y - (p.z - spec.origin.z) * d.y / d.z - spec.origin.y;
+        if spec.boundary != BoundaryMode::Isolated {
+            x = x.rem_euclid(self.size.0);
+            y = y.rem_euclid(self.size.1);
+        }
+        let (i, j) = ((x / spec.cell.x).floor(), (y / spec.cell.y).floor());
+        if i < 0.0 || j < 0.0 || i >= nx as f64 || j >= ny as f64 {
+            return;
+        }
+        out.img_key
+            .push((img, (i as usize + nx * j as usize) as u32));
+        out.img_val.extend_from_slice(pw);
     }
 
     /// Traces one ray; `pw` holds the channel powers and is consumed.
@@ -514,14 +566,7 @@ impl Ctx<'_> {
                 match dda.advance() {
                     Exit::Inside => {}
                     Exit::Top => {
-                        if dir < self.n_dirs {
-                            let base = dir * self.w;
-                            for (ch, v) in pw.iter().enumerate() {
-                                out.escaped[base + ch] += v;
-                            }
-                        } else {
-                            add(&mut out.lost, pw);
-                        }
+                        self.escape(dda.point(dda.t), dir, pw, out);
                         return;
                     }
                     Exit::Bottom => {
@@ -569,11 +614,8 @@ impl Ctx<'_> {
                             spec.origin[axis] + len
                         };
                         if q.z > spec.top() {
-                            if dir < self.n_dirs && d.z > 0.0 {
-                                let base = dir * self.w;
-                                for (ch, v) in pw.iter().enumerate() {
-                                    out.escaped[base + ch] += v;
-                                }
+                            if d.z > 0.0 {
+                                self.escape(q, dir, pw, out);
                             } else {
                                 add(&mut out.lost, pw);
                             }
@@ -717,6 +759,37 @@ pub fn run(inp: &RadiativeInput) -> RadiativeResult {
     let n_source_rays =
         (nlx * nly) as f64 * (1.0 + if has_sky { n_dirs as f64 / 2.0 } else { 0.0 });
     let min_ray = inp.params.ray_threshold * source.iter().sum::<f64>() / n_source_rays;
+    // Rows of the interception slots: the phase rows of the slot's member directions averaged
+    // with weights G(Ω_i) ΔΩ_i (the power a cell intercepts from a smooth diffuse field along
+    // Ω_i is ∝ G(Ω_i) L ΔΩ_i), so a slot scatters like the sector's directions would on average.
+    // One direction per slot (reference preset) gives the exact rows.
+    let n_sec = n_slots - 1;
+    let mut slot_rows = vec![0.0; tur_ids.len() * nb * n_sec * n_dirs];
+    for (tm, &m) in tur_ids.iter().enumerate() {
+        let TrackOptics::Turbid { g, tables } = &inp.optics[m] else {
+            continue;
+        };
+        for (b, table) in tables.iter().enumerate().take(nb) {
+            let mut wsum = vec![0.0; n_sec];
+            for (i, d) in tiling.iter().enumerate() {
+                let s = inp.sector_of[i] as usize;
+                let wt = g[i] * d.solid_angle_sr;
+                wsum[s] += wt;
+                let base = ((tm * nb + b) * n_sec + s) * n_dirs;
+                for (j, v) in table.row(i).iter().take(n_dirs).enumerate() {
+                    slot_rows[base + j] += wt * *v as f64;
+                }
+            }
+            for (s, ws) in wsum.iter().enumerate() {
+                let base = ((tm * nb + b) * n_sec + s) * n_dirs;
+                if *ws > 0.0 {
+                    slot_rows[base..base + n_dirs]
+                        .iter_mut()
+                        .for_each(|v| *v /= ws);
+                }
+            }
+        }
+    }
     let ctx = Ctx {
         inp,
         w,
@@ -729,6 +802,7 @@ pub fn run(inp: &RadiativeInput) -> RadiativeResult {
         entry_cell,
         size,
         min_ray,
+        slot_rows,
     };
     let mut res = RadiativeResult {
         n_channels: w,
@@ -736,6 +810,13 @@ pub fn run(inp: &RadiativeInput) -> RadiativeResult {
         has_sky,
         source: source.clone(),
         escaped: vec![0.0; n_dirs * w],
+        images: vec![
+            0.0;
+            inp.image_of.iter().filter(|&&i| i != u32::MAX).count()
+                * spec.n[0]
+                * spec.n[1]
+                * w
+        ],
         absorbed_turbid: vec![0.0; grid.turbid.len() * w],
         intercepted_turbid: vec![0.0; grid.turbid.len() * w],
         absorbed_facet: vec![0.0; inp.facets.len() * w],
@@ -938,6 +1019,7 @@ fn pending(s: &Stores, w: usize) -> Vec<f64> {
 #[derive(Clone)]
 struct Increments {
     escaped: Vec<f64>,
+    images: Vec<f64>,
     absorbed_turbid: Vec<f64>,
     absorbed_facet: Vec<f64>,
     absorbed_ground: Vec<f64>,
@@ -952,6 +1034,7 @@ impl Increments {
     fn new(r: &RadiativeResult) -> Self {
         Self {
             escaped: r.escaped.clone(),
+            images: r.images.clone(),
             absorbed_turbid: r.absorbed_turbid.clone(),
             absorbed_facet: r.absorbed_facet.clone(),
             absorbed_ground: r.absorbed_ground.clone(),
@@ -967,6 +1050,7 @@ impl Increments {
             |x: &Vec<f64>, y: &Vec<f64>| y.iter().zip(x).map(|(b, a)| b - a).collect::<Vec<f64>>();
         Self {
             escaped: d(&a.escaped, &r.escaped),
+            images: d(&a.images, &r.images),
             absorbed_turbid: d(&a.absorbed_turbid, &r.absorbed_turbid),
             absorbed_facet: d(&a.absorbed_facet, &r.absorbed_facet),
             absorbed_ground: d(&a.absorbed_ground, &r.absorbed_ground),
@@ -986,6 +1070,7 @@ impl Increments {
             }
         };
         ap(&mut r.escaped, &self.escaped);
+        ap(&mut r.images, &self.images);
         ap(&mut r.absorbed_turbid, &self.absorbed_turbid);
         ap(&mut r.absorbed_facet, &self.absorbed_facet);
         ap(&mut r.absorbed_ground, &self.absorbed_ground);
@@ -1024,6 +1109,13 @@ fn merge(
             esc[k % w] += v;
         }
         add(&mut res.lost, &out.lost);
+        let npx = ctx.inp.spec.n[0] * ctx.inp.spec.n[1];
+        for (n, &(img, px)) in out.img_key.iter().enumerate() {
+            let base = (img as usize * npx + px as usize) * w;
+            for ch in 0..w {
+                res.images[base + ch] += out.img_val[n * w + ch];
+            }
+        }
         if let Some(acc) = &out.tur {
             acc.for_each(|key, v| {
                 let e = key as usize / ns;
@@ -1189,20 +1281,23 @@ fn emit(
                         if wv.iter().all(|&v| v == 0.0) {
                             continue;
                         }
-                        let row = if slot == ns - 1 {
-                            tables[0].sun_row().unwrap_or(0)
-                        } else {
-                            ctx.inp.sector_row[slot]
-                        };
+                        let tm = ctx.tur_mat[e.material as usize] as usize;
                         for ch in 0..w {
                             let val = wv[ch];
                             if val == 0.0 {
                                 continue;
                             }
                             intercepted[ch] += val;
-                            let trow = tables[ch % nb].row(row);
-                            for j in 0..n_dirs {
-                                outgoing[j * w + ch] += val * trow[j] as f64;
+                            if slot == ns - 1 {
+                                let trow = tables[ch % nb].row(tables[0].sun_row().unwrap_or(0));
+                                for j in 0..n_dirs {
+                                    outgoing[j * w + ch] += val * trow[j] as f64;
+                                }
+                            } else {
+                                let trow = ctx.slot_row(tm, ch % nb, slot);
+                                for j in 0..n_dirs {
+                                    outgoing[j * w + ch] += val * trow[j];
+                                }
                             }
                         }
                     }

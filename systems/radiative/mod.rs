@@ -21,6 +21,10 @@ use rayon::prelude::*;
 /// instead of exact projected solid angles (memory and set-up time).
 pub const EXACT_FRACTIONS_LIMIT: usize = 20_000_000;
 
+/// Image index of each tiling direction (`u32::MAX`: none), for the Output stage.
+#[derive(Debug, Clone, Resource)]
+pub struct ImageDirections(pub Vec<u32>);
+
 /// Memory the Direction/Phase/Radiative stages need, bytes: phase tables (f32, N+1 rows × N
 /// columns per used turbid material and band), exact facet fractions (2N f32 per facet), and
 /// the interception stores (two generations of `entries × slots × channels` f64, plus facet and
@@ -123,6 +127,25 @@ pub fn track_flux(
     let e_dir: Vec<f64> = (0..nb).map(|b| e_tot[b] * (1.0 - skyl[b])).collect();
     let e_diff: Vec<f64> = (0..nb).map(|b| e_tot[b] * skyl[b]).collect();
     let optics: Vec<TrackOptics> = tables.optics.clone();
+    // Orthographic images for every exact upward direction (the view directions a scene asks for).
+    let mut n_img = 0u32;
+    let image_of: Vec<u32> = dirs
+        .set
+        .tiling()
+        .iter()
+        .map(|d| {
+            if matches!(
+                d.kind,
+                crate::resources::directions::DirectionKind::Exact { .. }
+            ) && d.omega.z > 0.0
+            {
+                n_img += 1;
+                n_img - 1
+            } else {
+                u32::MAX
+            }
+        })
+        .collect();
     let input = RadiativeInput {
         spec: &spec,
         grid: &grid,
@@ -132,6 +155,7 @@ pub fn track_flux(
         sector_of: &dirs.sector_of,
         sector_row: &dirs.sector_row,
         optics: &optics,
+        image_of: &image_of,
         flat_ground,
         sun: dirs.sun,
         e_dir: e_dir.clone(),
@@ -148,6 +172,7 @@ pub fn track_flux(
         .iter()
         .map(|f| f.kind == crate::resources::facets::FacetKind::Ground)
         .collect();
+    commands.insert_resource(ImageDirections(image_of));
     commands.insert_resource(RadiativeProducts::new(
         raw,
         &dirs.set,
