@@ -215,6 +215,7 @@ enum KeyAcc {
         width: usize,
         data: Vec<f64>,
         touched: Vec<u32>,
+        flag: Vec<bool>,
     },
     Sparse {
         width: usize,
@@ -231,6 +232,7 @@ impl KeyAcc {
                 width,
                 data: vec![0.0; n_keys * width],
                 touched: Vec::new(),
+                flag: vec![false; n_keys],
             }
         } else {
             KeyAcc::Sparse {
@@ -249,13 +251,14 @@ impl KeyAcc {
                 width,
                 data,
                 touched,
+                flag,
             } => {
-                let s = key as usize * *width;
-                let rec = &mut data[s..s + *width];
-                if rec.iter().all(|&v| v == 0.0) {
+                if !flag[key as usize] {
+                    flag[key as usize] = true;
                     touched.push(key);
                 }
-                rec
+                let s = key as usize * *width;
+                &mut data[s..s + *width]
             }
             KeyAcc::Sparse {
                 width,
@@ -281,13 +284,11 @@ impl KeyAcc {
                 width,
                 data,
                 touched,
+                ..
             } => {
-                let mut seen = std::collections::HashSet::new();
                 for &k in touched {
-                    if seen.insert(k) {
-                        let s = k as usize * *width;
-                        f(k, &data[s..s + *width]);
-                    }
+                    let s = k as usize * *width;
+                    f(k, &data[s..s + *width]);
                 }
             }
             KeyAcc::Sparse {
@@ -493,8 +494,9 @@ impl Ctx<'_> {
                     if k > 0.0 {
                         let x = k * ell;
                         let frac = -(-x).exp_m1(); // 1 − e^{−kℓ}
+                        let tr = 1.0 - frac;
                         // Interception points: barycentres of the two halves of the intercepted energy.
-                        let (s1, s2) = half_barycentres(k, ell);
+                        let (s1, s2) = half_barycentres_with(k, ell, tr, frac);
                         let p1 = dda.point(t0 + s1);
                         let p2 = dda.point(t0 + s2);
                         let wsum: f64 = pw.iter().sum::<f64>() * frac;
@@ -523,7 +525,6 @@ impl Ctx<'_> {
                             pr[5] += p2.z * wt;
                             pr[6] += wt;
                         }
-                        let tr = (-x).exp();
                         for v in pw.iter_mut() {
                             *v *= tr;
                         }
@@ -647,23 +648,27 @@ fn add(acc: &mut [f64], v: &[f64]) {
 /// point is `s½ = −ln((1 + e^{−kℓ})/2)/k`. Series for small kℓ.
 pub fn half_barycentres(k: f64, ell: f64) -> (f64, f64) {
     let x = k * ell;
+    half_barycentres_with(k, ell, (-x).exp(), -(-x).exp_m1())
+}
+
+/// [`half_barycentres`] given `e = e^{−kℓ}` and `f = 1 − e` (computed once by the tracker).
+/// With `h = e^{−k s½} = (1 + e)/2`, the means of s under the density k e^{−ks} are
+/// `s̄₁ = 1/k − s½ h/(1 − h)` on [0, s½] and `s̄₂ = 1/k + (s½ h − ℓ e)/(h − e)` on [s½, ℓ],
+/// with `1 − h = h − e = f/2`. Series for small kℓ: `ℓ(1/4 − kℓ/12)` and `ℓ(3/4 − kℓ/12)`.
+#[inline]
+pub fn half_barycentres_with(k: f64, ell: f64, e: f64, f: f64) -> (f64, f64) {
+    let x = k * ell;
     if x < 1e-4 {
-        // Nearly uniform interception: quarter points, first-order correction.
-        return (ell * (0.25 - x / 48.0), ell * (0.75 - x / 48.0));
+        return (ell * (0.25 - x / 12.0), ell * (0.75 - x / 12.0));
     }
-    let e = (-x).exp();
-    let s_half = -((1.0 + e) / 2.0).ln() / k;
-    // Mean of s under density k e^{−ks} on [a, b].
-    let mean = |a: f64, b: f64| -> f64 {
-        let (ea, eb) = ((-k * a).exp(), (-k * b).exp());
-        let den = ea - eb;
-        if den <= 0.0 {
-            0.5 * (a + b)
-        } else {
-            (a * ea - b * eb) / den + 1.0 / k
-        }
-    };
-    (mean(0.0, s_half), mean(s_half, ell))
+    let h = 0.5 * (1.0 + e);
+    let s_half = -h.ln() / k;
+    let den = 0.5 * f;
+    let inv_k = 1.0 / k;
+    (
+        (inv_k - s_half * h / den).clamp(0.0, s_half),
+        (inv_k + (s_half * h - ell * e) / den).clamp(s_half, ell),
+    )
 }
 
 /// Distance from the entry of the barycentre of the energy intercepted along a segment of
@@ -678,6 +683,51 @@ pub fn barycentre(k: f64, ell: f64) -> f64 {
         return 1.0 / k;
     }
     1.0 / k - ell * (-x).exp() / (-(-x).exp_m1())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The small-kℓ series and the closed form agree where they meet, and the closed form is the
+    /// mean of s under k e^{−ks} (checked by quadrature).
+    #[test]
+    fn half_barycentres_are_the_means_of_each_half() {
+        let (k, ell) = (1.0, 1e-4 * 1.0001);
+        let exact = half_barycentres(k, ell);
+        let series = (ell * (0.25 - k * ell / 12.0), ell * (0.75 - k * ell / 12.0));
+        assert!(
+            (exact.0 / series.0 - 1.0).abs() < 1e-6 && (exact.1 / series.1 - 1.0).abs() < 1e-6,
+            "{exact:?} {series:?}"
+        );
+        for (k, ell) in [(0.7, 0.5), (30.0, 1.0), (1e-2, 3.0)] {
+            let (s1, s2) = half_barycentres(k, ell);
+            let s_half = -((1.0 + (-k * ell).exp()) / 2.0).ln() / k;
+            let n = 200_000;
+            let (mut m1, mut w1, mut m2, mut w2) = (0.0, 0.0, 0.0, 0.0);
+            for i in 0..n {
+                let s = (i as f64 + 0.5) / n as f64 * ell;
+                let wgt = (-k * s).exp();
+                if s < s_half {
+                    m1 += s * wgt;
+                    w1 += wgt;
+                } else {
+                    m2 += s * wgt;
+                    w2 += wgt;
+                }
+            }
+            assert!(
+                (s1 - m1 / w1).abs() < 1e-4 * ell && (s2 - m2 / w2).abs() < 1e-4 * ell,
+                "k {k}: {s1} {s2} vs {} {}",
+                m1 / w1,
+                m2 / w2
+            );
+            assert!(
+                (w1 - w2).abs() < 1e-3 * (w1 + w2),
+                "halves carry equal energy"
+            );
+        }
+    }
 }
 
 /// Möller–Trumbore ray–triangle intersection (Möller & Trumbore 1997), both faces; distance or
