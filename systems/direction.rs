@@ -2,18 +2,13 @@
 //! the scene's `directions` section (physics.md §2), keeps the sun direction exact, and groups
 //! directions into interception slots (angular sectors, or one per direction).
 
-use crate::resources::directions::{DirectionParams, DirectionSet, direction_from_deg};
+use crate::resources::directions::{DirectionSet, direction_from_deg};
 use crate::resources::scene::{SceneInfo, StageErrors};
-use crate::resources::tracking::{Directions, RadiativeSettings};
+use crate::resources::tracking::{
+    DirectionRequest, Directions, REFERENCE_MIN_DIRECTIONS, RadiativeSettings,
+};
 use bevy_ecs::prelude::*;
 use glam::DVec3;
-
-/// Smallest direction count of the reference preset.
-pub const REFERENCE_MIN_DIRECTIONS: usize = 400;
-
-/// The scene's direction parameters (resource inserted at spawn; defaults when absent).
-#[derive(Debug, Clone, Default, Resource)]
-pub struct DirectionRequest(pub DirectionParams);
 
 /// Direction · reads SceneInfo, DirectionRequest, RadiativeSettings · writes Directions.
 pub fn build_directions(

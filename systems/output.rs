@@ -15,11 +15,8 @@ use crate::resources::materials::Materials;
 use crate::resources::scene::StageErrors;
 use bevy_ecs::prelude::*;
 use std::fmt::Write as _;
-use std::path::PathBuf;
 
-/// Where products go (inserted by the CLI or the caller; without it nothing is written).
-#[derive(Debug, Clone, Resource)]
-pub struct OutputDir(pub PathBuf);
+pub use crate::resources::scene::OutputDir;
 
 /// Output · reads GridSpec, CellGrid, FacetStore, Materials, MaketReport · writes files into
 /// `OutputDir`.

@@ -303,3 +303,11 @@ fn grids_above_the_memory_limit_are_refused_before_allocation() {
         .unwrap();
     assert!(!out.status.success());
 }
+
+#[test]
+fn unknown_fields_inside_enum_variants_are_errors() {
+    let text = GOOD.replace("Ground((optics: \"soil\")),", "Ground((optics: \"soil\", topography: Raster((nodes: (2, 2), spacing_m: (10.0, 10.0), altitude_m: [0, 0, 0, 0], smooth: true)))),");
+    let (e, msg) = error_of("unknown_in_enum.ron", &text);
+    assert!(msg.contains("smooth"), "{msg}");
+    assert_eq!(line_of(&e), Some(line_containing(&text, "smooth")));
+}

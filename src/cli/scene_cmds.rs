@@ -162,36 +162,10 @@ pub fn print_report(r: &MaketReport, out: &mut dyn Write) -> std::io::Result<()>
     Ok(())
 }
 
-fn report_after_plan(sim: &mut Simulation) -> MaketReport {
-    use crate::components::{ImportedMesh, TurbidCrown, TurbidPlot};
-    use crate::resources::{
-        facets::FacetStore, grid::GridSpec, maket_report::MemoryEstimate, materials::Materials,
-        scene::Warnings,
-    };
-    use bevy_ecs::prelude::{Query, Res};
-    use bevy_ecs::system::RunSystemOnce;
-    sim.world
-        .run_system_once(
-            |spec: Res<GridSpec>,
-             est: Res<MemoryEstimate>,
-             mats: Res<Materials>,
-             facets: Res<FacetStore>,
-             crowns: Query<&TurbidCrown>,
-             plots: Query<&TurbidPlot>,
-             meshes: Query<&ImportedMesh>,
-             warnings: Res<Warnings>| {
-                crate::systems::maket::make_report(
-                    &spec, &est, &mats, &facets, None, None, &crowns, &plots, &meshes, &warnings,
-                )
-            },
-        )
-        .expect("resources exist after planning")
-}
-
 /// (bytes, directions, slots) the Direction/Phase/Radiative stages will need.
 fn radiative_estimate(sim: &mut Simulation, report: &MaketReport) -> (u64, usize, usize) {
     use crate::resources::tracking::RadiativeSettings;
-    use crate::systems::direction::{DirectionRequest, REFERENCE_MIN_DIRECTIONS};
+    use crate::resources::tracking::{DirectionRequest, REFERENCE_MIN_DIRECTIONS};
     let settings = sim.resource::<RadiativeSettings>().clone();
     let mut params = sim.resource::<DirectionRequest>().0.clone();
     if settings.preset == crate::scene::desc::Preset::Reference {
@@ -209,7 +183,7 @@ fn radiative_estimate(sim: &mut Simulation, report: &MaketReport) -> (u64, usize
     let info = sim.resource::<crate::resources::scene::SceneInfo>().clone();
     let sky = info.illumination.skyl.iter().any(|&s| s > 0.0);
     let n_facets = report.facet_count.values().sum::<u64>() as usize;
-    let est = crate::systems::radiative::memory_estimate(
+    let est = crate::radiative::memory_estimate(
         n_dirs,
         slots,
         info.bands.len(),
@@ -237,7 +211,7 @@ pub fn check(args: &CheckArgs, out: &mut dyn Write) -> Result<(), CliError> {
             code: 1,
         });
     }
-    let report = report_after_plan(&mut sim);
+    let report = sim.plan_report().expect("planning inserted its resources");
     let rad = radiative_estimate(&mut sim, &report);
     if args.json {
         let mut v = serde_json::to_value(&report)?;
@@ -274,7 +248,7 @@ pub struct MaketArgs {
 pub fn maket(args: &MaketArgs, out: &mut dyn Write) -> Result<(), CliError> {
     let mut sim = Simulation::load(&args.opts.scene, args.opts.settings())?;
     sim.world
-        .insert_resource(crate::systems::output::OutputDir(args.out.clone()));
+        .insert_resource(crate::resources::scene::OutputDir(args.out.clone()));
     sim.run_stage(Stage::Maket)?;
     sim.run_stage(Stage::Output)?;
     print_report(sim.resource::<MaketReport>(), out)?;

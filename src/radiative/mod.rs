@@ -4,3 +4,39 @@
 pub mod dda;
 pub mod engine;
 pub mod products;
+
+/// Above this many (facet × direction) pairs, facets use the renormalised cosine fractions
+/// instead of exact projected solid angles (memory and set-up time).
+pub const EXACT_FRACTIONS_LIMIT: usize = 20_000_000;
+
+/// Memory the Direction/Phase/Radiative stages need, bytes: phase tables (f32, N+1 rows × N
+/// columns per used turbid material and band), exact facet fractions (2N f32 per facet), and
+/// the interception stores (two generations of `entries × slots × channels` f64, plus facet and
+/// ground stores and up to 16 dense chunk accumulators of at most 8 MiB).
+#[allow(clippy::too_many_arguments)]
+pub fn memory_estimate(
+    n_dirs: usize,
+    slots: usize,
+    n_bands: usize,
+    sky: bool,
+    turbid_materials: usize,
+    turbid_entries: usize,
+    facet_refs: usize,
+    n_facets: usize,
+    n_columns: usize,
+) -> u64 {
+    let w = n_bands * if sky { 2 } else { 1 };
+    let tables =
+        turbid_materials * n_bands * crate::resources::phase_tables::bytes(n_dirs + 1, n_dirs, 1);
+    let fractions = if n_facets * n_dirs <= EXACT_FRACTIONS_LIMIT {
+        n_facets * 2 * n_dirs * 4
+    } else {
+        0
+    };
+    let stores =
+        2 * 8 * (turbid_entries * (slots * w + 8) + facet_refs * (2 * w + 4) + n_columns * (w + 4));
+    let products = 8 * w * (3 * turbid_entries + 3 * n_facets + 3 * n_columns + n_dirs);
+    let chunks =
+        16 * 8 * ((turbid_entries * slots * w).min(1 << 20) + (turbid_entries * 7).min(1 << 20));
+    (tables + fractions + stores + products + chunks) as u64
+}

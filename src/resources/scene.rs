@@ -105,6 +105,10 @@ pub fn default_max_memory() -> u64 {
     total / 4 * 3
 }
 
+/// Where products go (inserted by the CLI or the caller; without it nothing is written).
+#[derive(Debug, Clone, Resource)]
+pub struct OutputDir(pub PathBuf);
+
 /// Errors raised by systems; the simulation stops after the stage that raised one.
 #[derive(Debug, Clone, Default, Resource)]
 pub struct StageErrors(pub Vec<String>);

@@ -7,6 +7,14 @@ use crate::scene::desc::{Preset, RadiativeDesc};
 use bevy_ecs::prelude::Resource;
 use glam::DVec3;
 
+/// Smallest direction count of the reference preset (BRF within 1 % of DISORT at 75° view
+/// zenith in the NIR needs ≥ 400 directions; tests/radiative_oracles.rs).
+pub const REFERENCE_MIN_DIRECTIONS: usize = 400;
+
+/// The scene's direction parameters (resource inserted at spawn; defaults when absent).
+#[derive(Debug, Clone, Default, Resource)]
+pub struct DirectionRequest(pub crate::resources::directions::DirectionParams);
+
 /// Settings of the Direction/Phase/Radiative stages after applying preset and scene knobs.
 #[derive(Debug, Clone, Resource)]
 pub struct RadiativeSettings {

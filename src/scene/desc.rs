@@ -447,6 +447,7 @@ pub struct GroundDesc {
 
 /// Ground shape.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, Default)]
+#[serde(deny_unknown_fields)]
 pub enum TopographyDesc {
     /// Horizontal plane at z = 0.
     #[default]
@@ -479,6 +480,7 @@ pub struct RasterDesc {
 
 /// Raster file formats.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
 pub enum RasterFormat {
     /// ESRI ASCII grid (`ncols`, `nrows`, `xllcorner`/`xllcenter`, `cellsize`, optional `nodata_value`).
     /// Rows are stored north (max y) first; node values are taken at cell centres.
@@ -610,6 +612,7 @@ pub struct SpeciesDesc {
 
 /// How trees of a stand are placed.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
 pub enum PlacementDesc {
     /// Explicit positions: (species index, x_m, y_m).
     Explicit(Vec<(usize, f64, f64)>),
@@ -663,6 +666,7 @@ pub struct TurbidPlotDesc {
 
 /// Roof of a building.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
 pub enum RoofDesc {
     /// Flat roof at the wall top.
     Flat,

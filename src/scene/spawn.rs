@@ -507,7 +507,7 @@ pub fn spawn_scene(
         boundary: g.boundary,
     });
     world.insert_resource(mats);
-    world.insert_resource(crate::systems::direction::DirectionRequest(
+    world.insert_resource(crate::resources::tracking::DirectionRequest(
         desc.directions.clone().unwrap_or_default(),
     ));
     let preset = world
