@@ -144,6 +144,10 @@ pub struct RadiativeInput<'a> {
     pub image_of: &'a [u32],
     /// Flat ground material (Lambertian reflectance per band), if the ground is the plane z0.
     pub flat_ground: Option<Vec<f64>>,
+    /// Flat ground with a BRDF (RPV, Hapke): one phase table per band for the horizontal
+    /// normal (rows: tiling incidences then the sun, renormalised to min(1, ρ_DH); physics.md
+    /// §5.2–5.3). When given, `flat_ground` only marks that the plane exists.
+    pub ground_brdf: Option<Vec<PhaseTable>>,
     /// Propagation vector of the direct sun beam (downward).
     pub sun: DVec3,
     /// Direct irradiance on a horizontal plane per band, W m⁻² (µm⁻¹).
@@ -318,7 +322,7 @@ struct ChunkOut {
     fac_key: Vec<(u32, u32, bool)>,
     fac_val: Vec<f64>,
     /// Ground events: column; values: W + hit(3) + weight.
-    gnd_key: Vec<u32>,
+    gnd_key: Vec<(u32, u32)>,
     gnd_val: Vec<f64>,
     escaped: Vec<f64>,
     /// Image events: (image, pixel); values: W.
@@ -367,9 +371,19 @@ struct Ctx<'a> {
     min_ray: f64,
     /// Phase rows averaged over each interception slot: `[turbid material][band][slot][dir]`.
     slot_rows: Vec<f64>,
+    /// BRDF-ground rows averaged over each slot (weights ∫|μ|dΩ): `[band][slot][dir]`.
+    ground_rows: Vec<f64>,
 }
 
 impl Ctx<'_> {
+    /// BRDF-ground row of an interception slot (tiling sectors only).
+    #[inline]
+    fn ground_row(&self, band: usize, slot: usize) -> &[f64] {
+        let n_sec = self.n_slots - 1;
+        let base = (band * n_sec + slot) * self.n_dirs;
+        &self.ground_rows[base..base + self.n_dirs]
+    }
+
     /// Phase row of an interception slot (tiling sectors only).
     #[inline]
     fn slot_row(&self, tm: usize, band: usize, slot: usize) -> &[f64] {
@@ -581,7 +595,7 @@ impl Ctx<'_> {
                                 .floor()
                                 .clamp(0.0, (spec.n[1] - 1) as f64)
                                 as usize;
-                            out.gnd_key.push((i + spec.n[0] * j) as u32);
+                            out.gnd_key.push(((i + spec.n[0] * j) as u32, slot));
                             out.gnd_val.extend_from_slice(pw);
                             out.gnd_val
                                 .extend_from_slice(&[hp.x, hp.y, hp.z, pw.iter().sum()]);
@@ -840,6 +854,32 @@ pub fn run(inp: &RadiativeInput) -> RadiativeResult {
             }
         }
     }
+    // Ground slots: rows averaged with weights ∫_{ΔΩ_i}|μ|dΩ (a surface intercepts a smooth
+    // diffuse field ∝ L |μ| ΔΩ).
+    let mut ground_rows = Vec::new();
+    if let Some(tables) = &inp.ground_brdf {
+        ground_rows = vec![0.0; nb * n_sec * n_dirs];
+        for (b, table) in tables.iter().enumerate().take(nb) {
+            let mut wsum = vec![0.0; n_sec];
+            for (i, d) in tiling.iter().enumerate() {
+                let s = inp.sector_of[i] as usize;
+                let wt = d.projected_sr;
+                wsum[s] += wt;
+                let base = (b * n_sec + s) * n_dirs;
+                for (j, v) in table.row(i).iter().take(n_dirs).enumerate() {
+                    ground_rows[base + j] += wt * *v as f64;
+                }
+            }
+            for (s, ws) in wsum.iter().enumerate() {
+                let base = (b * n_sec + s) * n_dirs;
+                if *ws > 0.0 {
+                    ground_rows[base..base + n_dirs]
+                        .iter_mut()
+                        .for_each(|v| *v /= ws);
+                }
+            }
+        }
+    }
     let ctx = Ctx {
         inp,
         w,
@@ -853,6 +893,7 @@ pub fn run(inp: &RadiativeInput) -> RadiativeResult {
         size,
         min_ray,
         slot_rows,
+        ground_rows,
     };
     let mut res = RadiativeResult {
         n_channels: w,
@@ -1043,7 +1084,17 @@ fn new_stores(ctx: &Ctx) -> Stores {
         fac_front: vec![0.0; grid.facet_ids.len() * w],
         fac_back: vec![0.0; grid.facet_ids.len() * w],
         fac_pts: vec![[0.0; 4]; grid.facet_ids.len()],
-        gnd: vec![0.0; spec.n[0] * spec.n[1] * w],
+        gnd: vec![
+            0.0;
+            spec.n[0]
+                * spec.n[1]
+                * w
+                * if ctx.inp.ground_brdf.is_some() {
+                    ctx.n_slots
+                } else {
+                    1
+                }
+        ],
         gnd_pts: vec![[0.0; 4]; spec.n[0] * spec.n[1]],
     }
 }
@@ -1222,13 +1273,19 @@ fn merge(
         }
         let stride = w + 4;
         let gr = ctx.inp.flat_ground.as_deref().unwrap_or(&[]);
-        for (n, &col) in out.gnd_key.iter().enumerate() {
+        let brdf = ctx.inp.ground_brdf.is_some();
+        for (n, &(col, slot)) in out.gnd_key.iter().enumerate() {
             let v = &out.gnd_val[n * stride..(n + 1) * stride];
             for ch in 0..w {
-                let rb = gr.get(ch % ctx.nb).copied().unwrap_or(0.0);
                 res.intercepted_ground[col as usize * w + ch] += v[ch];
-                res.absorbed_ground[col as usize * w + ch] += v[ch] * (1.0 - rb);
-                st.gnd[col as usize * w + ch] += v[ch] * rb;
+                if brdf {
+                    // Stored whole per incidence slot; absorption is booked at emission.
+                    st.gnd[(col as usize * ns + slot as usize) * w + ch] += v[ch];
+                } else {
+                    let rb = gr.get(ch % ctx.nb).copied().unwrap_or(0.0);
+                    res.absorbed_ground[col as usize * w + ch] += v[ch] * (1.0 - rb);
+                    st.gnd[col as usize * w + ch] += v[ch] * rb;
+                }
             }
             let pts = &mut st.gnd_pts[col as usize];
             for a in 0..3 {
@@ -1305,7 +1362,8 @@ fn emit(
                     .any(|&v| v > 0.0)
             } else {
                 let c = k - n_t - n_f;
-                st.gnd[c * w..(c + 1) * w].iter().any(|&v| v > 0.0)
+                let gs = st.gnd.len() / n_g;
+                st.gnd[c * gs..(c + 1) * gs].iter().any(|&v| v > 0.0)
             }
         })
         .collect();
@@ -1404,15 +1462,45 @@ fn emit(
                     normal = Some((fa.v[1] - fa.v[0]).cross(fa.v[2] - fa.v[0]).normalize());
                 } else {
                     let c = k - n_t - n_f;
-                    for ch in 0..w {
-                        let a = st.gnd[c * w + ch];
-                        for j in 0..n_dirs {
-                            outgoing[j * w + ch] += a * ground_fr[j];
+                    if let Some(tables) = &ctx.inp.ground_brdf {
+                        for ch in 0..w {
+                            let b = ch % nb;
+                            let mut a = 0.0;
+                            for slot in 0..ns {
+                                let val = st.gnd[(c * ns + slot) * w + ch];
+                                if val == 0.0 {
+                                    continue;
+                                }
+                                a += val;
+                                if slot == ns - 1 {
+                                    let row = tables[b].row(tables[b].sun_row().unwrap_or(0));
+                                    for j in 0..n_dirs {
+                                        outgoing[j * w + ch] += val * row[j] as f64;
+                                    }
+                                } else {
+                                    let row = ctx.ground_row(b, slot);
+                                    for j in 0..n_dirs {
+                                        outgoing[j * w + ch] += val * row[j];
+                                    }
+                                }
+                            }
+                            let emitted: f64 = (0..n_dirs).map(|j| outgoing[j * w + ch]).sum();
+                            if a - emitted != 0.0 {
+                                out.absorbed_ground.push((c as u32, ch));
+                                out.absorbed_val.push(a - emitted);
+                            }
                         }
-                        let emitted: f64 = (0..n_dirs).map(|j| outgoing[j * w + ch]).sum();
-                        if a - emitted != 0.0 {
-                            out.absorbed_ground.push((c as u32, ch));
-                            out.absorbed_val.push(a - emitted);
+                    } else {
+                        for ch in 0..w {
+                            let a = st.gnd[c * w + ch];
+                            for j in 0..n_dirs {
+                                outgoing[j * w + ch] += a * ground_fr[j];
+                            }
+                            let emitted: f64 = (0..n_dirs).map(|j| outgoing[j * w + ch]).sum();
+                            if a - emitted != 0.0 {
+                                out.absorbed_ground.push((c as u32, ch));
+                                out.absorbed_val.push(a - emitted);
+                            }
                         }
                     }
                     let p = &st.gnd_pts[c];

@@ -56,13 +56,71 @@ pub fn track_flux(
         (Terrain::Flat(_), Some(g)) => match &mats.list[g.optics as usize].kind {
             MaterialKind::Lambertian { reflectance, .. }
             | MaterialKind::Leaf { reflectance, .. } => Some(reflectance.clone()),
-            _ => {
-                errors.0.push(format!("ground material `{}`: RPV and Hapke grounds are not supported by the Radiative stage yet", mats.list[g.optics as usize].name));
-                return;
-            }
+            _ => Some(vec![0.0; nb]),
         },
         _ => None,
     };
+    // RPV / Hapke flat ground: one facet table per band for the horizontal normal.
+    let mut ground_brdf = None;
+    if let (Terrain::Flat(_), Some(g)) = (&terrain.0, grounds.iter().next()) {
+        let m = &mats.list[g.optics as usize];
+        let per_band: Option<Vec<crate::physics::brdf::Brdf>> = match &m.kind {
+            MaterialKind::Rpv(crate::scene::desc::OpticsDesc::Rpv {
+                rho0,
+                k,
+                theta,
+                rho_c,
+            }) => Some(
+                (0..nb)
+                    .map(|b| crate::physics::brdf::Brdf::Rpv {
+                        rho0: rho0[b],
+                        k: k[b],
+                        theta: theta[b],
+                        rho_c: rho_c.as_ref().map(|r| r[b]),
+                    })
+                    .collect(),
+            ),
+            MaterialKind::Hapke(crate::scene::desc::OpticsDesc::Hapke {
+                w,
+                b,
+                c,
+                roughness_deg,
+                b0,
+                h,
+            }) => Some(
+                (0..nb)
+                    .map(|k| crate::physics::brdf::Brdf::Hapke {
+                        w: w[k],
+                        b: b[k],
+                        c: c[k],
+                        theta_bar_deg: *roughness_deg,
+                        b0: *b0,
+                        h: *h,
+                    })
+                    .collect(),
+            ),
+            _ => None,
+        };
+        if let Some(models) = per_band {
+            let mut tables_b = Vec::new();
+            for model in &models {
+                match crate::resources::phase_tables::brdf_facet_table(
+                    &dirs.set,
+                    model,
+                    glam::DVec3::Z,
+                    Some(dirs.sun),
+                    &settings.tables,
+                ) {
+                    Ok(t) => tables_b.push(t),
+                    Err(e) => {
+                        errors.0.push(format!("ground material `{}`: {e}", m.name));
+                        return;
+                    }
+                }
+            }
+            ground_brdf = Some(tables_b);
+        }
+    }
     let n_dirs = dirs.set.tiling().len();
     let fractions: Vec<(Vec<f32>, Vec<f32>)> =
         if facets.facets.len() * n_dirs <= EXACT_FRACTIONS_LIMIT {
@@ -123,6 +181,7 @@ pub fn track_flux(
         optics: &optics,
         image_of: &image_of,
         flat_ground,
+        ground_brdf,
         sun: dirs.sun,
         e_dir: e_dir.clone(),
         e_diff: e_diff.clone(),
