@@ -13,16 +13,8 @@ use lumenscape::scene::generators::{BandOptics, forest};
 use lumenscape::simulation::Simulation;
 use std::time::Instant;
 
-fn peak_rss_mib() -> f64 {
-    std::fs::read_to_string("/proc/self/status")
-        .ok()
-        .and_then(|s| {
-            s.lines()
-                .find(|l| l.starts_with("VmHWM:"))
-                .and_then(|l| l.split_whitespace().nth(1)?.parse::<f64>().ok())
-        })
-        .map_or(f64::NAN, |kib| kib / 1024.0)
-}
+mod common;
+use common::peak_rss_mib;
 
 fn main() {
     let quick = std::env::args().any(|a| a == "--quick");

@@ -332,14 +332,7 @@ fn volume(tris: &[[DVec3; 3]]) -> f64 {
 #[test]
 fn buildings_are_closed_shells_with_expected_area_and_volume() {
     let mut d = base_scene((40.0, 40.0), (1.0, 1.0, 1.0), BoundaryMode::Isolated);
-    d.optics.insert(
-        "wall".into(),
-        OpticsDesc::Lambertian {
-            reflectance: vec![0.3],
-            diffuse_transmittance: vec![],
-            direct_transmittance: vec![],
-        },
-    );
+    d.optics.insert("wall".into(), lambertian(0.3));
     // L-shaped flat-roof building and a gable-roof rectangle rotated 30°.
     let l = vec![
         (2.0, 2.0),
@@ -482,22 +475,9 @@ fn facet_to_turbid_keeps_leaf_area_and_inclinations() {
 #[test]
 fn facets_in_cell_faces_are_listed_in_both_cells() {
     let mut d = base_scene((4.0, 4.0), (1.0, 1.0, 1.0), BoundaryMode::Isolated);
-    d.optics.insert(
-        "wall".into(),
-        OpticsDesc::Lambertian {
-            reflectance: vec![0.3],
-            diffuse_transmittance: vec![],
-            direct_transmittance: vec![],
-        },
-    );
+    d.optics.insert("wall".into(), lambertian(0.3));
     // Flat roof exactly at z = 2 m (a cell face), walls exactly on x = 1 and x = 3 (cell faces).
-    d.objects.push(ObjectDesc::Building(BuildingDesc {
-        footprint: FootprintDesc::Box((1.0, 1.0, 3.0, 3.0)),
-        wall_height_m: 2.0,
-        roof: RoofDesc::Flat,
-        wall_optics: "wall".into(),
-        roof_optics: "wall".into(),
-    }));
+    d.objects.push(box_building((1.0, 1.0, 3.0, 3.0), 2.0));
     let sim = run_maket(&d);
     let spec = sim.resource::<GridSpec>();
     let g = sim.resource::<CellGrid>();

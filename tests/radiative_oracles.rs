@@ -136,10 +136,7 @@ fn turbid_canopy_matches_disort_with_the_reference_preset() {
 fn flat_lambertian_ground_has_brf_equal_to_reflectance_everywhere() {
     for (sza, skyl) in [(0.0, 0.0), (30.0, 0.3), (85.0, 0.0), (89.0, 0.5)] {
         let mut d = base_scene((4.0, 4.0), (1.0, 1.0, 1.0), BoundaryMode::Repetitive);
-        d.objects.push(ObjectDesc::Ground(GroundDesc {
-            optics: "soil".into(),
-            topography: TopographyDesc::Flat,
-        }));
+        d.objects.push(flat_ground());
         d.illumination.sun_zenith_deg = Some(sza);
         d.illumination.skyl = vec![skyl];
         d.directions = Some(rami_directions(0.0));
@@ -330,25 +327,9 @@ fn hard_cases_keep_energy_closed_without_nan() {
 #[test]
 fn facets_in_cell_faces_and_isolated_sides_keep_energy_closed() {
     let mut d = base_scene((6.0, 6.0), (1.0, 1.0, 1.0), BoundaryMode::Isolated);
-    d.objects.push(ObjectDesc::Ground(GroundDesc {
-        optics: "soil".into(),
-        topography: TopographyDesc::Flat,
-    }));
-    d.optics.insert(
-        "wall".into(),
-        OpticsDesc::Lambertian {
-            reflectance: vec![0.3],
-            diffuse_transmittance: vec![],
-            direct_transmittance: vec![],
-        },
-    );
-    d.objects.push(ObjectDesc::Building(BuildingDesc {
-        footprint: FootprintDesc::Box((1.0, 1.0, 4.0, 3.0)),
-        wall_height_m: 3.0,
-        roof: RoofDesc::Flat,
-        wall_optics: "wall".into(),
-        roof_optics: "wall".into(),
-    }));
+    d.objects.push(flat_ground());
+    d.optics.insert("wall".into(), lambertian(0.3));
+    d.objects.push(box_building((1.0, 1.0, 4.0, 3.0), 3.0));
     d.grid.height_m = Some(5.0);
     let p = run(&d, None);
     assert_closes(&p, 1e-9, "building in cell faces");

@@ -103,3 +103,31 @@ pub fn crown(
         optics: "veg".into(),
     }
 }
+
+/// A one-band Lambertian facet property.
+pub fn lambertian(r: f64) -> OpticsDesc {
+    OpticsDesc::Lambertian {
+        reflectance: vec![r],
+        diffuse_transmittance: vec![],
+        direct_transmittance: vec![],
+    }
+}
+
+/// A flat-roofed building on a box footprint with `wall` optics for walls and roof.
+pub fn box_building(b: (f64, f64, f64, f64), wall_height_m: f64) -> ObjectDesc {
+    ObjectDesc::Building(BuildingDesc {
+        footprint: FootprintDesc::Box(b),
+        wall_height_m,
+        roof: RoofDesc::Flat,
+        wall_optics: "wall".into(),
+        roof_optics: "wall".into(),
+    })
+}
+
+/// Flat ground with the `soil` property.
+pub fn flat_ground() -> ObjectDesc {
+    ObjectDesc::Ground(GroundDesc {
+        optics: "soil".into(),
+        topography: TopographyDesc::Flat,
+    })
+}
