@@ -228,6 +228,29 @@ fn write_radiative(
     };
     let mut cells = String::from("i,j,k,band,fabs,fintercepted\n");
     let mut layers = vec![vec![[0.0f64; 2]; nb]; spec.n[2]];
+    // A facet's budget is shared among the cells it crosses in proportion to its area inside
+    // each (exact clipping; normalised so a facet lying in a cell face is not counted twice).
+    let has_facets = !grid.facet_start.is_empty() && !facets.facets.is_empty();
+    let mut ref_share = vec![0.0; if has_facets { grid.facet_ids.len() } else { 0 }];
+    if has_facets {
+        let mut total = vec![0.0; facets.facets.len()];
+        for c in 0..spec.n_cells() {
+            let [i, j, k] = spec.ijk(c);
+            let (lo, hi) = spec.cell_box(i as i64, j as i64, k as i64);
+            for r in grid.facet_start[c] as usize..grid.facet_start[c + 1] as usize {
+                let f = grid.facet_ids[r] as usize;
+                let a = crate::geometry::triangle::polygon_area(
+                    &crate::geometry::triangle::clip_to_box(&facets.facets[f].v, lo, hi),
+                );
+                ref_share[r] = a;
+                total[f] += a;
+            }
+        }
+        for r in 0..grid.facet_ids.len() {
+            let t = total[grid.facet_ids[r] as usize];
+            ref_share[r] = if t > 0.0 { ref_share[r] / t } else { 0.0 };
+        }
+    }
     for c in 0..spec.n_cells() {
         let [i, j, k] = spec.ijk(c);
         let mut a = vec![0.0; nb];
@@ -236,6 +259,23 @@ fn write_radiative(
             for b in 0..nb {
                 a[b] += band_sum(&raw.absorbed_turbid, e, b);
                 x[b] += band_sum(&raw.intercepted_turbid, e, b);
+            }
+        }
+        if has_facets {
+            for r in grid.facet_start[c] as usize..grid.facet_start[c + 1] as usize {
+                let f = grid.facet_ids[r] as usize;
+                for b in 0..nb {
+                    a[b] += ref_share[r] * band_sum(&raw.absorbed_facet, f, b);
+                    x[b] += ref_share[r] * band_sum(&raw.intercepted_facet, f, b);
+                }
+            }
+        }
+        if k == 0 && !raw.absorbed_ground.is_empty() {
+            // The flat ground belongs to the bottom cell of its column.
+            let col = i + spec.n[0] * j;
+            for b in 0..nb {
+                a[b] += band_sum(&raw.absorbed_ground, col, b);
+                x[b] += band_sum(&raw.intercepted_ground, col, b);
             }
         }
         for b in 0..nb {

@@ -91,6 +91,26 @@ fn every_example_scene_runs_and_writes_products() {
         ] {
             assert!(out.join(f).is_file(), "{}: {f} missing", p.display());
         }
+        // The per-cell budget adds up to the scene's absorbed fraction (vegetation, facets and
+        // ground): Σ fabs_cell × A_column / A_scene = fabs + fabs_ground.
+        let cells_csv = std::fs::read_to_string(out.join("budget/cells.csv")).unwrap();
+        let col_frac = 1.0 / (spec_n_columns(&sim) as f64);
+        for b in &rp.bands {
+            let s: f64 = cells_csv
+                .lines()
+                .skip(1)
+                .filter(|l| l.split(',').nth(3) == Some(b.band.as_str()))
+                .map(|l| l.split(',').nth(4).unwrap().parse::<f64>().unwrap())
+                .sum::<f64>()
+                * col_frac;
+            let want = b.fabs + b.fabs_ground;
+            assert!(
+                (s - want).abs() <= 1e-6 * want.max(1e-9) + 1e-12,
+                "{}: band {} per-cell budget sums to {s}, scene {want}",
+                p.display(),
+                b.band
+            );
+        }
         // No temporary file is left behind.
         for e in std::fs::read_dir(&out).unwrap() {
             let n = e.unwrap().file_name().into_string().unwrap();
@@ -212,4 +232,9 @@ fn disk_canopy_has_the_requested_leaf_area_and_no_intersecting_disks() {
         (mean_cos - 0.5).abs() < 4.0 * (1.0 / 12f64).sqrt() / n.sqrt(),
         "{mean_cos}"
     );
+}
+
+fn spec_n_columns(sim: &Simulation) -> usize {
+    let s = sim.resource::<GridSpec>();
+    s.n[0] * s.n[1]
 }
