@@ -45,6 +45,7 @@ pub fn tabulate_phase(
                 reflectance,
                 transmittance,
                 lad,
+                specular,
                 ..
             } if used[id] => {
                 let lad = match LeafAngleDistribution::new(lad) {
@@ -55,11 +56,18 @@ pub fn tabulate_phase(
                         continue;
                     }
                 };
-                let unit =
-                    vegetation_unit_tables(&dirs.set, &lad, None, Some(dirs.sun), &settings.tables);
+                let unit = vegetation_unit_tables(
+                    &dirs.set,
+                    &lad,
+                    specular.map(|s| s.refractive_index),
+                    Some(dirs.sun),
+                    &settings.tables,
+                );
                 let mut tables = Vec::new();
                 for b in 0..reflectance.len() {
-                    match unit.for_band(&LeafOptics::lambertian(reflectance[b], transmittance[b])) {
+                    let mut leaf = LeafOptics::lambertian(reflectance[b], transmittance[b]);
+                    leaf.specular = *specular;
+                    match unit.for_band(&leaf) {
                         Ok(t) => {
                             bytes += t.bytes();
                             renorm = renorm.max(t.max_renormalisation());

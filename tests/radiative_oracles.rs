@@ -534,3 +534,46 @@ fn rpv_and_hapke_ground_reflect_their_brf() {
         }
     }
 }
+
+#[test]
+fn specular_leaves_add_reflection_and_keep_energy_closed() {
+    let base = layer(3.0, 40.0, 0.5, vec![BandOptics::red()], LadDesc::Planophile);
+    let plain = run(&base, None);
+    let mut spec = base.clone();
+    if let Some(OpticsDesc::Turbid { specular, .. }) = spec.optics.get_mut("vegetation") {
+        *specular = Some(lumenscape::physics::lad::LeafSpecular {
+            refractive_index: 1.47,
+            factor: 0.5,
+        });
+    }
+    let p = run(&spec, None);
+    assert_closes(&p, 1e-9, "specular leaves");
+    assert!(
+        p.bands[0].albedo > plain.bands[0].albedo,
+        "specular reflection raises the albedo: {} vs {}",
+        p.bands[0].albedo,
+        plain.bands[0].albedo
+    );
+    // Planophile leaves mirror the sun towards the specular direction (view zenith = sun zenith,
+    // opposite azimuth): the forward BRF rises more than the backward one.
+    let gain =
+        |vz: f64, az: f64| p.brf_at(0, vz, az).unwrap().brf / plain.brf_at(0, vz, az).unwrap().brf;
+    assert!(
+        gain(45.0, 180.0) > gain(45.0, 0.0),
+        "forward gain {} vs backward {}",
+        gain(45.0, 180.0),
+        gain(45.0, 0.0)
+    );
+    // ρ + τ + factor > 1 is refused with the field named.
+    let mut bad = base.clone();
+    if let Some(OpticsDesc::Turbid { specular, .. }) = bad.optics.get_mut("vegetation") {
+        *specular = Some(lumenscape::physics::lad::LeafSpecular {
+            refractive_index: 1.47,
+            factor: 0.99,
+        });
+    }
+    let e = Simulation::from_desc(&bad, &SceneSource::generated(), RunSettings::default())
+        .err()
+        .expect("refused");
+    assert!(e.to_string().contains("specular"), "{e}");
+}

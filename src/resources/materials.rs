@@ -46,6 +46,8 @@ pub enum MaterialKind {
         lad: LadDesc,
         /// Leaf size for the hotspot, metres.
         leaf_size_m: f64,
+        /// Specular leaf-surface component.
+        specular: Option<crate::physics::lad::LeafSpecular>,
     },
 }
 
@@ -181,6 +183,7 @@ impl Materials {
                     leaf,
                     lad,
                     leaf_size_m,
+                    specular,
                 } => {
                     let (r, t) = leaves
                         .get(leaf.as_str())
@@ -191,6 +194,7 @@ impl Materials {
                         transmittance: t,
                         lad: lad.clone(),
                         leaf_size_m: *leaf_size_m,
+                        specular: *specular,
                     }
                 }
             };

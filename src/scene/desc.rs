@@ -245,6 +245,11 @@ pub enum OpticsDesc {
         /// Leaf dimension for the hotspot, metres (DART `dimFoliar`, default 0.01; 0 = no hotspot).
         #[serde(default = "default_leaf_size")]
         leaf_size_m: f64,
+        /// Optional specular leaf-surface reflection (Fresnel with the cuticle's refractive
+        /// index × a factor), added to the Lambertian ρ and τ (physics.md §5.4):
+        /// `specular: (refractive_index: 1.47, factor: 0.3)`.
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        specular: Option<crate::physics::lad::LeafSpecular>,
     },
 }
 

@@ -448,6 +448,7 @@ pub fn spawn_scene(
                                     bins: inclination_histogram(&g.triangles),
                                 },
                                 leaf_size_m: 0.0,
+                                specular: None,
                             },
                         })
                     } else {

@@ -533,9 +533,36 @@ pub fn validate(desc: &SceneDesc, src: &SceneSource) -> Result<(), SceneError> {
                 leaf,
                 lad,
                 leaf_size_m,
+                specular,
             } => {
                 v.optics_ref(&format!("{f}.leaf"), leaf, OpticsRole::Leaf)?;
                 v.non_negative(&format!("{f}.leaf_size_m"), *leaf_size_m)?;
+                if let Some(s) = specular {
+                    // ρ + τ + factor ≤ 1 per band, refractive index in (1, 5].
+                    let mut check = crate::physics::lad::LeafOptics::lambertian(0.0, 0.0);
+                    check.specular = Some(*s);
+                    if let Some(OpticsDesc::BiLambertian {
+                        reflectance,
+                        transmittance,
+                    }) = desc.optics.get(leaf)
+                    {
+                        for b in 0..reflectance.len().min(transmittance.len()) {
+                            check.reflectance = reflectance[b];
+                            check.transmittance = transmittance[b];
+                            if let Err(e) = check.validate() {
+                                return Err(src.invalid(
+                                    format!("{f}.specular"),
+                                    format!(
+                                        "band `{}`: {e}",
+                                        desc.bands.get(b).map_or("?", |x| x.name.as_str())
+                                    ),
+                                ));
+                            }
+                        }
+                    } else if let Err(e) = check.validate() {
+                        return Err(src.invalid(format!("{f}.specular"), e.to_string()));
+                    }
+                }
                 // The physics type validates itself (parameter ranges, normalisable pdf).
                 if let Err(e) = crate::physics::lad::LeafAngleDistribution::new(lad) {
                     return Err(src.invalid(format!("{f}.lad"), e.to_string()));

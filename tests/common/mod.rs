@@ -29,6 +29,7 @@ pub fn base_scene(size: (f64, f64), cell: (f64, f64, f64), boundary: BoundaryMod
             leaf: "leaf".into(),
             lad: LadDesc::Spherical,
             leaf_size_m: 0.01,
+            specular: None,
         },
     );
     optics.insert(

@@ -121,6 +121,7 @@ pub fn forest(p: &ForestParams) -> SceneDesc {
             leaf: "leaf".into(),
             lad: LadDesc::Erectophile,
             leaf_size_m: 0.005,
+            specular: None,
         },
     );
     optics.insert(

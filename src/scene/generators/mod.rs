@@ -129,6 +129,7 @@ pub fn standard_optics(
             leaf: "leaf".into(),
             lad,
             leaf_size_m: 0.01,
+            specular: None,
         },
     );
     o.insert(
