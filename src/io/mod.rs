@@ -2,4 +2,5 @@
 
 pub mod atomic;
 pub mod exr_out;
+pub mod leaf_list;
 pub mod mesh;

@@ -409,6 +409,32 @@ pub enum ObjectDesc {
     Mesh(MeshDesc),
     /// Disk leaves listed inline (RAMI HOM-style discrete canopies).
     Leaves(LeavesDesc),
+    /// Disk leaves read from a RAMI leaf-list file.
+    LeafList(LeafListDesc),
+}
+
+/// A RAMI leaf list (`radius x y z nx ny nz` per line, metres; see [`crate::io::leaf_list`]).
+/// Disks become regular polygons with the disk's exact area, or turbid cells.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct LeafListDesc {
+    /// Path relative to the scene file.
+    pub path: String,
+    /// Name of a leaf optical property (BiLambertian, ProspectLeaf) or a facet property.
+    pub optics: String,
+    /// Polygon sides per disk (default 12).
+    #[serde(default = "default_disk_sides")]
+    pub sides: u32,
+    /// Translation added to every centre, metres (z is above the ground under the leaf).
+    #[serde(default)]
+    pub translation_m: (f64, f64, f64),
+    /// Wrap centres into the scene periodically (x mod X, y mod Y).
+    #[serde(default)]
+    pub wrap: bool,
+    /// Convert the leaves to turbid cells (leaf area per cell kept exactly; the leaves'
+    /// inclination histogram becomes the LAD).
+    #[serde(default)]
+    pub as_turbid: bool,
 }
 
 /// Disk-shaped leaves given inline; each disk becomes a regular polygon of facets with the

@@ -382,6 +382,92 @@ pub fn spawn_scene(
                     },
                 ));
             }
+            ObjectDesc::LeafList(l) => {
+                let path = base_dir.join(&l.path);
+                let text = std::fs::read_to_string(&path).map_err(|e| {
+                    src.invalid(
+                        format!("objects[{i}].path"),
+                        format!("{}: cannot read file: {e}", path.display()),
+                    )
+                })?;
+                let list = crate::io::leaf_list::parse_leaf_list(&text, &path)
+                    .map_err(|m| src.invalid(format!("objects[{i}].path"), m))?;
+                if list.renormalised > 0 {
+                    warnings.push(format!(
+                        "{}: normalised {} leaf normals that were not of unit length",
+                        path.display(),
+                        list.renormalised
+                    ));
+                }
+                let t = DVec3::new(l.translation_m.0, l.translation_m.1, l.translation_m.2);
+                let mut tris = Vec::with_capacity(list.leaves.len() * l.sides as usize);
+                for leaf in &list.leaves {
+                    let mut c = leaf.center + t;
+                    if l.wrap {
+                        c.x = c.x.rem_euclid(size.0);
+                        c.y = c.y.rem_euclid(size.1);
+                    } else if desc.grid.boundary == BoundaryMode::Isolated
+                        && (c.x - leaf.radius < 0.0
+                            || c.y - leaf.radius < 0.0
+                            || c.x + leaf.radius > size.0
+                            || c.y + leaf.radius > size.1)
+                    {
+                        return Err(src.invalid(
+                            format!("objects[{i}].path"),
+                            format!(
+                                "{}: a leaf at ({:.3}, {:.3}) lies outside the isolated scene",
+                                path.display(),
+                                c.x,
+                                c.y
+                            ),
+                        ));
+                    }
+                    c.z += terrain.height(c.x, c.y);
+                    tris.extend(crate::geometry::shapes::disk_polygon(
+                        c,
+                        leaf.normal,
+                        leaf.radius,
+                        l.sides,
+                    ));
+                }
+                let material = if l.as_turbid {
+                    let (r, tt) =
+                        match &mats.list[mats.id(&l.optics).expect("validated") as usize].kind {
+                            MaterialKind::Leaf {
+                                reflectance,
+                                transmittance,
+                            } => (reflectance.clone(), transmittance.clone()),
+                            _ => unreachable!("validated as a leaf"),
+                        };
+                    mats.push(Material {
+                        name: format!("{}@objects[{i}]", l.optics),
+                        kind: MaterialKind::Turbid {
+                            reflectance: r,
+                            transmittance: tt,
+                            lad: LadDesc::Histogram {
+                                bins: inclination_histogram(&tris),
+                            },
+                            leaf_size_m: 0.0,
+                            specular: None,
+                        },
+                    })
+                } else {
+                    mats.id(&l.optics).expect("validated")
+                };
+                world.spawn((
+                    SourceObject(idx),
+                    ImportedMesh {
+                        path,
+                        parts: vec![MeshPart {
+                            name: "leaves".into(),
+                            triangles: tris,
+                            material,
+                            two_sided: true,
+                            as_turbid: l.as_turbid,
+                        }],
+                    },
+                ));
+            }
             ObjectDesc::Mesh(m) => {
                 let path = base_dir.join(&m.path);
                 let mut mesh = crate::io::mesh::load_mesh(&path)

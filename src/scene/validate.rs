@@ -807,6 +807,23 @@ pub fn validate(desc: &SceneDesc, src: &SceneSource) -> Result<(), SceneError> {
                 let (a, b, c, d) = footprint_bounds(&w.footprint);
                 v.inside(&format!("{f}.footprint"), a, b, c, d)?;
             }
+            ObjectDesc::LeafList(l) => {
+                let role = if l.as_turbid {
+                    OpticsRole::Leaf
+                } else {
+                    OpticsRole::Facet
+                };
+                v.optics_ref(&format!("{f}.optics"), &l.optics, role)?;
+                if l.sides < 3 {
+                    return Err(src.invalid(
+                        format!("{f}.sides"),
+                        "a disk polygon needs at least 3 sides",
+                    ));
+                }
+                for x in [l.translation_m.0, l.translation_m.1, l.translation_m.2] {
+                    v.finite(&format!("{f}.translation_m"), x)?;
+                }
+            }
             ObjectDesc::Leaves(l) => {
                 v.positive(&format!("{f}.radius_m"), l.radius_m)?;
                 if l.sides < 3 {
