@@ -90,3 +90,29 @@ fn malformed_leaf_lists_give_line_numbered_errors() {
         );
     }
 }
+
+#[test]
+fn disk_canopy_generator_uses_a_leaf_list() {
+    use lumenscape::scene::generators::disk_canopy::{DiskCanopyParams, disk_canopy_from_list};
+    let d = tmp("gen");
+    let list = d.join("leaves.txt");
+    std::fs::write(&list, LEAVES).unwrap();
+    let desc = disk_canopy_from_list(
+        &DiskCanopyParams {
+            size_m: 4.0,
+            cell_m: 0.5,
+            ..Default::default()
+        },
+        &list.to_string_lossy(),
+    );
+    let mut sim = Simulation::from_desc(
+        &desc,
+        &lumenscape::scene::SceneSource::generated(),
+        RunSettings::default(),
+    )
+    .unwrap();
+    sim.run_stage(Stage::Maket).unwrap();
+    let area = PI * (0.01 + 0.0025 + 0.0064);
+    let got = sim.resource::<MaketReport>().facet_area_m2["leaf"];
+    assert!((got - area).abs() < 1e-12, "{got} vs {area}");
+}

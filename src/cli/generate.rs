@@ -125,6 +125,10 @@ pub enum Kind {
         /// Random seed.
         #[arg(long, default_value_t = 1)]
         seed: u64,
+        /// Use the leaves of this RAMI leaf list (radius x y z nx ny nz per line) instead of
+        /// drawing them; the scene refers to the file by its absolute path.
+        #[arg(long)]
+        leaves: Option<std::path::PathBuf>,
         #[command(flatten)]
         /// Optics and sun.
         optics: OpticsFlags,
@@ -218,19 +222,34 @@ pub fn run(args: &Args, out: &mut dyn Write) -> Result<(), CliError> {
             cell_size,
             lad,
             seed,
+            leaves,
             optics,
-        } => disk_canopy::disk_canopy(&disk_canopy::DiskCanopyParams {
-            lai: *lai,
-            disk_radius_m: *disk_radius,
-            height_m: *height,
-            size_m: *size,
-            cell_m: *cell_size,
-            lad: lad.clone(),
-            seed: *seed,
-            bands: optics.bands()?,
-            sun_zenith_deg: optics.sun_zenith,
-            sun_azimuth_deg: optics.sun_azimuth,
-        })?,
+        } => {
+            let params = disk_canopy::DiskCanopyParams {
+                lai: *lai,
+                disk_radius_m: *disk_radius,
+                height_m: *height,
+                size_m: *size,
+                cell_m: *cell_size,
+                lad: lad.clone(),
+                seed: *seed,
+                bands: optics.bands()?,
+                sun_zenith_deg: optics.sun_zenith,
+                sun_azimuth_deg: optics.sun_azimuth,
+            };
+            match leaves {
+                Some(path) => {
+                    let abs = std::fs::canonicalize(path)
+                        .map_err(|e| format!("{}: {e}", path.display()))?;
+                    // Check the list now, so a broken file fails here rather than at run time.
+                    let text = std::fs::read_to_string(&abs)
+                        .map_err(|e| format!("{}: {e}", abs.display()))?;
+                    crate::io::leaf_list::parse_leaf_list(&text, &abs)?;
+                    disk_canopy::disk_canopy_from_list(&params, &abs.to_string_lossy())
+                }
+                None => disk_canopy::disk_canopy(&params)?,
+            }
+        }
         Kind::Forest {
             size,
             cell_size,

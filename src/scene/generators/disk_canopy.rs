@@ -188,6 +188,27 @@ pub fn draw_disks(p: &DiskCanopyParams) -> Result<Vec<(f64, f64, f64, f64, f64, 
     Ok(out)
 }
 
+/// The same scene with the leaves of a RAMI leaf-list file (`path` as written into the scene:
+/// absolute, or relative to where the scene will be saved) instead of drawn ones.
+pub fn disk_canopy_from_list(p: &DiskCanopyParams, path: &str) -> SceneDesc {
+    let mut d = disk_canopy(&DiskCanopyParams {
+        lai: 0.0,
+        ..p.clone()
+    })
+    .expect("no disks to draw");
+    d.name = format!("disk canopy from {path}");
+    d.objects.retain(|o| !matches!(o, ObjectDesc::Leaves(_)));
+    d.objects.push(ObjectDesc::LeafList(LeafListDesc {
+        path: path.to_string(),
+        optics: "leaf".into(),
+        sides: 12,
+        translation_m: (0.0, 0.0, 0.0),
+        wrap: true,
+        as_turbid: false,
+    }));
+    d
+}
+
 /// Builds the scene.
 pub fn disk_canopy(p: &DiskCanopyParams) -> Result<SceneDesc, String> {
     let disks = draw_disks(p)?;
