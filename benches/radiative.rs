@@ -16,6 +16,28 @@ use std::time::Instant;
 mod common;
 use common::peak_rss_mib;
 
+/// Spawns and runs every stage of `desc` with `preset`: (wall seconds, products).
+fn run_timed(
+    desc: &lumenscape::scene::desc::SceneDesc,
+    preset: Preset,
+) -> (f64, RadiativeProducts) {
+    let t0 = Instant::now();
+    let mut sim = Simulation::from_desc(
+        desc,
+        &SceneSource::generated(),
+        RunSettings {
+            preset: Some(preset),
+            ..Default::default()
+        },
+    )
+    .unwrap();
+    sim.run(None).unwrap();
+    (
+        t0.elapsed().as_secs_f64(),
+        sim.resource::<RadiativeProducts>().clone(),
+    )
+}
+
 fn main() {
     let quick = std::env::args().any(|a| a == "--quick");
     let threads = rayon::current_num_threads();
@@ -62,19 +84,7 @@ fn main() {
                     sun_azimuth_deg: 0.0,
                 });
                 d.directions.as_mut().unwrap().count = dirs;
-                let t0 = Instant::now();
-                let mut sim = Simulation::from_desc(
-                    &d,
-                    &SceneSource::generated(),
-                    RunSettings {
-                        preset: Some(preset),
-                        ..Default::default()
-                    },
-                )
-                .unwrap();
-                sim.run(None).unwrap();
-                let wall = t0.elapsed().as_secs_f64();
-                let p = sim.resource::<RadiativeProducts>().clone();
+                let (wall, p) = run_timed(&d, preset);
                 let (mut wb, mut wa) = (0.0f64, 0.0f64);
                 for r in &rows {
                     let b = if r[1] == "red" { 0 } else { 1 };
@@ -111,19 +121,7 @@ fn main() {
         ..Default::default()
     });
     for preset in [Preset::Preview, Preset::Default] {
-        let t0 = Instant::now();
-        let mut sim = Simulation::from_desc(
-            &f,
-            &SceneSource::generated(),
-            RunSettings {
-                preset: Some(preset),
-                ..Default::default()
-            },
-        )
-        .unwrap();
-        sim.run(None).unwrap();
-        let wall = t0.elapsed().as_secs_f64();
-        let p = sim.resource::<RadiativeProducts>().clone();
+        let (wall, p) = run_timed(&f, preset);
         println!(
             "forest 40 m, 24 trees, 1 m cells, {preset:?}: wall {wall:.2} s, {} iterations, {:.2} Mcrossings/s/core, closure {:.1e}, peak RSS {:.1} MiB",
             p.iterations,

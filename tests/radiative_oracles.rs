@@ -338,16 +338,7 @@ fn facets_in_cell_faces_and_isolated_sides_keep_energy_closed() {
 
 #[test]
 fn products_are_bit_identical_on_1_2_and_8_threads() {
-    let d = lumenscape::scene::generators::forest::forest(
-        &lumenscape::scene::generators::forest::ForestParams {
-            size_m: 12.0,
-            species: vec![
-                lumenscape::scene::generators::forest::broadleaf(2),
-                lumenscape::scene::generators::forest::conifer(2),
-            ],
-            ..Default::default()
-        },
-    );
+    let d = small_forest();
     let go = |n| {
         let pool = rayon::ThreadPoolBuilder::new()
             .num_threads(n)
@@ -376,16 +367,7 @@ fn products_are_bit_identical_on_1_2_and_8_threads() {
 
 #[test]
 fn orthographic_images_average_to_the_direction_brf() {
-    let d = lumenscape::scene::generators::forest::forest(
-        &lumenscape::scene::generators::forest::ForestParams {
-            size_m: 12.0,
-            species: vec![
-                lumenscape::scene::generators::forest::broadleaf(2),
-                lumenscape::scene::generators::forest::conifer(2),
-            ],
-            ..Default::default()
-        },
-    );
+    let d = small_forest();
     let mut d = d;
     d.directions = Some(rami_directions(225.0));
     let out = std::env::temp_dir().join(format!("lumenscape-img-{}", std::process::id()));

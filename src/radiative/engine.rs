@@ -650,6 +650,33 @@ impl Ctx<'_> {
     }
 }
 
+/// `[slot][dir]` rows: the table rows of each slot's member directions averaged with `weights`.
+fn slot_average_rows(
+    table: &PhaseTable,
+    weights: &[f64],
+    sector_of: &[u16],
+    n_sec: usize,
+    n_dirs: usize,
+) -> Vec<f64> {
+    let mut rows = vec![0.0; n_sec * n_dirs];
+    let mut wsum = vec![0.0; n_sec];
+    for (i, &wt) in weights.iter().enumerate() {
+        let s = sector_of[i] as usize;
+        wsum[s] += wt;
+        for (j, v) in table.row(i).iter().take(n_dirs).enumerate() {
+            rows[s * n_dirs + j] += wt * *v as f64;
+        }
+    }
+    for (s, ws) in wsum.iter().enumerate() {
+        if *ws > 0.0 {
+            rows[s * n_dirs..(s + 1) * n_dirs]
+                .iter_mut()
+                .for_each(|v| *v /= ws);
+        }
+    }
+    rows
+}
+
 #[inline]
 fn add(acc: &mut [f64], v: &[f64]) {
     for (a, b) in acc.iter_mut().zip(v) {
@@ -870,61 +897,42 @@ pub fn run(inp: &RadiativeInput) -> RadiativeResult {
     let n_source_rays =
         (nlx * nly) as f64 * (1.0 + if has_sky { n_dirs as f64 / 2.0 } else { 0.0 });
     let min_ray = inp.params.ray_threshold * source.iter().sum::<f64>() / n_source_rays;
-    // Rows of the interception slots: the phase rows of the slot's member directions averaged
-    // with weights G(Ω_i) ΔΩ_i (the power a cell intercepts from a smooth diffuse field along
-    // Ω_i is ∝ G(Ω_i) L ΔΩ_i), so a slot scatters like the sector's directions would on average.
-    // One direction per slot (reference preset) gives the exact rows.
+    // Rows of the interception slots: the phase rows of each slot's member directions,
+    // averaged with the power a smooth diffuse field deposits along each member: ∝ G(Ω_i) ΔΩ_i
+    // for turbid cells, ∝ ∫_{ΔΩ_i}|μ|dΩ for the ground. One direction per slot (reference
+    // preset) gives the exact rows.
     let n_sec = n_slots - 1;
-    let mut slot_rows = vec![0.0; tur_ids.len() * nb * n_sec * n_dirs];
-    for (tm, &m) in tur_ids.iter().enumerate() {
+    let mut slot_rows = Vec::with_capacity(tur_ids.len() * nb * n_sec * n_dirs);
+    for &m in &tur_ids {
         let TrackOptics::Turbid { g, tables } = &inp.optics[m] else {
-            continue;
+            unreachable!("tur_ids holds turbid materials only");
         };
-        for (b, table) in tables.iter().enumerate().take(nb) {
-            let mut wsum = vec![0.0; n_sec];
-            for (i, d) in tiling.iter().enumerate() {
-                let s = inp.sector_of[i] as usize;
-                let wt = g[i] * d.solid_angle_sr;
-                wsum[s] += wt;
-                let base = ((tm * nb + b) * n_sec + s) * n_dirs;
-                for (j, v) in table.row(i).iter().take(n_dirs).enumerate() {
-                    slot_rows[base + j] += wt * *v as f64;
-                }
-            }
-            for (s, ws) in wsum.iter().enumerate() {
-                let base = ((tm * nb + b) * n_sec + s) * n_dirs;
-                if *ws > 0.0 {
-                    slot_rows[base..base + n_dirs]
-                        .iter_mut()
-                        .for_each(|v| *v /= ws);
-                }
-            }
+        let weights: Vec<f64> = tiling
+            .iter()
+            .enumerate()
+            .map(|(i, d)| g[i] * d.solid_angle_sr)
+            .collect();
+        for table in tables.iter().take(nb) {
+            slot_rows.extend(slot_average_rows(
+                table,
+                &weights,
+                inp.sector_of,
+                n_sec,
+                n_dirs,
+            ));
         }
     }
-    // Ground slots: rows averaged with weights ∫_{ΔΩ_i}|μ|dΩ (a surface intercepts a smooth
-    // diffuse field ∝ L |μ| ΔΩ).
     let mut ground_rows = Vec::new();
     if let Some(tables) = &inp.ground_brdf {
-        ground_rows = vec![0.0; nb * n_sec * n_dirs];
-        for (b, table) in tables.iter().enumerate().take(nb) {
-            let mut wsum = vec![0.0; n_sec];
-            for (i, d) in tiling.iter().enumerate() {
-                let s = inp.sector_of[i] as usize;
-                let wt = d.projected_sr;
-                wsum[s] += wt;
-                let base = (b * n_sec + s) * n_dirs;
-                for (j, v) in table.row(i).iter().take(n_dirs).enumerate() {
-                    ground_rows[base + j] += wt * *v as f64;
-                }
-            }
-            for (s, ws) in wsum.iter().enumerate() {
-                let base = (b * n_sec + s) * n_dirs;
-                if *ws > 0.0 {
-                    ground_rows[base..base + n_dirs]
-                        .iter_mut()
-                        .for_each(|v| *v /= ws);
-                }
-            }
+        let weights: Vec<f64> = tiling.iter().map(|d| d.projected_sr).collect();
+        for table in tables.iter().take(nb) {
+            ground_rows.extend(slot_average_rows(
+                table,
+                &weights,
+                inp.sector_of,
+                n_sec,
+                n_dirs,
+            ));
         }
     }
     let ctx = Ctx {

@@ -502,20 +502,8 @@ impl Node {
         match self {
             Node::Leaf(l) => l.id,
             Node::Zonal { extent, rings } => {
-                let k = rings.partition_point(|r| r.u0 > u).min(rings.len() - 1);
-                let r = &rings[k];
-                let m = r.cells.len();
-                let w = extent.dphi / m as f64;
-                let mut rel = (phi - r.phi0).rem_euclid(TAU);
-                if !extent.full_ring() && rel > extent.dphi {
-                    rel = if rel > extent.dphi + 0.5 * (TAU - extent.dphi) {
-                        0.0
-                    } else {
-                        extent.dphi
-                    };
-                }
-                let j = ((rel / w) as usize).min(m - 1);
-                r.cells[j].lookup(u, phi)
+                let (k, j) = zonal_cell(extent, rings, u, phi);
+                rings[k].cells[j].lookup(u, phi)
             }
             Node::List { children, .. } => children[pick_child(children, u, phi)].lookup(u, phi),
         }
@@ -547,21 +535,7 @@ impl Node {
         // Same descent as `lookup`, returning the leaf node.
         let idx: Option<(usize, usize)> = match self {
             Node::Leaf(_) => None,
-            Node::Zonal { extent, rings } => {
-                let k = rings.partition_point(|r| r.u0 > u).min(rings.len() - 1);
-                let r = &rings[k];
-                let m = r.cells.len();
-                let w = extent.dphi / m as f64;
-                let mut rel = (phi - r.phi0).rem_euclid(TAU);
-                if !extent.full_ring() && rel > extent.dphi {
-                    rel = if rel > extent.dphi + 0.5 * (TAU - extent.dphi) {
-                        0.0
-                    } else {
-                        extent.dphi
-                    };
-                }
-                Some((k, ((rel / w) as usize).min(m - 1)))
-            }
+            Node::Zonal { extent, rings } => Some(zonal_cell(extent, rings, u, phi)),
             Node::List { children, .. } => Some((usize::MAX, pick_child(children, u, phi))),
         };
         match (self, idx) {
@@ -571,6 +545,25 @@ impl Node {
             (n, None) => n,
         }
     }
+}
+
+/// (ring, cell) of a zonal node containing (u, φ): ring by binary search on u, cell by the
+/// azimuth offset from the ring's start (points outside a partial ring's azimuth range go to
+/// the nearer end cell).
+fn zonal_cell(extent: &Rect, rings: &[Ring], u: f64, phi: f64) -> (usize, usize) {
+    let k = rings.partition_point(|r| r.u0 > u).min(rings.len() - 1);
+    let r = &rings[k];
+    let m = r.cells.len();
+    let w = extent.dphi / m as f64;
+    let mut rel = (phi - r.phi0).rem_euclid(TAU);
+    if !extent.full_ring() && rel > extent.dphi {
+        rel = if rel > extent.dphi + 0.5 * (TAU - extent.dphi) {
+            0.0
+        } else {
+            extent.dphi
+        };
+    }
+    (k, ((rel / w) as usize).min(m - 1))
 }
 
 /// The child of a split node containing (u, φ); ties at shared boundaries go to the first

@@ -132,3 +132,14 @@ pub fn flat_ground() -> ObjectDesc {
         topography: TopographyDesc::Flat,
     })
 }
+
+/// A 12 m periodic forest of four trees (two broadleaf, two conifers): the small shared scene
+/// of the determinism and image tests.
+pub fn small_forest() -> SceneDesc {
+    use lumenscape::scene::generators::forest::{ForestParams, broadleaf, conifer, forest};
+    forest(&ForestParams {
+        size_m: 12.0,
+        species: vec![broadleaf(2), conifer(2)],
+        ..Default::default()
+    })
+}
