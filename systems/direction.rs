@@ -8,7 +8,6 @@ use crate::resources::tracking::{
     DirectionRequest, Directions, REFERENCE_MIN_DIRECTIONS, RadiativeSettings,
 };
 use bevy_ecs::prelude::*;
-use glam::DVec3;
 
 /// Direction · reads SceneInfo, DirectionRequest, RadiativeSettings · writes Directions.
 pub fn build_directions(
@@ -37,34 +36,19 @@ pub fn build_directions(
     // Ground→sun vector; the beam propagates along its opposite.
     let sun = -direction_from_deg(il.sun_zenith_deg, il.sun_azimuth_deg);
     let tiling = set.tiling();
-    let (sector_of, sector_row) = if settings.per_direction_stores {
+    // Interception slots: one per direction (reference preset) or DART's angular sectors.
+    let (sector_of, n_sectors) = if settings.per_direction_stores {
         (
             (0..tiling.len()).map(|j| j as u16).collect::<Vec<u16>>(),
-            (0..tiling.len()).collect::<Vec<usize>>(),
+            tiling.len(),
         )
     } else {
-        let ns = set.n_sectors();
-        let sector_of: Vec<u16> = tiling.iter().map(|d| d.sector).collect();
-        // Representative row: the member closest to the solid-angle-weighted mean direction.
-        let mut mean = vec![DVec3::ZERO; ns];
-        for d in tiling {
-            mean[d.sector as usize] += d.omega * d.solid_angle_sr;
-        }
-        let rows = (0..ns)
-            .map(|s| {
-                let m = mean[s].normalize_or(DVec3::Z);
-                (0..tiling.len())
-                    .filter(|&j| tiling[j].sector as usize == s)
-                    .max_by(|&a, &b| tiling[a].omega.dot(m).total_cmp(&tiling[b].omega.dot(m)))
-                    .unwrap_or(0)
-            })
-            .collect();
-        (sector_of, rows)
+        (tiling.iter().map(|d| d.sector).collect(), set.n_sectors())
     };
     commands.insert_resource(Directions {
         set,
         sun,
         sector_of,
-        sector_row,
+        n_sectors,
     });
 }

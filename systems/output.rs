@@ -179,7 +179,7 @@ fn write_radiative(
             "tracking": settings.tracking,
             "per_direction_stores": settings.per_direction_stores,
             "directions": dirs.set.tiling().len(),
-            "sectors": dirs.sector_row.len(),
+            "sectors": dirs.n_sectors,
             "sun_zenith_deg": info.illumination.sun_zenith_deg,
             "sun_azimuth_deg": info.illumination.sun_azimuth_deg,
         },

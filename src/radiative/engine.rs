@@ -133,10 +133,11 @@ pub struct RadiativeInput<'a> {
     pub facet_fractions: &'a [(Vec<f32>, Vec<f32>)],
     /// Discrete directions.
     pub dirs: &'a DirectionSet,
-    /// Sector index of each tiling direction and the representative row of each sector.
+    /// Interception slot of each tiling direction (a slot scatters with the phase rows of its
+    /// members averaged, see `slot_average_rows`).
     pub sector_of: &'a [u16],
-    /// Representative tiling direction (phase-table row) of each sector.
-    pub sector_row: &'a [usize],
+    /// Number of slots for tiling directions.
+    pub n_sectors: usize,
     /// Optics per material id.
     pub optics: &'a [TrackOptics],
     /// Image index of each tiling direction (`u32::MAX`: no image); images have one pixel per
@@ -852,7 +853,7 @@ pub fn run(inp: &RadiativeInput) -> RadiativeResult {
     let w = nb * if has_sky { 2 } else { 1 };
     let tiling = inp.dirs.tiling();
     let n_dirs = tiling.len();
-    let n_sectors = inp.sector_row.len();
+    let n_sectors = inp.n_sectors;
     let n_slots = n_sectors + 1;
     let mut omega: Vec<DVec3> = tiling.iter().map(|d| d.omega).collect();
     omega.push(inp.sun);
@@ -1428,10 +1429,11 @@ fn emit(
             let mut out = new_out(ctx);
             let mut outgoing = vec![0.0; n_dirs * w];
             let mut pw = vec![0.0; w];
+            let mut intercepted = vec![0.0; w];
             for &k in chunk {
                 outgoing.iter_mut().for_each(|v| *v = 0.0);
+                intercepted.iter_mut().for_each(|v| *v = 0.0);
                 let (origin_up, origin_dn, skip, normal);
-                let mut intercepted = vec![0.0; w];
                 if k < n_t {
                     let e = &grid.turbid[k];
                     let TrackOptics::Turbid { tables, .. } = &ctx.inp.optics[e.material as usize]

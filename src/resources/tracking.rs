@@ -79,8 +79,8 @@ pub struct Directions {
     pub sun: DVec3,
     /// Interception slot of each tiling direction.
     pub sector_of: Vec<u16>,
-    /// Representative tiling direction (phase-table row) of each slot.
-    pub sector_row: Vec<usize>,
+    /// Number of interception slots for tiling directions (the exact sun has one more).
+    pub n_sectors: usize,
 }
 
 /// Optics of every material as the tracker needs it (Phase stage).

@@ -177,7 +177,7 @@ pub fn track_flux(
         facet_fractions: &fractions,
         dirs: &dirs.set,
         sector_of: &dirs.sector_of,
-        sector_row: &dirs.sector_row,
+        n_sectors: dirs.n_sectors,
         optics: &optics,
         image_of: &image_of,
         flat_ground,
