@@ -28,6 +28,8 @@ pub mod cli;
 pub mod components;
 pub mod geometry;
 pub mod io;
+pub mod lidar;
+pub mod photon;
 pub mod physics;
 pub mod radiative;
 pub mod resources;

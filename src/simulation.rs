@@ -15,15 +15,15 @@ use std::path::Path;
 /// The stages (DART modules), in execution order.
 #[derive(ScheduleLabel, Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub enum Stage {
-    /// Discrete directions (issue: Direction/Phase; not implemented yet).
+    /// Discrete directions.
     Direction,
-    /// Phase-function tables (not implemented yet).
+    /// Phase-function tables.
     Phase,
     /// Scene → cell grid.
     Maket,
-    /// Discrete-ordinate flux tracking (not implemented yet).
+    /// Discrete-ordinate flux tracking.
     Radiative,
-    /// Monte Carlo photons (not implemented yet).
+    /// Monte Carlo photons (passive Monte Carlo solver).
     Photon,
     /// Sensor images (not implemented yet).
     Sensor,
@@ -47,7 +47,12 @@ impl Stage {
     pub fn implemented(self) -> bool {
         matches!(
             self,
-            Stage::Direction | Stage::Phase | Stage::Maket | Stage::Radiative | Stage::Output
+            Stage::Direction
+                | Stage::Phase
+                | Stage::Maket
+                | Stage::Radiative
+                | Stage::Photon
+                | Stage::Output
         )
     }
 }
@@ -100,7 +105,8 @@ impl Simulation {
                 Stage::Phase => {
                     s.add_systems(
                         crate::systems::phase::tabulate_phase
-                            .run_if(resource_exists::<crate::resources::tracking::Directions>),
+                            .run_if(resource_exists::<crate::resources::tracking::Directions>)
+                            .run_if(|s: Res<RunSettings>| s.solver.needs_phase_tables()),
                     );
                 }
                 Stage::Maket => add_maket_systems(&mut s),
@@ -109,6 +115,16 @@ impl Simulation {
                         crate::systems::radiative::track_flux
                             .run_if(resource_exists::<crate::resources::tracking::OpticsTables>)
                             .run_if(resource_exists::<crate::resources::grid::CellGrid>)
+                            .run_if(|s: Res<RunSettings>| !s.solver.is_monte_carlo())
+                            .run_if(no_stage_error),
+                    );
+                }
+                Stage::Photon => {
+                    s.add_systems(
+                        crate::systems::photon::track_photons
+                            .run_if(resource_exists::<crate::resources::tracking::Directions>)
+                            .run_if(resource_exists::<crate::resources::grid::CellGrid>)
+                            .run_if(|s: Res<RunSettings>| s.solver.is_monte_carlo())
                             .run_if(no_stage_error),
                     );
                 }

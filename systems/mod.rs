@@ -9,4 +9,5 @@ pub mod direction;
 pub mod maket;
 pub mod output;
 pub mod phase;
+pub mod photon;
 pub mod radiative;

@@ -183,6 +183,8 @@ fn write_radiative(
             "sun_zenith_deg": info.illumination.sun_zenith_deg,
             "sun_azimuth_deg": info.illumination.sun_azimuth_deg,
         },
+        "solver": p.solver,
+        "monte_carlo": p.monte_carlo,
         "iterations": p.iterations,
         "converged": p.converged,
         "extrapolation_ratio": p.extrapolation_ratio,
@@ -197,10 +199,18 @@ fn write_radiative(
             .map_err(|e| e.to_string())?
             .as_bytes(),
     )?;
-    let mut csv = String::from("band,zenith_deg,azimuth_deg,solid_angle_sr,kind,brf,hdrf\n");
+    // Monte Carlo runs add standard errors and the estimator of each value.
+    let mc = p.monte_carlo.is_some();
+    let mut csv = String::from("band,zenith_deg,azimuth_deg,solid_angle_sr,kind,brf,hdrf");
+    csv.push_str(if mc {
+        ",brf_se,hdrf_se,estimator\n"
+    } else {
+        "\n"
+    });
+    let opt = |x: Option<f64>| x.map_or(String::new(), |h| format!("{h:.8}"));
     for b in &p.bands {
         for e in &b.brf {
-            let _ = writeln!(
+            let _ = write!(
                 csv,
                 "{},{:.6},{:.6},{:.6e},{},{:.8},{}",
                 b.band,
@@ -209,8 +219,18 @@ fn write_radiative(
                 e.solid_angle_sr,
                 e.kind,
                 e.brf,
-                e.hdrf.map_or(String::new(), |h| format!("{h:.8}"))
+                opt(e.hdrf)
             );
+            if mc {
+                let _ = write!(
+                    csv,
+                    ",{},{},{}",
+                    opt(e.brf_se),
+                    opt(e.hdrf_se),
+                    e.estimator.unwrap_or("")
+                );
+            }
+            csv.push('\n');
         }
     }
     write_atomic(&dir.join("brf.csv"), csv.as_bytes())?;

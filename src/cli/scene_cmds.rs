@@ -64,14 +64,68 @@ pub struct SceneOpts {
     /// Accuracy preset of the Radiative stage (overrides the scene's `radiative.preset`).
     #[arg(long, value_enum)]
     pub preset: Option<crate::scene::desc::Preset>,
+    /// Passive solver: DART flux tracking (Radiative stage) or forward Monte Carlo (Photon
+    /// stage, products with standard errors).
+    #[arg(long, value_enum, default_value = "flux-tracking")]
+    pub solver: SolverArg,
+    /// Photons for the Monte Carlo solver (sun + sky).
+    #[arg(long, default_value_t = 1_000_000, value_parser = clap::value_parser!(u64).range(1..))]
+    pub photons: u64,
+    /// Scattering-direction sampler of the Monte Carlo solver: exact continuous phase
+    /// functions (unbiased reference) or DART's Ray-Carlo over the discrete directions with
+    /// alias tables or the Box method.
+    #[arg(long, value_enum, default_value = "continuous")]
+    pub sampler: SamplerArg,
+    /// Box method: largest max/min probability ratio inside a class.
+    #[arg(long, default_value_t = 2.0)]
+    pub box_gamma: f64,
+    /// Box method: boxes per incident direction (memory budget).
+    #[arg(long, default_value_t = 4096)]
+    pub box_budget: usize,
+}
+
+/// `--solver` values.
+#[derive(clap::ValueEnum, Debug, Clone, Copy, PartialEq, Eq)]
+pub enum SolverArg {
+    /// DART discrete-ordinate flux tracking.
+    FluxTracking,
+    /// Forward Monte Carlo photon tracking.
+    MonteCarlo,
+}
+
+/// `--sampler` values.
+#[derive(clap::ValueEnum, Debug, Clone, Copy, PartialEq, Eq)]
+pub enum SamplerArg {
+    /// Exact continuous phase functions.
+    Continuous,
+    /// Discrete directions, Walker/Vose alias tables.
+    Alias,
+    /// Discrete directions, DART Box method.
+    Box,
 }
 
 impl SceneOpts {
     fn settings(&self) -> RunSettings {
+        use crate::photon::engine::SamplerKind;
+        let sampler = match self.sampler {
+            SamplerArg::Continuous => SamplerKind::Continuous,
+            SamplerArg::Alias => SamplerKind::Alias,
+            SamplerArg::Box => SamplerKind::Box {
+                gamma: self.box_gamma,
+                max_boxes: self.box_budget,
+            },
+        };
         RunSettings {
             max_memory_bytes: self.max_memory.unwrap_or_else(default_max_memory),
             progress: !self.quiet && std::io::IsTerminal::is_terminal(&std::io::stderr()),
             preset: self.preset,
+            solver: match self.solver {
+                SolverArg::FluxTracking => crate::resources::scene::Solver::FluxTracking,
+                SolverArg::MonteCarlo => crate::resources::scene::Solver::MonteCarlo {
+                    photons: self.photons,
+                    sampler,
+                },
+            },
         }
     }
 }

@@ -2,5 +2,6 @@
 
 pub mod atomic;
 pub mod exr_out;
+pub mod las_out;
 pub mod leaf_list;
 pub mod mesh;

@@ -25,6 +25,16 @@ pub struct BrfEntry {
     /// Hemispherical–directional reflectance factor under sun + sky (present with sky light).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub hdrf: Option<f64>,
+    /// Standard error of `brf` (Monte Carlo solver only).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub brf_se: Option<f64>,
+    /// Standard error of `hdrf` (Monte Carlo solver with sky light only).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub hdrf_se: Option<f64>,
+    /// How the value was estimated: `escape` (flux leaving the sector; sector mean) or `peel-off`
+    /// (Monte Carlo local estimate in the exact direction); absent for the flux-tracking solver.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub estimator: Option<&'static str>,
 }
 
 /// Products of one band.
@@ -44,6 +54,18 @@ pub struct BandProducts {
     pub flost: f64,
     /// |1 − (absorbed + escaped + lost + remaining) / source|.
     pub energy_closure: f64,
+    /// Standard error of `albedo` (Monte Carlo solver only).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub albedo_se: Option<f64>,
+    /// Standard error of `fabs` (Monte Carlo solver only).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub fabs_se: Option<f64>,
+    /// Standard error of `fabs_ground` (Monte Carlo solver only).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub fabs_ground_se: Option<f64>,
+    /// Standard error of `ftran` (Monte Carlo solver only).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub ftran_se: Option<f64>,
     /// Reflectance factors for every upward direction.
     pub brf: Vec<BrfEntry>,
 }
@@ -65,6 +87,11 @@ pub struct RadiativeProducts {
     pub crossings: u64,
     /// Wall time of the tracking, seconds.
     pub tracking_seconds: f64,
+    /// Solver: `flux-tracking` (Radiative stage) or `monte-carlo` (Photon stage).
+    pub solver: &'static str,
+    /// Monte Carlo run description (Photon stage only).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub monte_carlo: Option<crate::photon::products::MonteCarloInfo>,
     /// Raw engine result (not serialised).
     #[serde(skip)]
     pub raw: RadiativeResult,
@@ -150,6 +177,9 @@ impl RadiativeProducts {
                     kind: d.kind.name(),
                     brf: brf_v,
                     hdrf,
+                    brf_se: None,
+                    hdrf_se: None,
+                    estimator: None,
                 });
             }
             bands.push(BandProducts {
@@ -160,6 +190,10 @@ impl RadiativeProducts {
                 ftran: tran / src,
                 flost: lost / src,
                 energy_closure: closure,
+                albedo_se: None,
+                fabs_se: None,
+                fabs_ground_se: None,
+                ftran_se: None,
                 brf,
             });
         }
@@ -171,6 +205,8 @@ impl RadiativeProducts {
             rays: raw.rays,
             crossings: raw.crossings,
             tracking_seconds: seconds,
+            solver: "flux-tracking",
+            monte_carlo: None,
             raw,
         }
     }

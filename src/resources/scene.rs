@@ -75,6 +75,38 @@ pub struct RunSettings {
     /// Accuracy preset chosen on the command line (overrides the scene's preset; the scene's
     /// individual knobs still apply).
     pub preset: Option<crate::scene::desc::Preset>,
+    /// Which passive solver runs: DART flux tracking (Radiative stage, the default) or the
+    /// Monte Carlo photon tracker (Photon stage).
+    pub solver: Solver,
+}
+
+/// Passive solver.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub enum Solver {
+    /// Discrete-ordinate flux tracking (Radiative stage).
+    #[default]
+    FluxTracking,
+    /// Forward Monte Carlo (Photon stage) with `photons` photons and a direction sampler.
+    MonteCarlo {
+        /// Photons (sun + sky).
+        photons: u64,
+        /// Direction sampler.
+        sampler: crate::photon::engine::SamplerKind,
+    },
+}
+
+impl Solver {
+    /// True for the Monte Carlo solver.
+    pub fn is_monte_carlo(&self) -> bool {
+        matches!(self, Solver::MonteCarlo { .. })
+    }
+    /// True when the Phase stage's tables are needed (flux tracking or discrete Monte Carlo).
+    pub fn needs_phase_tables(&self) -> bool {
+        match self {
+            Solver::FluxTracking => true,
+            Solver::MonteCarlo { sampler, .. } => sampler.is_discrete(),
+        }
+    }
 }
 
 impl Default for RunSettings {
@@ -83,6 +115,7 @@ impl Default for RunSettings {
             max_memory_bytes: default_max_memory(),
             progress: false,
             preset: None,
+            solver: Solver::FluxTracking,
         }
     }
 }

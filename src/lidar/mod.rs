@@ -1,0 +1,144 @@
+//! LiDAR building blocks that do not depend on the photon engine (DART 5 paper §4, "Ray-Carlo";
+//! physics.md §9).
+//!
+//! The Photon stage traces weighted packets and hands each one received by the LiDAR (energy in J,
+//! total path length in m, scattering order) to a [`waveform::WaveformBinner`]; everything after
+//! that is here:
+//!
+//! * [`pulse`]: emitted pulse in time ([`pulse::PulseShape`], Gaussian, truncated) and space
+//!   ([`pulse::FootprintProfile`], Gaussian beam; footprint radius from divergence; oblique
+//!   footprint ellipse; truncated footprint sampling) — physics.md §9.1.
+//! * [`waveform`]: path-length binning with out-of-gate accounting, area-preserving convolution
+//!   with the pulse and receiver response, the analytic first-order waveform of a turbid canopy
+//!   over a Lambertian ground in its two variants (independent and hotspot-correlated gaps), and the
+//!   bare-ground return — physics.md §9.4, §9.6, §13 item 12.
+//! * [`returns`]: discrete returns by peak detection and Gaussian decomposition
+//!   (Levenberg–Marquardt on bin-integrated Gaussians).
+//! * [`photon_counting`]: detector model, mean signal and solar background counts, exact Poisson
+//!   draws and sequential dead-time simulation for single-photon LiDAR — physics.md §9.5.
+//! * [`waveform_io`]: compact waveform products (little-endian f32 binary + CSV index) and SVG
+//!   quick-looks.
+//! * [`special`]: erf/erfc and log-factorial used by the above.
+//!
+//! Energies are `f64` joules everywhere: single packets of 1e-13 J (GLAS-like geometry) are far
+//! from the f64 underflow limit and survive binning, convolution and counting.
+//!
+//! Point clouds are written by [`crate::io::las_out`] (LAS 1.4, point formats 6 and 7).
+
+pub mod photon_counting;
+pub mod pulse;
+pub mod returns;
+pub mod special;
+pub mod waveform;
+pub mod waveform_io;
+
+/// Speed of light in vacuum (m s⁻¹, exact SI; physics.md §0).
+pub const SPEED_OF_LIGHT_M_PER_S: f64 = 299_792_458.0;
+
+/// Planck constant (J s, exact SI; physics.md §0).
+pub const PLANCK_J_S: f64 = 6.626_070_15e-34;
+
+/// Errors of the LiDAR building blocks: every message names the offending parameter or file.
+#[derive(Debug, Clone, PartialEq, thiserror::Error)]
+pub enum LidarError {
+    /// A scalar parameter is out of its valid range (NaN, infinite, negative, zero...).
+    #[error("invalid parameter `{name}` = {value}: {reason}")]
+    InvalidParameter {
+        /// Parameter name, with its unit suffix.
+        name: &'static str,
+        /// The rejected value.
+        value: f64,
+        /// What the valid range is.
+        reason: &'static str,
+    },
+    /// A data array is unusable (wrong length, NaN or negative entries...).
+    #[error("invalid input: {0}")]
+    InvalidInput(String),
+    /// A product could not be written or read; the message starts with the file name.
+    #[error("{0}")]
+    Io(String),
+}
+
+/// Checks that `value` is finite and strictly positive.
+pub(crate) fn check_positive(name: &'static str, value: f64) -> Result<f64, LidarError> {
+    if value.is_finite() && value > 0.0 {
+        Ok(value)
+    } else {
+        Err(LidarError::InvalidParameter {
+            name,
+            value,
+            reason: "must be finite and > 0",
+        })
+    }
+}
+
+/// Checks that `value` is finite and non-negative.
+pub(crate) fn check_non_negative(name: &'static str, value: f64) -> Result<f64, LidarError> {
+    if value.is_finite() && value >= 0.0 {
+        Ok(value)
+    } else {
+        Err(LidarError::InvalidParameter {
+            name,
+            value,
+            reason: "must be finite and >= 0",
+        })
+    }
+}
+
+/// Checks that `value` lies in [0, 1].
+pub(crate) fn check_unit_interval(name: &'static str, value: f64) -> Result<f64, LidarError> {
+    if (0.0..=1.0).contains(&value) {
+        Ok(value)
+    } else {
+        Err(LidarError::InvalidParameter {
+            name,
+            value,
+            reason: "must lie in [0, 1]",
+        })
+    }
+}
+
+/// Neumaier (improved Kahan) compensated sum of a slice: the error does not grow with the
+/// number of terms (Neumaier 1974, *ZAMM* 54:39), so sums over many tiny weights stay exact to
+/// a few ulps.
+pub fn compensated_sum(values: &[f64]) -> f64 {
+    let mut acc = NeumaierSum::default();
+    for &v in values {
+        acc.add(v);
+    }
+    acc.value()
+}
+
+/// Running Neumaier compensated sum (Neumaier 1974).
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct NeumaierSum {
+    sum: f64,
+    compensation: f64,
+}
+
+impl NeumaierSum {
+    /// Adds one term.
+    #[inline]
+    pub fn add(&mut self, x: f64) {
+        let t = self.sum + x;
+        if self.sum.abs() >= x.abs() {
+            self.compensation += (self.sum - t) + x;
+        } else {
+            self.compensation += (x - t) + self.sum;
+        }
+        self.sum = t;
+    }
+
+    /// Adds another running sum (used to merge per-thread tallies).
+    #[inline]
+    pub fn merge(&mut self, other: &NeumaierSum) {
+        self.add(other.sum);
+        self.add(other.compensation);
+    }
+
+    /// The compensated value.
+    #[inline]
+    pub fn value(&self) -> f64 {
+        self.sum + self.compensation
+    }
+}

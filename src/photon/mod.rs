@@ -1,0 +1,12 @@
+//! Photon stage (DART 5 paper §4, "Ray-Carlo"): forward Monte Carlo photon tracking over the
+//! same scene representation as the Radiative stage (turbid cells, facets, ground, boundaries).
+//!
+//! * [`sampling`]: scattering-direction samplers — discrete (Walker/Vose alias tables and DART's
+//!   Box method over the discrete directions) and continuous (exact leaf, fluid and surface
+//!   phase functions).
+//! * [`engine`]: the photon tracker (free paths, events, peel-off, roulette, seeded batches).
+//! * [`products`]: the Radiative stage's products with standard errors.
+
+pub mod engine;
+pub mod products;
+pub mod sampling;

@@ -1,0 +1,175 @@
+//! Products of the Photon stage: the Radiative stage's products (BRF/HDRF per direction and
+//! band, albedo, fabs, ftran, budget) computed from Monte Carlo tallies, with standard errors
+//! from the spread of the batch estimates (design.md §5; physics.md §1.4).
+//!
+//! Every product is a linear functional `F` of the tallies, so its standard error is
+//! `SE(F) = √(B/(B−1) Σ_k (F(S_k) − F̄)²)` over the `B` batch summaries `S_k` (each batch holds
+//! 1/B of the photons, with weights normalised to the whole run).
+
+use super::engine::{PhotonParams, PhotonResult, sum_standard_error};
+use crate::radiative::engine::RadiativeResult;
+use crate::radiative::products::RadiativeProducts;
+use crate::resources::directions::DirectionSet;
+use serde::Serialize;
+use std::f64::consts::PI;
+
+/// Description of a Monte Carlo run (in summary.json).
+#[derive(Debug, Clone, Serialize)]
+pub struct MonteCarloInfo {
+    /// Photons traced (sun + sky).
+    pub photons: u64,
+    /// Batches (standard errors come from their spread).
+    pub batches: u32,
+    /// Seed.
+    pub seed: u64,
+    /// Direction sampler (`continuous`, `alias`, `box`).
+    pub sampler: &'static str,
+    /// Scattering events.
+    pub events: u64,
+    /// Photons per second per core (wall time × threads).
+    pub photons_per_second_per_core: f64,
+    /// Russian-roulette balance relative to the source, per band (expectation 0).
+    pub roulette_balance: Vec<f64>,
+    /// Fraction of the source lost per band (isolated sides, caps).
+    pub lost: Vec<f64>,
+}
+
+/// SE of a linear functional of the batch summaries.
+fn se_of(batches: &[Vec<f64>], f: impl Fn(&[f64]) -> f64) -> f64 {
+    let vals: Vec<Vec<f64>> = batches.iter().map(|s| vec![f(s)]).collect();
+    sum_standard_error(&vals, 0)
+}
+
+/// Builds the products. `view_dir[v]` is the tiling index of view `v` (the engine's peel-off
+/// views, in order); `ground_facet[f]` marks DEM facets.
+#[allow(clippy::too_many_arguments)]
+pub fn photon_products(
+    res: PhotonResult,
+    params: &PhotonParams,
+    dirs: &DirectionSet,
+    view_dir: &[usize],
+    band_names: &[String],
+    area: f64,
+    e_dir: &[f64],
+    e_diff: &[f64],
+    ground_facet: &[bool],
+    seconds: f64,
+) -> RadiativeProducts {
+    let nb = res.n_bands;
+    let w = res.n_channels;
+    let has_sky = res.has_sky;
+    let sm = res.summary.clone();
+    let batches = res.batch_summaries.clone();
+    let raw = RadiativeResult {
+        n_channels: w,
+        n_bands: nb,
+        has_sky,
+        source: res.source.clone(),
+        escaped: res.escaped.clone(),
+        images: Vec::new(),
+        escaped_per_iteration: Vec::new(),
+        absorbed_turbid: res.absorbed_turbid.clone(),
+        intercepted_turbid: res.intercepted_turbid.clone(),
+        absorbed_facet: res.absorbed_facet.clone(),
+        intercepted_facet: res.intercepted_facet.clone(),
+        absorbed_ground: res.absorbed_ground.clone(),
+        intercepted_ground: res.intercepted_ground.clone(),
+        lost: res.lost.clone(),
+        // The roulette balance (expectation 0) stands where flux tracking books its
+        // unscattered remainder, so the closure identity holds exactly.
+        remaining: res.roulette.clone(),
+        iterations: 0,
+        q: vec![0.0; w],
+        converged: true,
+        rays: res.photons,
+        crossings: res.crossings,
+    };
+    let mut p = RadiativeProducts::new(
+        raw,
+        dirs,
+        band_names,
+        area,
+        e_dir,
+        e_diff,
+        ground_facet,
+        seconds,
+    );
+    let tiling = dirs.tiling();
+    let src = |b: usize| res.source[b] + if has_sky { res.source[nb + b] } else { 0.0 };
+    let both = |s: &[f64], idx: &dyn Fn(usize) -> usize, b: usize| {
+        s[idx(b)] + if has_sky { s[idx(nb + b)] } else { 0.0 }
+    };
+    for b in 0..nb {
+        let bp = &mut p.bands[b];
+        let sb = src(b);
+        bp.albedo_se = Some(se_of(&batches, |s| both(s, &|c| sm.escaped(c), b)) / sb);
+        bp.fabs_se = Some(se_of(&batches, |s| both(s, &|c| sm.absorbed(c), b)) / sb);
+        bp.fabs_ground_se = Some(se_of(&batches, |s| both(s, &|c| sm.absorbed_ground(c), b)) / sb);
+        bp.ftran_se = Some(se_of(&batches, |s| both(s, &|c| sm.ground(c), b)) / sb);
+        let mut entry = 0;
+        for (j, d) in tiling.iter().enumerate() {
+            if d.omega.z <= 0.0 {
+                continue;
+            }
+            let e = &mut bp.brf[entry];
+            entry += 1;
+            let view = view_dir.iter().position(|&x| x == j);
+            let (sun_f, tot_f): (f64, f64);
+            match view {
+                Some(v) => {
+                    // Peel-off: BRF = π I_v / (A μ_v E), I_v in W sr⁻¹.
+                    let mu = d.omega.z;
+                    sun_f = PI / (area * mu * e_dir[b]);
+                    tot_f = PI / (area * mu * (e_dir[b] + e_diff[b]));
+                    let i_sun = res.peel[v * w + b];
+                    let i_sky = if has_sky {
+                        res.peel[v * w + nb + b]
+                    } else {
+                        0.0
+                    };
+                    e.brf = i_sun * sun_f;
+                    if has_sky {
+                        e.hdrf = Some((i_sun + i_sky) * tot_f);
+                    }
+                    e.brf_se = Some(se_of(&batches, |s| s[sm.view(v, b)]) * sun_f);
+                    if has_sky {
+                        e.hdrf_se = Some(
+                            se_of(&batches, |s| s[sm.view(v, b)] + s[sm.view(v, nb + b)]) * tot_f,
+                        );
+                    }
+                    e.estimator = Some("peel-off");
+                }
+                None => {
+                    let denom = area * d.projected_sr;
+                    sun_f = PI / (denom * e_dir[b]);
+                    tot_f = PI / (denom * (e_dir[b] + e_diff[b]));
+                    e.brf_se = Some(se_of(&batches, |s| s[sm.dir(j, b)]) * sun_f);
+                    if has_sky {
+                        e.hdrf_se = Some(
+                            se_of(&batches, |s| s[sm.dir(j, b)] + s[sm.dir(j, nb + b)]) * tot_f,
+                        );
+                    }
+                    e.estimator = Some("escape");
+                }
+            }
+        }
+    }
+    let threads = rayon::current_num_threads().max(1) as f64;
+    p.solver = "monte-carlo";
+    p.iterations = 0;
+    p.monte_carlo = Some(MonteCarloInfo {
+        photons: res.photons,
+        batches: params.batches,
+        seed: params.seed,
+        sampler: params.sampler.name(),
+        events: res.events,
+        photons_per_second_per_core: res.photons as f64 / (seconds.max(1e-9) * threads),
+        roulette_balance: (0..nb)
+            .map(|b| (res.roulette[b] + if has_sky { res.roulette[nb + b] } else { 0.0 }) / src(b))
+            .collect(),
+        lost: (0..nb)
+            .map(|b| (res.lost[b] + if has_sky { res.lost[nb + b] } else { 0.0 }) / src(b))
+            .collect(),
+    });
+    p
+}

@@ -1,0 +1,265 @@
+//! Photon stage (DART 5 paper §4): forward Monte Carlo photon tracking of sun and sky
+//! radiation through the Maket grid ([`crate::photon::engine`]), the passive Monte Carlo solver
+//! chosen with `--solver monte-carlo`. Same products as the Radiative stage, with standard
+//! errors.
+//!
+//! Reads GridSpec, CellGrid, FacetStore, Directions, OpticsTables (discrete samplers only),
+//! RunSettings, SceneInfo, Materials, TerrainRes, Ground, TurbidCrown, TurbidPlot, ImportedMesh;
+//! writes RadiativeProducts.
+
+use crate::components::{Ground, ImportedMesh, TurbidCrown, TurbidPlot};
+use crate::geometry::terrain::Terrain;
+use crate::photon::engine::{DiscreteRows, PhotonInput, PhotonOptics, PhotonParams, run};
+use crate::photon::products::photon_products;
+use crate::photon::sampling::{BrdfSampler, LeafSampler};
+use crate::physics::brdf::Brdf;
+use crate::physics::lad::{GTable, LeafAngleDistribution, VolscattKernel};
+use crate::radiative::engine::TrackOptics;
+use crate::resources::facets::{FacetKind, FacetStore};
+use crate::resources::grid::{CellGrid, GridSpec};
+use crate::resources::materials::{MaterialKind, Materials};
+use crate::resources::scene::{RunSettings, SceneInfo, Solver, StageErrors, TerrainRes};
+use crate::resources::tracking::{Directions, OpticsTables};
+use crate::scene::desc::OpticsDesc;
+use bevy_ecs::prelude::*;
+
+/// Inclination bins of the Γ kernel used for peel-off values of non-spherical LADs (the
+/// spherical LAD uses its closed form); the binning error is O(n⁻²) (physics.md §3.3).
+pub const PEEL_LAD_BINS: usize = 180;
+/// Intervals of the G(μ) table (interpolation error ≈ 1e-8 for the classical LADs).
+pub const G_TABLE_INTERVALS: usize = 4096;
+
+/// Per-band BRDF models of an RPV/Hapke material, or `None` for other kinds.
+pub fn brdf_models(kind: &MaterialKind, nb: usize) -> Option<Vec<Brdf>> {
+    match kind {
+        MaterialKind::Rpv(OpticsDesc::Rpv {
+            rho0,
+            k,
+            theta,
+            rho_c,
+        }) => Some(
+            (0..nb)
+                .map(|b| Brdf::Rpv {
+                    rho0: rho0[b],
+                    k: k[b],
+                    theta: theta[b],
+                    rho_c: rho_c.as_ref().map(|r| r[b]),
+                })
+                .collect(),
+        ),
+        MaterialKind::Hapke(OpticsDesc::Hapke {
+            w,
+            b,
+            c,
+            roughness_deg,
+            b0,
+            h,
+        }) => Some(
+            (0..nb)
+                .map(|k| Brdf::Hapke {
+                    w: w[k],
+                    b: b[k],
+                    c: c[k],
+                    theta_bar_deg: *roughness_deg,
+                    b0: *b0,
+                    h: *h,
+                })
+                .collect(),
+        ),
+        _ => None,
+    }
+}
+
+/// Photon · reads the Maket grid, directions, materials and illumination · writes
+/// RadiativeProducts.
+#[allow(clippy::too_many_arguments)]
+pub fn track_photons(
+    info: Res<SceneInfo>,
+    spec: Res<GridSpec>,
+    grid: Res<CellGrid>,
+    facets: Res<FacetStore>,
+    dirs: Res<Directions>,
+    tables: Option<Res<OpticsTables>>,
+    settings: Res<RunSettings>,
+    mats: Res<Materials>,
+    terrain: Res<TerrainRes>,
+    grounds: Query<&Ground>,
+    crowns: Query<&TurbidCrown>,
+    plots: Query<&TurbidPlot>,
+    meshes: Query<&ImportedMesh>,
+    mut errors: ResMut<StageErrors>,
+    mut commands: Commands,
+) {
+    let Solver::MonteCarlo { photons, sampler } = settings.solver else {
+        return;
+    };
+    let nb = info.bands.len();
+    let mut used = vec![false; mats.list.len()];
+    for c in &crowns {
+        used[c.material as usize] = true;
+    }
+    for p in &plots {
+        used[p.material as usize] = true;
+    }
+    for m in &meshes {
+        for part in m.parts.iter().filter(|p| p.as_turbid) {
+            used[part.material as usize] = true;
+        }
+    }
+    let mut optics = Vec::with_capacity(mats.list.len());
+    for (id, m) in mats.list.iter().enumerate() {
+        let o = match &m.kind {
+            MaterialKind::Turbid {
+                reflectance,
+                transmittance,
+                lad,
+                specular,
+                ..
+            } if used[id] => {
+                if specular.is_some() {
+                    errors.0.push(format!(
+                        "material `{}`: specular leaves are not supported by the Monte Carlo solver yet (use the flux-tracking solver)",
+                        m.name
+                    ));
+                    return;
+                }
+                let lad = match LeafAngleDistribution::new(lad) {
+                    Ok(l) => l,
+                    Err(e) => {
+                        errors.0.push(format!("material `{}`: {e}", m.name));
+                        return;
+                    }
+                };
+                let leaf_sampler = match LeafSampler::new(&lad) {
+                    Ok(s) => s,
+                    Err(e) => {
+                        errors.0.push(format!("material `{}`: {e}", m.name));
+                        return;
+                    }
+                };
+                let discrete = if sampler.is_discrete() {
+                    let Some(TrackOptics::Turbid { tables, .. }) =
+                        tables.as_ref().and_then(|t| t.optics.get(id))
+                    else {
+                        errors.0.push(format!(
+                            "material `{}`: discrete Monte Carlo needs the Phase tables",
+                            m.name
+                        ));
+                        return;
+                    };
+                    match DiscreteRows::new(tables.clone(), sampler) {
+                        Ok(r) => Some(r),
+                        Err(e) => {
+                            errors.0.push(format!("material `{}`: {e}", m.name));
+                            return;
+                        }
+                    }
+                } else {
+                    None
+                };
+                PhotonOptics::Turbid {
+                    sampler: leaf_sampler,
+                    kernel: VolscattKernel::new(&lad, PEEL_LAD_BINS, false),
+                    g: GTable::new(&lad, G_TABLE_INTERVALS),
+                    rho: reflectance.clone(),
+                    tau: transmittance.clone(),
+                    discrete,
+                }
+            }
+            MaterialKind::Lambertian {
+                reflectance,
+                diffuse_transmittance,
+                direct_transmittance,
+            } => PhotonOptics::Lambert {
+                r: reflectance.clone(),
+                t: diffuse_transmittance.clone(),
+                t_dir: direct_transmittance.clone(),
+            },
+            MaterialKind::Leaf {
+                reflectance,
+                transmittance,
+            } => PhotonOptics::Lambert {
+                r: reflectance.clone(),
+                t: transmittance.clone(),
+                t_dir: vec![0.0; reflectance.len()],
+            },
+            k @ (MaterialKind::Rpv(_) | MaterialKind::Hapke(_)) => {
+                let models = brdf_models(k, nb).expect("RPV/Hapke");
+                // The sampler follows band 0's BRDF; other bands are reweighted (unbiased:
+                // RPV and Hapke BRFs are positive wherever band 0's is).
+                match BrdfSampler::new(&models[0], Default::default()) {
+                    Ok(sampler) => PhotonOptics::Brdf { models, sampler },
+                    Err(e) => {
+                        errors.0.push(format!("material `{}`: {e}", m.name));
+                        return;
+                    }
+                }
+            }
+            _ => PhotonOptics::Unused,
+        };
+        optics.push(o);
+    }
+    let flat_ground = match (&terrain.0, grounds.iter().next()) {
+        (Terrain::Flat(_), Some(g)) => Some(g.optics),
+        _ => None,
+    };
+    let tiling = dirs.set.tiling();
+    let view_dir: Vec<usize> = tiling
+        .iter()
+        .enumerate()
+        .filter(|(_, d)| {
+            matches!(
+                d.kind,
+                crate::resources::directions::DirectionKind::Exact { .. }
+            ) && d.omega.z > 0.0
+        })
+        .map(|(j, _)| j)
+        .collect();
+    let il = &info.illumination;
+    let e_tot: Vec<f64> = (0..nb)
+        .map(|b| il.irradiance_w_m2_um.get(b).copied().unwrap_or(1.0))
+        .collect();
+    let skyl: Vec<f64> = (0..nb)
+        .map(|b| il.skyl.get(b).copied().unwrap_or(0.0))
+        .collect();
+    let e_dir: Vec<f64> = (0..nb).map(|b| e_tot[b] * (1.0 - skyl[b])).collect();
+    let e_diff: Vec<f64> = (0..nb).map(|b| e_tot[b] * skyl[b]).collect();
+    let ground_facet: Vec<bool> = facets
+        .facets
+        .iter()
+        .map(|f| f.kind == FacetKind::Ground)
+        .collect();
+    let params = PhotonParams::new(photons, info.seed, sampler);
+    let input = PhotonInput {
+        spec: &spec,
+        grid: &grid,
+        facets: &facets.facets,
+        ground_facet: &ground_facet,
+        dirs: &dirs.set,
+        optics: &optics,
+        fluid: None,
+        flat_ground,
+        views: view_dir.iter().map(|&j| tiling[j].omega).collect(),
+        sun: dirs.sun,
+        e_dir: e_dir.clone(),
+        e_diff: e_diff.clone(),
+        params: params.clone(),
+    };
+    let t0 = std::time::Instant::now();
+    let raw = run(&input);
+    let secs = t0.elapsed().as_secs_f64();
+    let names: Vec<String> = info.bands.iter().map(|b| b.name.clone()).collect();
+    let area = spec.n[0] as f64 * spec.cell.x * spec.n[1] as f64 * spec.cell.y;
+    commands.insert_resource(photon_products(
+        raw,
+        &params,
+        &dirs.set,
+        &view_dir,
+        &names,
+        area,
+        &e_dir,
+        &e_diff,
+        &ground_facet,
+        secs,
+    ));
+}
