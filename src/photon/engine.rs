@@ -236,6 +236,10 @@ pub struct PhotonParams {
     pub sampler: SamplerKind,
     /// Russian roulette below this weight relative to the photon's initial weight.
     pub roulette_threshold: f64,
+    /// K: peel-off points drawn per crossing of a fluid cell (DART 5 paper §4: "K interception
+    /// events per crossing of large atmospheric cells"); 0 = peel off at the actual fluid
+    /// collisions only.
+    pub fluid_peel_points: u32,
     /// Scattering orders beyond this are lost (DART caps orders too).
     pub max_order: u32,
     /// Maximum scene crossings of one flight in repetitive scenes.
@@ -243,7 +247,8 @@ pub struct PhotonParams {
 }
 
 impl PhotonParams {
-    /// Defaults: 64 batches, roulette below 1e-2, 10 000 orders, 10 000 crossings.
+    /// Defaults: 64 batches, roulette below 1e-2, K = 4 fluid peel-off points per crossing,
+    /// 10 000 orders, 10 000 crossings.
     pub fn new(photons: u64, seed: u64, sampler: SamplerKind) -> Self {
         Self {
             photons,
@@ -251,6 +256,7 @@ impl PhotonParams {
             seed,
             sampler,
             roulette_threshold: 1e-2,
+            fluid_peel_points: 4,
             max_order: 10_000,
             max_crossings: 10_000,
         }
@@ -351,7 +357,7 @@ pub struct Summary {
 impl Summary {
     /// Length of a summary vector.
     pub fn len(&self) -> usize {
-        4 * self.w + self.n_dirs * self.w + self.n_views * self.w
+        4 * self.w + self.n_dirs * self.w + 4 * self.n_views * self.w
     }
     /// True when empty.
     pub fn is_empty(&self) -> bool {
@@ -380,6 +386,17 @@ impl Summary {
     /// Index of the peel-off intensity toward view `v`.
     pub fn view(&self, v: usize, ch: usize) -> usize {
         4 * self.w + self.n_dirs * self.w + v * self.w + ch
+    }
+    /// Index of a RAMI component of the peel-off toward view `v`: 0 = single scattering by
+    /// the vegetation (and other non-ground elements; RAMI `co_sgl`), 1 = single scattering by
+    /// the ground of light that met nothing else on the way down or up (`uc_sgl`), 2 = multiple
+    /// scattering (`mlt`).
+    pub fn view_component(&self, v: usize, comp: usize, ch: usize) -> usize {
+        4 * self.w
+            + self.n_dirs * self.w
+            + self.n_views * self.w
+            + (comp * self.n_views + v) * self.w
+            + ch
     }
 }
 
@@ -823,13 +840,118 @@ impl Ctx<'_> {
         t_out.iter_mut().for_each(|t| *t *= tv);
     }
 
+    /// Forced (expected-value) peel-off of fluid scattering along the whole coming flight
+    /// (Ray-Carlo K points per atmospheric-cell crossing, DART 5 paper §4): for every fluid
+    /// segment `[t0, t0+ℓ]` reached with per-band optical depth τ_b, K points u ~
+    /// `k_m e^{−k_m u}/(1 − e^{−k_m ℓ})` (k_m = vegetation + largest fluid extinction) each
+    /// contribute `w_b e^{−τ_b} σ_b e^{−(k_v+σ_b)u}/(K q(u)) · ω_b P(Θ)/(4π) · T_b(→top)`, whose
+    /// expectation is the fluid-collision peel-off of the flight. The walk stops at the first
+    /// facet, the ground, the top, an isolated side or when min_b τ_b > 30 (e^{−30} ≈ 1e-13).
+    fn forced_fluid_peel(
+        &self,
+        ph: &Photon,
+        g_cur: &[f64],
+        rng: &mut Xoshiro256PlusPlus,
+        out: &mut BatchOut,
+        scratch: &mut [f64],
+        tr: &mut [f64],
+    ) {
+        let spec = self.inp.spec;
+        let nb = self.nb;
+        let k_pts = self.inp.params.fluid_peel_points;
+        let mut tau: Vec<f64> = vec![0.0; nb];
+        let mut p = ph.p;
+        let mut skip = ph.skip_facet;
+        let mut crossings = 0u32;
+        'restart: loop {
+            let Some(mut dda) = Dda::new(spec, p, ph.d) else {
+                return;
+            };
+            loop {
+                let c = dda.index();
+                let t0 = dda.t;
+                let mut t1 = dda.t_exit();
+                let fhit = if self.inp.grid.facet_start[c] < self.inp.grid.facet_start[c + 1] {
+                    self.facet_hit(c, dda.point(0.0), ph.d, t0, t1, skip)
+                } else {
+                    None
+                };
+                if let Some((_, th)) = fhit {
+                    t1 = th.max(t0);
+                }
+                let ell = t1 - t0;
+                let kv = self.k_veg(c, g_cur);
+                if let Some(f) = self.fluid_of(c)
+                    && ell > 0.0
+                {
+                    let km = kv + f.sigma_e.iter().cloned().fold(0.0, f64::max);
+                    let norm = -(-km * ell).exp_m1(); // 1 − e^{−k_m ℓ}
+                    if km > 0.0 && norm > 0.0 {
+                        for _ in 0..k_pts {
+                            let u = -(1.0 - rng.next_f64() * norm).ln() / km;
+                            let q = km * (-km * u).exp() / norm;
+                            let at = dda.point(t0 + u);
+                            let d_in = ph.d;
+                            let fac: Vec<f64> = (0..nb)
+                                .map(|b| {
+                                    (-tau[b]).exp()
+                                        * f.sigma_e[b]
+                                        * (-(kv + f.sigma_e[b]) * u).exp()
+                                        / (q * k_pts as f64)
+                                })
+                                .collect();
+                            self.peel(ph, at, None, false, out, scratch, tr, |v, s| {
+                                let pv = f.phase.eval_dirs(d_in, self.inp.views[v]) / (4.0 * PI);
+                                for b in 0..nb {
+                                    s[b] = fac[b] * f.ssa[b] * pv;
+                                }
+                                true
+                            });
+                        }
+                    }
+                    for b in 0..nb {
+                        tau[b] += f.sigma_e[b] * ell;
+                    }
+                }
+                for t in tau.iter_mut() {
+                    *t += kv * ell;
+                }
+                if fhit.is_some() || tau.iter().cloned().fold(f64::INFINITY, f64::min) > 30.0 {
+                    return;
+                }
+                match dda.advance() {
+                    Exit::Inside => {}
+                    Exit::Top | Exit::Bottom => return,
+                    Exit::Side(axis, s) => {
+                        crossings += 1;
+                        if spec.boundary == BoundaryMode::Isolated
+                            || crossings > self.inp.params.max_crossings
+                        {
+                            return;
+                        }
+                        match self.wrap(dda.point(dda.t), axis, s) {
+                            Some(q) => {
+                                p = q;
+                                skip = None;
+                                continue 'restart;
+                            }
+                            None => return,
+                        }
+                    }
+                }
+            }
+        }
+    }
+
     /// Adds `w_b · f_b · T_b(view)` to the peel tally of every view, where `f(v, out)` fills the
     /// per-band intensity factors (sr⁻¹) toward view v (and returns false if all are zero).
+    #[allow(clippy::too_many_arguments)]
     fn peel(
         &self,
         ph: &Photon,
         p: DVec3,
         skip: Option<u32>,
+        ground: bool,
         out: &mut BatchOut,
         scratch: &mut [f64],
         tr: &mut [f64],
@@ -844,8 +966,16 @@ impl Ctx<'_> {
                 continue;
             }
             let base = self.sum.view(v, ph.off);
+            let comp = match (ph.order, ground) {
+                (0, false) => 0,
+                (0, true) => 1,
+                _ => 2,
+            };
+            let cbase = self.sum.view_component(v, comp, ph.off);
             for b in 0..self.nb {
-                out.summary[base + b] += ph.w[b] * scratch[b] * tr[b];
+                let x = ph.w[b] * scratch[b] * tr[b];
+                out.summary[base + b] += x;
+                out.summary[cbase + b] += x;
             }
         }
     }
@@ -1159,6 +1289,9 @@ fn trace_photon(
         for (tm, g) in g_cur.iter_mut().enumerate() {
             *g = ctx.g_of(tm, ph.d.z);
         }
+        if inp.fluid.is_some() && inp.params.fluid_peel_points > 0 && !inp.views.is_empty() {
+            ctx.forced_fluid_peel(ph, g_cur, rng, out, scratch, tr);
+        }
         let hit = ctx.fly(ph, g_cur, rng, out);
         match hit {
             Hit::Escape => {
@@ -1183,15 +1316,18 @@ fn trace_photon(
                 let c = c & !FLUID_BIT;
                 let f = ctx.fluid_of(c).expect("fluid cell");
                 out.events += 1;
-                // Peel-off: intensity ω P(Θ)/(4π) per unit weight.
+                // Peel-off: intensity ω P(Θ)/(4π) per unit weight (unless the K-point forced
+                // estimate along the flight already accounted for fluid collisions).
                 let d_in = ph.d;
-                ctx.peel(ph, p, None, out, scratch, tr, |v, s| {
-                    let pv = f.phase.eval_dirs(d_in, inp.views[v]) / (4.0 * PI);
-                    for b in 0..nb {
-                        s[b] = f.ssa[b] * pv;
-                    }
-                    true
-                });
+                if inp.params.fluid_peel_points == 0 {
+                    ctx.peel(ph, p, None, false, out, scratch, tr, |v, s| {
+                        let pv = f.phase.eval_dirs(d_in, inp.views[v]) / (4.0 * PI);
+                        for b in 0..nb {
+                            s[b] = f.ssa[b] * pv;
+                        }
+                        true
+                    });
+                }
                 let acc = out
                     .abs_fluid
                     .entry(c as u32)
@@ -1257,7 +1393,7 @@ fn trace_photon(
                     Some(rows) if discrete => {
                         let row = ph.di.min(rows.samplers.len() - 1);
                         // Peel-off with the containing sector's tabulated value: T_{i,m}/ΔΩ_m.
-                        ctx.peel(ph, p, None, out, scratch, tr, |v, s| {
+                        ctx.peel(ph, p, None, false, out, scratch, tr, |v, s| {
                             let m = ctx.view_sector[v];
                             let dom = inp.dirs.tiling()[m].solid_angle_sr;
                             for b in 0..nb {
@@ -1305,7 +1441,7 @@ fn trace_photon(
                         // binned evaluation costs ~10 µs and errs by up to 0.5 % at 180 bins).
                         let closed = kernel.is_closed_form();
                         let n = ev.normal;
-                        ctx.peel(ph, p, None, out, scratch, tr, |v, s| {
+                        ctx.peel(ph, p, None, false, out, scratch, tr, |v, s| {
                             let ov = inp.views[v];
                             if closed {
                                 let (gr, gt) = kernel.gamma_components(d_in, ov);
@@ -1349,6 +1485,8 @@ fn trace_photon(
                 let n_in = if front { n } else { -n }; // normal on the incidence side
                 let mu = n.dot(ph.d).abs().max(1e-6);
                 let w_before = ph.w.clone();
+                let is_ground_facet = inp.ground_facet.get(f as usize).copied().unwrap_or(false);
+                let mut passed_through = false;
                 match &inp.optics[fa.material as usize] {
                     PhotonOptics::Lambert { r, t, t_dir } => {
                         let mut pd = vec![0.0f64; nb];
@@ -1372,7 +1510,7 @@ fn trace_photon(
                             }
                         }
                         // Peel-off: reflected ρ|n·v|/π on the incidence side, τ|n·v|/π beyond.
-                        ctx.peel(ph, p, Some(f), out, scratch, tr, |v, s| {
+                        ctx.peel(ph, p, Some(f), is_ground_facet, out, scratch, tr, |v, s| {
                             let c = n_in.dot(inp.views[v]);
                             let mut any = false;
                             for b in 0..nbx {
@@ -1385,7 +1523,7 @@ fn trace_photon(
                             choose(&mut ph.w[..nbx], &[&pd[..nbx], &pr[..nbx], &pt[..nbx]], rng);
                         match k {
                             None => {}
-                            Some(0) => {}
+                            Some(0) => passed_through = true,
                             Some(1) => {
                                 ph.d = sample_cosine_hemisphere(n_in, rng);
                             }
@@ -1431,6 +1569,11 @@ fn trace_photon(
                 }
                 ph.p = p;
                 ph.skip_facet = Some(f);
+                if passed_through {
+                    // Direct transmission is not a scattering event: same order, same flight
+                    // direction (continue without the roulette/order bookkeeping).
+                    continue;
+                }
             }
             Hit::Ground { p } => {
                 out.events += 1;
@@ -1446,7 +1589,7 @@ fn trace_photon(
                 let gid = inp.flat_ground.expect("flat ground") as usize;
                 match &inp.optics[gid] {
                     PhotonOptics::Lambert { r, .. } => {
-                        ctx.peel(ph, p, None, out, scratch, tr, |v, s| {
+                        ctx.peel(ph, p, None, true, out, scratch, tr, |v, s| {
                             let c = inp.views[v].z;
                             for b in 0..nb {
                                 s[b] = r[b] * c / PI;
@@ -1538,16 +1681,25 @@ fn brdf_event(
     let inp = ctx.inp;
     let nb = ctx.nb;
     let d_in = ph.d;
-    ctx.peel(ph, p, skip, out, scratch, tr, |v, s| {
-        let c = n_in.dot(inp.views[v]);
-        if c <= 0.0 {
-            return false;
-        }
-        for b in 0..nb {
-            s[b] = models[b].brf(n_in, d_in, inp.views[v]) * c / PI;
-        }
-        true
-    });
+    ctx.peel(
+        ph,
+        p,
+        skip,
+        skip.is_none_or(|f| inp.ground_facet.get(f as usize).copied().unwrap_or(false)),
+        out,
+        scratch,
+        tr,
+        |v, s| {
+            let c = n_in.dot(inp.views[v]);
+            if c <= 0.0 {
+                return false;
+            }
+            for b in 0..nb {
+                s[b] = models[b].brf(n_in, d_in, inp.views[v]) * c / PI;
+            }
+            true
+        },
+    );
     let Some(smp) = sampler.sample(n_in, d_in, rng) else {
         ph.w.iter_mut().for_each(|x| *x = 0.0);
         return;

@@ -138,6 +138,16 @@ pub fn photon_products(
                         );
                     }
                     e.estimator = Some("peel-off");
+                    let comp = |c: usize| {
+                        batches
+                            .iter()
+                            .map(|s| s[sm.view_component(v, c, b)])
+                            .sum::<f64>()
+                            * sun_f
+                    };
+                    e.brf_co_sgl = Some(comp(0));
+                    e.brf_uc_sgl = Some(comp(1));
+                    e.brf_mlt = Some(comp(2));
                 }
                 None => {
                     let denom = area * d.projected_sr;

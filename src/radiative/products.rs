@@ -31,6 +31,17 @@ pub struct BrfEntry {
     /// Standard error of `hdrf` (Monte Carlo solver with sky light only).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub hdrf_se: Option<f64>,
+    /// RAMI components of `brf` (Monte Carlo peel-off directions): single scattering by the
+    /// vegetation and other non-ground elements (`brf_co_sgl`), single scattering by the ground
+    /// of uncollided light (`brf_uc_sgl`), multiple scattering (`brf_mlt`); they sum to `brf`.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub brf_co_sgl: Option<f64>,
+    /// See `brf_co_sgl`.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub brf_uc_sgl: Option<f64>,
+    /// See `brf_co_sgl`.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub brf_mlt: Option<f64>,
     /// How the value was estimated: `escape` (flux leaving the sector; sector mean) or `peel-off`
     /// (Monte Carlo local estimate in the exact direction); absent for the flux-tracking solver.
     #[serde(skip_serializing_if = "Option::is_none")]
@@ -179,6 +190,9 @@ impl RadiativeProducts {
                     hdrf,
                     brf_se: None,
                     hdrf_se: None,
+                    brf_co_sgl: None,
+                    brf_uc_sgl: None,
+                    brf_mlt: None,
                     estimator: None,
                 });
             }
