@@ -121,11 +121,21 @@ impl Simulation {
                 }
                 Stage::Photon => {
                     s.add_systems(
-                        crate::systems::photon::track_photons
-                            .run_if(resource_exists::<crate::resources::tracking::Directions>)
-                            .run_if(resource_exists::<crate::resources::grid::CellGrid>)
-                            .run_if(|s: Res<RunSettings>| s.solver.is_monte_carlo())
-                            .run_if(no_stage_error),
+                        (
+                            crate::systems::photon::track_photons
+                                .run_if(resource_exists::<crate::resources::tracking::Directions>)
+                                .run_if(resource_exists::<crate::resources::grid::CellGrid>)
+                                .run_if(|s: Res<RunSettings>| s.solver.is_monte_carlo())
+                                .run_if(no_stage_error),
+                            crate::systems::lidar::run_lidars
+                                .run_if(
+                                    resource_exists::<crate::resources::lidar::LidarInstruments>,
+                                )
+                                .run_if(resource_exists::<crate::resources::tracking::Directions>)
+                                .run_if(resource_exists::<crate::resources::grid::CellGrid>)
+                                .run_if(no_stage_error),
+                        )
+                            .chain(),
                     );
                 }
                 Stage::Output => {
@@ -140,6 +150,10 @@ impl Simulation {
                             .run_if(
                                 resource_exists::<crate::radiative::products::RadiativeProducts>,
                             )
+                            .run_if(no_stage_error),
+                        crate::systems::output::write_lidar_products
+                            .run_if(resource_exists::<OutputDir>)
+                            .run_if(resource_exists::<crate::resources::lidar::LidarProducts>)
                             .run_if(no_stage_error),
                     ));
                 }

@@ -6,6 +6,7 @@
 //! yet (see the open issues); a scene never silently gets results from them.
 
 pub mod direction;
+pub mod lidar;
 pub mod maket;
 pub mod output;
 pub mod phase;

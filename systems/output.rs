@@ -496,3 +496,17 @@ fn write_png(path: &std::path::Path, nx: usize, ny: usize, v: &[f64]) -> Result<
     }
     write_atomic(path, &buf)
 }
+
+/// Output · reads LidarProducts, SceneInfo · writes `DIR/lidar/<instrument>/` (waveforms, LAS
+/// returns, fusion and photon-counting clouds, quick-looks, lidar.json).
+pub fn write_lidar_products(
+    out: Res<OutputDir>,
+    products: Res<crate::resources::lidar::LidarProducts>,
+    info: Res<crate::resources::scene::SceneInfo>,
+    mut errors: ResMut<StageErrors>,
+) {
+    let names: Vec<String> = info.bands.iter().map(|b| b.name.clone()).collect();
+    if let Err(e) = crate::lidar::products::write_lidar(&out.0, &products.0, &names) {
+        errors.0.push(e);
+    }
+}

@@ -215,11 +215,36 @@ fn objects_outside_an_isolated_scene_are_rejected() {
 
 #[test]
 fn reserved_sections_are_not_supported_yet() {
-    let text = GOOD.replacen("    version: 1,", "    version: 1,\n    lidars: [],", 1);
-    let (e, msg) = error_of("lidar.ron", &text);
+    let text = GOOD.replacen("    version: 1,", "    version: 1,\n    sensors: [],", 1);
+    let (e, msg) = error_of("sensors.ron", &text);
     assert!(matches!(e, SceneError::NotSupported { .. }), "{msg}");
     assert!(msg.contains("not supported yet"));
     assert_eq!(line_of(&e), Some(3));
+}
+
+#[test]
+fn bad_lidar_fields_are_named_with_their_line() {
+    let lidar = "    lidars: Some([(\n        name: \"als\",\n        band: \"nope\",\n        platform: Airborne(altitude_m: 500.0, pulses: Single((1.0, 1.0))),\n        footprint_radius_m: Some(0.2),\n    )]),";
+    let text = GOOD.replacen("    version: 1,", &format!("    version: 1,\n{lidar}"), 1);
+    let (_, msg) = error_of("lidar_band.ron", &text);
+    assert!(
+        msg.contains("lidars[0].band") && msg.contains("nope"),
+        "{msg}"
+    );
+    let text = GOOD.replacen(
+        "    version: 1,",
+        &format!(
+            "    version: 1,\n{}",
+            lidar.replace("\"nope\"", "\"red\"").replace(
+                "footprint_radius_m: Some(0.2)",
+                "footprint_radius_m: Some(-1.0)"
+            )
+        ),
+        1,
+    );
+    let (e, msg) = error_of("lidar_fp.ron", &text);
+    assert!(msg.contains("lidars[0].footprint_radius_m"), "{msg}");
+    assert_eq!(line_of(&e), Some(7), "{msg}");
 }
 
 #[test]

@@ -1,7 +1,7 @@
 //! The `lumenscape` command-line tool.
 
 use clap::{Parser, Subcommand};
-use lumenscape::cli::{directions, generate, prospect, scene_cmds, sun};
+use lumenscape::cli::{directions, generate, prospect, rami, scene_cmds, sun};
 use std::io::Write;
 use std::process::ExitCode;
 
@@ -29,6 +29,8 @@ enum Command {
     Sun(sun::Args),
     /// Print the discrete directions (zenith, azimuth, solid angle, kind, sector) as JSON or CSV.
     Directions(directions::Args),
+    /// Convert a finished run into RAMI/ROMC measurement files (.mes) and measurements.json.
+    RamiMes(rami::Args),
 }
 
 fn plain(message: String) -> scene_cmds::CliError {
@@ -47,6 +49,7 @@ fn main() -> ExitCode {
         Command::Prospect(a) => prospect::run(a, &mut out).map_err(plain),
         Command::Sun(a) => sun::run(a, &mut out).map_err(plain),
         Command::Directions(a) => directions::run(a, &mut out).map_err(plain),
+        Command::RamiMes(a) => rami::run(a, &mut out).map_err(plain),
     };
     let _ = out.flush();
     match res {

@@ -3,7 +3,7 @@
 
 use super::scene_cmds::CliError;
 use crate::scene::desc::LadDesc;
-use crate::scene::generators::{BandOptics, disk_canopy, forest, turbid_layer, urban};
+use crate::scene::generators::{BandOptics, disk_canopy, forest, rami, turbid_layer, urban};
 use std::io::Write;
 
 /// Parses a LAD name: spherical, uniform, planophile, erectophile, plagiophile, extremophile,
@@ -166,6 +166,29 @@ pub enum Kind {
         #[arg(long, default_value_t = 225.0)]
         sun_azimuth: f64,
     },
+    /// A RAMI-3 benchmark case from its experiment identifier (HOM turbid/discrete layers,
+    /// HET01/HET02 floating spheres), with the RAMI measurement directions as exact views.
+    Rami {
+        /// Experiment identifier, e.g. HOM13_DIS_PLA_NIR_20 or HET01_DIS_UNI_RED_20.
+        #[arg(long)]
+        case: String,
+        /// Scene side, metres (HOM only; default 2 m turbid, 25 m discrete).
+        #[arg(long)]
+        size: Option<f64>,
+        /// Cell size, metres (default 0.5 m HOM, 1 m HET).
+        #[arg(long)]
+        cell_size: Option<f64>,
+        /// Random seed (drawn discs, sphere positions).
+        #[arg(long, default_value_t = 1)]
+        seed: u64,
+        /// Sun azimuth (ground→sun, anticlockwise from +x), degrees.
+        #[arg(long, default_value_t = 0.0)]
+        sun_azimuth: f64,
+        /// RAMI leaf file (R Xc Yc Zc Dx Dy Dz per line): the whole canopy for HOM discrete
+        /// cases, one sphere's leaves for HET01; the scene refers to it by its absolute path.
+        #[arg(long)]
+        leaves: Option<std::path::PathBuf>,
+    },
     /// A block of buildings with streets and street trees.
     Urban {
         /// Buildings per side.
@@ -273,6 +296,38 @@ pub fn run(args: &Args, out: &mut dyn Write) -> Result<(), CliError> {
             sun_azimuth_deg: *sun_azimuth,
             ..Default::default()
         }),
+        Kind::Rami {
+            case,
+            size,
+            cell_size,
+            seed,
+            sun_azimuth,
+            leaves,
+        } => {
+            let case = rami::RamiCase::parse(case)?;
+            let leaves = match leaves {
+                Some(path) => {
+                    let abs = std::fs::canonicalize(path)
+                        .map_err(|e| format!("{}: {e}", path.display()))?;
+                    // Check the list now, so a broken file fails here rather than at run time.
+                    let text = std::fs::read_to_string(&abs)
+                        .map_err(|e| format!("{}: {e}", abs.display()))?;
+                    crate::io::leaf_list::parse_leaf_list(&text, &abs)?;
+                    Some(abs.to_string_lossy().into_owned())
+                }
+                None => None,
+            };
+            rami::rami_scene(
+                &case,
+                &rami::RamiOptions {
+                    size_m: *size,
+                    cell_m: *cell_size,
+                    seed: *seed,
+                    sun_azimuth_deg: *sun_azimuth,
+                    leaves,
+                },
+            )?
+        }
         Kind::Urban {
             blocks,
             building,

@@ -4,5 +4,6 @@
 pub mod directions;
 pub mod generate;
 pub mod prospect;
+pub mod rami;
 pub mod scene_cmds;
 pub mod sun;

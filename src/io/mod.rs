@@ -5,3 +5,4 @@ pub mod exr_out;
 pub mod las_out;
 pub mod leaf_list;
 pub mod mesh;
+pub mod rami_mes;

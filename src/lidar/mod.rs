@@ -26,8 +26,10 @@
 //! Point clouds are written by [`crate::io::las_out`] (LAS 1.4, point formats 6 and 7).
 
 pub mod photon_counting;
+pub mod products;
 pub mod pulse;
 pub mod returns;
+pub mod simulate;
 pub mod special;
 pub mod waveform;
 pub mod waveform_io;

@@ -203,6 +203,43 @@ pub enum PhotonOptics {
     },
 }
 
+impl PhotonOptics {
+    /// The same optics restricted to band `b` (LiDAR: one laser band).
+    pub fn select_band(&self, b: usize) -> PhotonOptics {
+        let one = |v: &Vec<f64>| vec![v.get(b).copied().unwrap_or(0.0)];
+        match self {
+            PhotonOptics::Unused => PhotonOptics::Unused,
+            PhotonOptics::Turbid {
+                sampler,
+                kernel,
+                g,
+                rho,
+                tau,
+                discrete,
+            } => PhotonOptics::Turbid {
+                sampler: sampler.clone(),
+                kernel: kernel.clone(),
+                g: g.clone(),
+                rho: one(rho),
+                tau: one(tau),
+                discrete: discrete.as_ref().map(|d| DiscreteRows {
+                    tables: d.tables.get(b).cloned().into_iter().collect(),
+                    samplers: d.samplers.clone(),
+                }),
+            },
+            PhotonOptics::Lambert { r, t, t_dir } => PhotonOptics::Lambert {
+                r: one(r),
+                t: one(t),
+                t_dir: one(t_dir),
+            },
+            PhotonOptics::Brdf { models, sampler } => PhotonOptics::Brdf {
+                models: models.get(b).cloned().into_iter().collect(),
+                sampler: sampler.clone(),
+            },
+        }
+    }
+}
+
 /// A fluid (atmosphere, aerosol, smoke, water) constituent filling cells (physics.md §4.1).
 #[derive(Debug, Clone)]
 pub struct FluidMaterial {
@@ -416,6 +453,8 @@ struct Acc {
     width: usize,
     dense: Option<Vec<f64>>,
     sparse: HashMap<u32, Vec<f64>>,
+    /// Discards everything (LiDAR pulses keep no radiative budget).
+    sink: bool,
 }
 
 impl Acc {
@@ -425,11 +464,23 @@ impl Acc {
             width,
             dense,
             sparse: HashMap::new(),
+            sink: false,
+        }
+    }
+    fn sink(width: usize) -> Self {
+        Self {
+            width,
+            dense: Some(vec![0.0; width]),
+            sparse: HashMap::new(),
+            sink: true,
         }
     }
     #[inline]
     fn get(&mut self, key: u32) -> &mut [f64] {
         let w = self.width;
+        if self.sink {
+            return &mut self.dense.as_mut().expect("sink buffer")[..w];
+        }
         match &mut self.dense {
             Some(d) => &mut d[key as usize * w..(key as usize + 1) * w],
             None => self.sparse.entry(key).or_insert_with(|| vec![0.0; w]),
@@ -437,6 +488,9 @@ impl Acc {
     }
     /// Visits every record (dense: all keys; sparse: sorted keys).
     fn for_each(&self, mut f: impl FnMut(u32, &[f64])) {
+        if self.sink {
+            return;
+        }
         match &self.dense {
             Some(d) => {
                 for (k, v) in d.chunks(self.width).enumerate() {
@@ -487,6 +541,8 @@ struct BatchOut {
     roulette: Vec<f64>,
     events: u64,
     crossings: u64,
+    /// LiDAR receiver tallies (receiver mode only).
+    wave: Option<crate::lidar::waveform::WaveformBinner>,
 }
 
 /// Where a flight ends.
@@ -513,18 +569,40 @@ struct Ctx<'a> {
     tur_mat: Vec<u32>,
     /// Material ids of turbid materials.
     tur_ids: Vec<u32>,
-    /// G of each turbid material toward each view.
+    /// G toward each view `[view][turbid material]`.
     g_view: Vec<Vec<f64>>,
     /// Tiling direction vectors.
     omega: Vec<DVec3>,
     /// Sector containing each view and its solid angle (discrete-mode peel-off).
     view_sector: Vec<usize>,
+    /// LiDAR receiver (receiver mode: peel-off toward it instead of the views).
+    receiver: Option<Receiver>,
+    /// Receiver mode: photons whose path exceeds this can no longer reach the range gate and
+    /// are dropped (booked as lost), m.
+    max_path: f64,
+}
+
+/// A LiDAR receiver (DART 5 paper §4; physics.md §9.2): peel-off goes toward a point.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Receiver {
+    /// Position (unwrapped scene coordinates), m.
+    pub position: DVec3,
+    /// Looking direction (unit, from the receiver toward the scene).
+    pub axis: DVec3,
+    /// Cosine of the field-of-view half-angle.
+    pub cos_fov: f64,
+    /// Aperture area, m².
+    pub aperture_m2: f64,
 }
 
 /// Photon state.
 struct Photon {
     p: DVec3,
     d: DVec3,
+    /// Path length travelled since emission, m (LiDAR timing).
+    path: f64,
+    /// Unwrapped position minus wrapped position (repetitive scenes), m.
+    shift: DVec3,
     /// Discrete direction index (tiling index, or n_dirs for the sun) in discrete mode.
     di: usize,
     w: Vec<f64>,
@@ -681,6 +759,7 @@ impl Ctx<'_> {
                                 for (b, wb) in ph.w.iter_mut().enumerate() {
                                     *wb *= (1.0 - f.sigma_e[b] / kf) / (1.0 - q);
                                 }
+                                ph.path += t;
                                 ph.p = p;
                                 tau_star = -(1.0 - rng.next_f64()).ln();
                                 continue 'restart;
@@ -688,16 +767,19 @@ impl Ctx<'_> {
                             for (b, wb) in ph.w.iter_mut().enumerate() {
                                 *wb *= (f.sigma_e[b] / kf) / q;
                             }
+                            ph.path += t;
                             return Hit::Volume {
                                 c: c | FLUID_BIT,
                                 p,
                             };
                         }
+                        ph.path += t;
                         return Hit::Volume { c, p };
                     }
                     tau_star -= dt;
                 }
                 if let Some((f, th)) = fhit {
+                    ph.path += th;
                     return Hit::Facet {
                         f,
                         p: dda.point(th),
@@ -706,10 +788,12 @@ impl Ctx<'_> {
                 match dda.advance() {
                     Exit::Inside => {}
                     Exit::Top => {
+                        ph.path += dda.t;
                         ph.p = dda.point(dda.t);
                         return Hit::Escape;
                     }
                     Exit::Bottom => {
+                        ph.path += dda.t;
                         let p = dda.point(dda.t);
                         return if self.inp.flat_ground.is_some() {
                             Hit::Ground { p }
@@ -725,8 +809,15 @@ impl Ctx<'_> {
                         if crossings > self.inp.params.max_crossings {
                             return Hit::Lost;
                         }
-                        match self.wrap(dda.point(dda.t), axis, s) {
+                        let e = dda.point(dda.t);
+                        if ph.path + dda.t > self.max_path {
+                            return Hit::Lost;
+                        }
+                        match self.wrap(e, axis, s) {
                             Some(q) => {
+                                ph.path += dda.t;
+                                // Unwrapped position = wrapped + shift (LiDAR geometry).
+                                ph.shift += e - q;
                                 ph.p = q;
                                 ph.skip_facet = None;
                                 continue 'restart;
@@ -744,11 +835,22 @@ impl Ctx<'_> {
         }
     }
 
-    /// Transmittance per band from `p` along the upward view `v` to the top of the scene
-    /// (turbid and fluid extinction, facets opaque unless directly transmitting).
-    fn transmittance(&self, p: DVec3, v: usize, skip: Option<u32>, t_out: &mut [f64]) {
+    /// Transmittance per band from `p` along `d` to the top of the scene or over `max_dist`
+    /// metres (turbid and fluid extinction, facets opaque unless directly transmitting);
+    /// `g_dir` holds G(d) per turbid material.
+    #[allow(clippy::too_many_arguments)]
+    fn transmittance(
+        &self,
+        p: DVec3,
+        d: DVec3,
+        max_dist: f64,
+        g_dir: &[f64],
+        skip: Option<u32>,
+        t_out: &mut [f64],
+    ) {
         let spec = self.inp.spec;
-        let d = self.inp.views[v];
+        let receiver = self.receiver.is_some();
+        let mut travelled = 0.0;
         t_out.iter_mut().for_each(|t| *t = 1.0);
         let mut tau_v = 0.0; // band-independent optical depth (vegetation)
         let mut p = p;
@@ -763,6 +865,11 @@ impl Ctx<'_> {
                 let c = dda.index();
                 let t0 = dda.t;
                 let mut t1 = dda.t_exit();
+                // Receiver inside the grid (terrestrial LiDAR): stop at its distance.
+                let reached = travelled + t1 >= max_dist;
+                if reached {
+                    t1 = (max_dist - travelled).max(t0);
+                }
                 let fhit = if self.inp.grid.facet_start[c] < self.inp.grid.facet_start[c + 1] {
                     self.facet_hit(c, dda.point(0.0), d, t0, t1, skip)
                 } else {
@@ -776,7 +883,7 @@ impl Ctx<'_> {
                     for e in self.inp.grid.turbid_of(c) {
                         let tm = self.tur_mat[e.material as usize];
                         if tm != u32::MAX {
-                            tau_v += self.g_view[tm as usize][v] * e.density as f64 * ell;
+                            tau_v += g_dir[tm as usize] * e.density as f64 * ell;
                         }
                     }
                     if let Some(f) = self.fluid_of(c) {
@@ -799,6 +906,7 @@ impl Ctx<'_> {
                             for (t, td) in t_out.iter_mut().zip(t_dir) {
                                 *t *= if *td > 0.0 { td.powf(1.0 / mu) } else { 0.0 };
                             }
+                            travelled += th;
                             p = dda.point(th);
                             skip = Some(f);
                             continue 'restart;
@@ -809,6 +917,9 @@ impl Ctx<'_> {
                         }
                     }
                 }
+                if reached {
+                    break 'restart;
+                }
                 match dda.advance() {
                     Exit::Inside => {}
                     Exit::Top => break 'restart,
@@ -818,12 +929,18 @@ impl Ctx<'_> {
                     }
                     Exit::Side(axis, s) => {
                         crossings += 1;
+                        if spec.boundary == BoundaryMode::Isolated && receiver {
+                            // Outside an isolated scene there is nothing: the return reaches
+                            // the receiver.
+                            break 'restart;
+                        }
                         if spec.boundary == BoundaryMode::Isolated
                             || crossings > self.inp.params.max_crossings
                         {
                             t_out.iter_mut().for_each(|t| *t = 0.0);
                             return;
                         }
+                        travelled += dda.t;
                         match self.wrap(dda.point(dda.t), axis, s) {
                             Some(q) => {
                                 p = q;
@@ -840,14 +957,17 @@ impl Ctx<'_> {
         t_out.iter_mut().for_each(|t| *t *= tv);
     }
 
-    /// Forced (expected-value) peel-off of fluid scattering along the whole coming flight
-    /// (Ray-Carlo K points per atmospheric-cell crossing, DART 5 paper §4): for every fluid
-    /// segment `[t0, t0+ℓ]` reached with per-band optical depth τ_b, K points u ~
-    /// `k_m e^{−k_m u}/(1 − e^{−k_m ℓ})` (k_m = vegetation + largest fluid extinction) each
-    /// contribute `w_b e^{−τ_b} σ_b e^{−(k_v+σ_b)u}/(K q(u)) · ω_b P(Θ)/(4π) · T_b(→top)`, whose
-    /// expectation is the fluid-collision peel-off of the flight. The walk stops at the first
-    /// facet, the ground, the top, an isolated side or when min_b τ_b > 30 (e^{−30} ≈ 1e-13).
-    fn forced_fluid_peel(
+    /// Forced (expected-value) peel-off along the whole coming flight (Ray-Carlo K points per
+    /// crossing of a cell, DART 5 paper §4). Fluid cells (and, in LiDAR receiver mode, turbid
+    /// vegetation too): for every segment `[t0, t0+ℓ]` reached with per-band optical depth τ_b,
+    /// K points u drawn from a truncated exponential `q(u)` each contribute
+    /// `w_b e^{−τ_b} σ_b e^{−(k_v+σ_b)u}/(K q(u)) · f_b(Ω→receiver or view) · T_b`, whose
+    /// expectation is the collision peel-off of the flight (which is then not done at the
+    /// actual collisions of those media). Fluids: `f = ω P(Θ)/(4π)`; vegetation: the leaf
+    /// intensity `Γ/(πG)` (spherical closed form, else the one-leaf estimate with a sampled
+    /// normal). The walk stops at the first facet, the ground, the top, an isolated side or when
+    /// min_b τ_b > 30 (e^{−30} ≈ 1e-13).
+    fn forced_peel(
         &self,
         ph: &Photon,
         g_cur: &[f64],
@@ -858,11 +978,16 @@ impl Ctx<'_> {
     ) {
         let spec = self.inp.spec;
         let nb = self.nb;
-        let k_pts = self.inp.params.fluid_peel_points;
+        let receiver = self.receiver;
+        let k_pts = self.inp.params.fluid_peel_points.max(1);
         let mut tau: Vec<f64> = vec![0.0; nb];
         let mut p = ph.p;
         let mut skip = ph.skip_facet;
         let mut crossings = 0u32;
+        let mut travelled = 0.0;
+        let mut shift = ph.shift;
+        let d_in = ph.d;
+        let mut fac = vec![0.0; nb];
         'restart: loop {
             let Some(mut dda) = Dda::new(spec, p, ph.d) else {
                 return;
@@ -881,40 +1006,126 @@ impl Ctx<'_> {
                 }
                 let ell = t1 - t0;
                 let kv = self.k_veg(c, g_cur);
-                if let Some(f) = self.fluid_of(c)
-                    && ell > 0.0
-                {
-                    let km = kv + f.sigma_e.iter().cloned().fold(0.0, f64::max);
-                    let norm = -(-km * ell).exp_m1(); // 1 − e^{−k_m ℓ}
-                    if km > 0.0 && norm > 0.0 {
-                        for _ in 0..k_pts {
-                            let u = -(1.0 - rng.next_f64() * norm).ln() / km;
-                            let q = km * (-km * u).exp() / norm;
-                            let at = dda.point(t0 + u);
-                            let d_in = ph.d;
-                            let fac: Vec<f64> = (0..nb)
-                                .map(|b| {
-                                    (-tau[b]).exp()
+                let fl = self.fluid_of(c);
+                let sig = |b: usize| fl.map_or(0.0, |f| f.sigma_e[b]);
+                // Emits one forced point: `fac` holds the per-band weight factors.
+                let emit = |at: DVec3,
+                            u: f64,
+                            fac: &[f64],
+                            phase: &mut dyn FnMut(DVec3, &mut [f64]) -> bool,
+                            out: &mut BatchOut,
+                            scratch: &mut [f64],
+                            tr: &mut [f64]| {
+                    let mut g = |_: usize, ov: DVec3, s: &mut [f64]| {
+                        if !phase(ov, s) {
+                            return false;
+                        }
+                        for b in 0..nb {
+                            s[b] *= fac[b];
+                        }
+                        true
+                    };
+                    match &receiver {
+                        Some(rx) => self.peel_receiver(
+                            rx,
+                            ph,
+                            (at, shift, ph.path + travelled + t0 + u),
+                            None,
+                            out,
+                            scratch,
+                            tr,
+                            &mut g,
+                        ),
+                        None => self.peel(ph, at, None, false, out, scratch, tr, &mut g),
+                    }
+                };
+                if ell > 0.0 {
+                    if let Some(f) = fl {
+                        let km = kv + f.sigma_e.iter().cloned().fold(0.0, f64::max);
+                        let norm = -(-km * ell).exp_m1(); // 1 − e^{−k_m ℓ}
+                        if km > 0.0 && norm > 0.0 {
+                            for _ in 0..k_pts {
+                                let u = -(1.0 - rng.next_f64() * norm).ln() / km;
+                                let q = km * (-km * u).exp() / norm;
+                                for (b, x) in fac.iter_mut().enumerate() {
+                                    *x = (-tau[b]).exp()
                                         * f.sigma_e[b]
                                         * (-(kv + f.sigma_e[b]) * u).exp()
-                                        / (q * k_pts as f64)
-                                })
-                                .collect();
-                            self.peel(ph, at, None, false, out, scratch, tr, |v, s| {
-                                let pv = f.phase.eval_dirs(d_in, self.inp.views[v]) / (4.0 * PI);
-                                for b in 0..nb {
-                                    s[b] = fac[b] * f.ssa[b] * pv;
+                                        / (q * k_pts as f64);
                                 }
-                                true
-                            });
+                                let mut phase = |ov: DVec3, s: &mut [f64]| {
+                                    let pv = f.phase.eval_dirs(d_in, ov) / (4.0 * PI);
+                                    for b in 0..nb {
+                                        s[b] = f.ssa[b] * pv;
+                                    }
+                                    true
+                                };
+                                emit(dda.point(t0 + u), u, &fac, &mut phase, out, scratch, tr);
+                            }
                         }
                     }
-                    for b in 0..nb {
-                        tau[b] += f.sigma_e[b] * ell;
+                    if receiver.is_some() && kv > 0.0 {
+                        let norm = -(-kv * ell).exp_m1();
+                        for _ in 0..k_pts {
+                            let u = -(1.0 - rng.next_f64() * norm).ln() / kv;
+                            // Density kv e^{−kv u}/norm; per-band weight e^{−τ_b − σ_b u}·norm/K.
+                            for (b, x) in fac.iter_mut().enumerate() {
+                                *x = (-tau[b] - sig(b) * u).exp() * norm / k_pts as f64;
+                            }
+                            // Material in proportion to its extinction.
+                            let mut r = rng.next_f64() * kv;
+                            let mut mid = None;
+                            for e in self.inp.grid.turbid_of(c) {
+                                let tm = self.tur_mat[e.material as usize];
+                                if tm == u32::MAX {
+                                    continue;
+                                }
+                                let k = g_cur[tm as usize] * e.density as f64;
+                                mid = Some((e.material as usize, tm as usize));
+                                if r < k {
+                                    break;
+                                }
+                                r -= k;
+                            }
+                            let Some((mid, tm)) = mid else { continue };
+                            let PhotonOptics::Turbid {
+                                sampler,
+                                kernel,
+                                rho,
+                                tau: tl,
+                                ..
+                            } = &self.inp.optics[mid]
+                            else {
+                                continue;
+                            };
+                            let g_in = g_cur[tm].max(1e-12);
+                            let closed = kernel.is_closed_form();
+                            let n = if closed {
+                                DVec3::Z
+                            } else {
+                                sampler.sample_normal(d_in, rng)
+                            };
+                            let mut phase = |ov: DVec3, s: &mut [f64]| {
+                                if closed {
+                                    let (gr, gt) = kernel.gamma_components(d_in, ov);
+                                    for b in 0..nb {
+                                        s[b] = (rho[b] * gr + tl[b] * gt) / (PI * g_in);
+                                    }
+                                } else {
+                                    let cz = ov.dot(n);
+                                    let fl = if cz > 0.0 { rho } else { tl };
+                                    for b in 0..nb {
+                                        s[b] = fl[b] * cz.abs() / PI;
+                                    }
+                                }
+                                s.iter().any(|&x| x > 0.0)
+                            };
+                            emit(dda.point(t0 + u), u, &fac, &mut phase, out, scratch, tr);
+                        }
                     }
-                }
-                for t in tau.iter_mut() {
-                    *t += kv * ell;
+                    for (b, t) in tau.iter_mut().enumerate() {
+                        *t += (kv + sig(b)) * ell;
+                    }
                 }
                 if fhit.is_some() || tau.iter().cloned().fold(f64::INFINITY, f64::min) > 30.0 {
                     return;
@@ -926,11 +1137,15 @@ impl Ctx<'_> {
                         crossings += 1;
                         if spec.boundary == BoundaryMode::Isolated
                             || crossings > self.inp.params.max_crossings
+                            || ph.path + travelled > self.max_path
                         {
                             return;
                         }
-                        match self.wrap(dda.point(dda.t), axis, s) {
+                        let e = dda.point(dda.t);
+                        match self.wrap(e, axis, s) {
                             Some(q) => {
+                                travelled += dda.t;
+                                shift += e - q;
                                 p = q;
                                 skip = None;
                                 continue 'restart;
@@ -940,6 +1155,51 @@ impl Ctx<'_> {
                     }
                 }
             }
+        }
+    }
+
+    /// Receiver-mode peel-off (Ray-Carlo eqs. 1–2 with the standard local estimate, physics.md
+    /// §9.2): from the event at `p` (wrapped; unwrapped = p + shift) toward the receiver at
+    /// distance r, energy `w · f(u) · T(p → receiver) · A |u·axis| / r²` (f = intensity per unit
+    /// weight, sr⁻¹), recorded at path length `path + r` with its scattering order; only events
+    /// inside the receiver's field of view count.
+    #[allow(clippy::too_many_arguments)]
+    fn peel_receiver(
+        &self,
+        rx: &Receiver,
+        ph: &Photon,
+        (p, shift, path): (DVec3, DVec3, f64),
+        skip: Option<u32>,
+        out: &mut BatchOut,
+        scratch: &mut [f64],
+        tr: &mut [f64],
+        mut f: impl FnMut(usize, DVec3, &mut [f64]) -> bool,
+    ) {
+        let m = p + shift;
+        let mut u = rx.position - m;
+        let r = u.length();
+        if r <= 0.0 {
+            return;
+        }
+        u /= r;
+        let cos_rx = -u.dot(rx.axis);
+        if cos_rx < rx.cos_fov {
+            return;
+        }
+        if !f(usize::MAX, u, scratch) {
+            return;
+        }
+        let g: Vec<f64> = (0..self.tur_ids.len())
+            .map(|tm| self.g_of(tm, u.z))
+            .collect();
+        self.transmittance(p, u, r, &g, skip, tr);
+        if tr.iter().all(|&t| t <= 0.0) {
+            return;
+        }
+        let solid = rx.aperture_m2 * cos_rx / (r * r);
+        let e = ph.w[0] * scratch[0] * tr[0] * solid;
+        if let Some(wave) = out.wave.as_mut() {
+            wave.add(path + r, e, ph.order + 1);
         }
     }
 
@@ -955,14 +1215,19 @@ impl Ctx<'_> {
         out: &mut BatchOut,
         scratch: &mut [f64],
         tr: &mut [f64],
-        mut f: impl FnMut(usize, &mut [f64]) -> bool,
+        mut f: impl FnMut(usize, DVec3, &mut [f64]) -> bool,
     ) {
+        if let Some(rx) = &self.receiver {
+            self.peel_receiver(rx, ph, (p, ph.shift, ph.path), skip, out, scratch, tr, f);
+            return;
+        }
         for v in 0..self.inp.views.len() {
             // Transmittance first: deep in dense canopies it underflows and the (costly for
             // non-spherical LADs) phase value is not needed. Contributions below 1e-30 of the
             // photon weight are dropped (relative bias < 1e-30).
-            self.transmittance(p, v, skip, tr);
-            if tr.iter().all(|&t| t < 1e-30) || !f(v, scratch) {
+            let d = self.inp.views[v];
+            self.transmittance(p, d, f64::INFINITY, &self.g_view[v], skip, tr);
+            if tr.iter().all(|&t| t < 1e-30) || !f(v, d, scratch) {
                 continue;
             }
             let base = self.sum.view(v, ph.off);
@@ -1053,9 +1318,13 @@ pub fn run(inp: &PhotonInput) -> PhotonResult {
         g_view: Vec::new(),
         omega: tiling.iter().map(|d| d.omega).collect(),
         view_sector: inp.views.iter().map(|v| inp.dirs.find_sector(*v)).collect(),
+        receiver: None,
+        max_path: f64::INFINITY,
     };
-    ctx.g_view = (0..ctx.tur_ids.len())
-        .map(|tm| inp.views.iter().map(|v| ctx.g_of(tm, v.z)).collect())
+    ctx.g_view = inp
+        .views
+        .iter()
+        .map(|v| (0..ctx.tur_ids.len()).map(|tm| ctx.g_of(tm, v.z)).collect())
         .collect();
     let area = size.0 * size.1;
     let mut source = vec![0.0; w];
@@ -1165,6 +1434,7 @@ fn run_batch(ctx: &Ctx, batch: u64, n: u64, source: &[f64]) -> BatchOut {
         roulette: vec![0.0; w],
         events: 0,
         crossings: 0,
+        wave: None,
     };
     let mut rng = crate::scene::spawn::stream(inp.params.seed, PHOTON_STREAM, batch);
     let has_sky = w > nb;
@@ -1184,6 +1454,8 @@ fn run_batch(ctx: &Ctx, batch: u64, n: u64, source: &[f64]) -> BatchOut {
     let mut ph = Photon {
         p: DVec3::ZERO,
         d: DVec3::ZERO,
+        path: 0.0,
+        shift: DVec3::ZERO,
         di: 0,
         w: vec![0.0; nb],
         w0: 0.0,
@@ -1289,8 +1561,11 @@ fn trace_photon(
         for (tm, g) in g_cur.iter_mut().enumerate() {
             *g = ctx.g_of(tm, ph.d.z);
         }
-        if inp.fluid.is_some() && inp.params.fluid_peel_points > 0 && !inp.views.is_empty() {
-            ctx.forced_fluid_peel(ph, g_cur, rng, out, scratch, tr);
+        // Forced peel-off: fluids (K > 0) toward the views, and in LiDAR receiver mode turbid
+        // vegetation and fluids toward the receiver.
+        let forced_fluid = inp.fluid.is_some() && inp.params.fluid_peel_points > 0;
+        if ctx.receiver.is_some() || (forced_fluid && !inp.views.is_empty()) {
+            ctx.forced_peel(ph, g_cur, rng, out, scratch, tr);
         }
         let hit = ctx.fly(ph, g_cur, rng, out);
         match hit {
@@ -1319,9 +1594,9 @@ fn trace_photon(
                 // Peel-off: intensity ω P(Θ)/(4π) per unit weight (unless the K-point forced
                 // estimate along the flight already accounted for fluid collisions).
                 let d_in = ph.d;
-                if inp.params.fluid_peel_points == 0 {
-                    ctx.peel(ph, p, None, false, out, scratch, tr, |v, s| {
-                        let pv = f.phase.eval_dirs(d_in, inp.views[v]) / (4.0 * PI);
+                if inp.params.fluid_peel_points == 0 && ctx.receiver.is_none() {
+                    ctx.peel(ph, p, None, false, out, scratch, tr, |_, ov, s| {
+                        let pv = f.phase.eval_dirs(d_in, ov) / (4.0 * PI);
                         for b in 0..nb {
                             s[b] = f.ssa[b] * pv;
                         }
@@ -1393,8 +1668,11 @@ fn trace_photon(
                     Some(rows) if discrete => {
                         let row = ph.di.min(rows.samplers.len() - 1);
                         // Peel-off with the containing sector's tabulated value: T_{i,m}/ΔΩ_m.
-                        ctx.peel(ph, p, None, false, out, scratch, tr, |v, s| {
-                            let m = ctx.view_sector[v];
+                        ctx.peel(ph, p, None, false, out, scratch, tr, |v, ov, s| {
+                            let m = match ctx.view_sector.get(v) {
+                                Some(&m) => m,
+                                None => inp.dirs.find_sector(ov),
+                            };
                             let dom = inp.dirs.tiling()[m].solid_angle_sr;
                             for b in 0..nb {
                                 s[b] = rows.tables[b].get(row, m) as f64 / dom;
@@ -1441,8 +1719,12 @@ fn trace_photon(
                         // binned evaluation costs ~10 µs and errs by up to 0.5 % at 180 bins).
                         let closed = kernel.is_closed_form();
                         let n = ev.normal;
-                        ctx.peel(ph, p, None, false, out, scratch, tr, |v, s| {
-                            let ov = inp.views[v];
+                        // (LiDAR receiver mode: done by the forced estimate along the flight.)
+                        let forced = ctx.receiver.is_some();
+                        ctx.peel(ph, p, None, false, out, scratch, tr, |_, ov, s| {
+                            if forced {
+                                return false;
+                            }
                             if closed {
                                 let (gr, gt) = kernel.gamma_components(d_in, ov);
                                 let norm = 1.0 / (PI * g_in);
@@ -1510,15 +1792,24 @@ fn trace_photon(
                             }
                         }
                         // Peel-off: reflected ρ|n·v|/π on the incidence side, τ|n·v|/π beyond.
-                        ctx.peel(ph, p, Some(f), is_ground_facet, out, scratch, tr, |v, s| {
-                            let c = n_in.dot(inp.views[v]);
-                            let mut any = false;
-                            for b in 0..nbx {
-                                s[b] = if c > 0.0 { pr[b] } else { pt[b] } * c.abs() / PI;
-                                any |= s[b] > 0.0;
-                            }
-                            any
-                        });
+                        ctx.peel(
+                            ph,
+                            p,
+                            Some(f),
+                            is_ground_facet,
+                            out,
+                            scratch,
+                            tr,
+                            |_, ov, s| {
+                                let c = n_in.dot(ov);
+                                let mut any = false;
+                                for b in 0..nbx {
+                                    s[b] = if c > 0.0 { pr[b] } else { pt[b] } * c.abs() / PI;
+                                    any |= s[b] > 0.0;
+                                }
+                                any
+                            },
+                        );
                         let k =
                             choose(&mut ph.w[..nbx], &[&pd[..nbx], &pr[..nbx], &pt[..nbx]], rng);
                         match k {
@@ -1589,8 +1880,8 @@ fn trace_photon(
                 let gid = inp.flat_ground.expect("flat ground") as usize;
                 match &inp.optics[gid] {
                     PhotonOptics::Lambert { r, .. } => {
-                        ctx.peel(ph, p, None, true, out, scratch, tr, |v, s| {
-                            let c = inp.views[v].z;
+                        ctx.peel(ph, p, None, true, out, scratch, tr, |_, ov, s| {
+                            let c = ov.z;
                             for b in 0..nb {
                                 s[b] = r[b] * c / PI;
                             }
@@ -1632,6 +1923,12 @@ fn trace_photon(
             }
         }
         ph.order += 1;
+        if ph.path > ctx.max_path {
+            for b in 0..nb {
+                out.lost[off + b] += ph.w[b];
+            }
+            return;
+        }
         let wmax = ph.w.iter().cloned().fold(0.0, f64::max);
         if wmax <= 0.0 || !wmax.is_finite() {
             return;
@@ -1689,13 +1986,13 @@ fn brdf_event(
         out,
         scratch,
         tr,
-        |v, s| {
-            let c = n_in.dot(inp.views[v]);
+        |_, ov, s| {
+            let c = n_in.dot(ov);
             if c <= 0.0 {
                 return false;
             }
             for b in 0..nb {
-                s[b] = models[b].brf(n_in, d_in, inp.views[v]) * c / PI;
+                s[b] = models[b].brf(n_in, d_in, ov) * c / PI;
             }
             true
         },
@@ -1717,5 +2014,235 @@ fn brdf_event(
     if inp.params.sampler.is_discrete() {
         ph.di = inp.dirs.find_sector(ph.d);
         ph.d = ctx.omega[ph.di];
+    }
+}
+
+// ---------------------------------------------------------------------------------------------
+// LiDAR (DART 5 paper §4, physics.md §9): pulses of photons from an emitter, peel-off toward
+// the monostatic receiver, path-length binning.
+// ---------------------------------------------------------------------------------------------
+
+/// Photon stream purpose tag of LiDAR pulses.
+pub const LIDAR_STREAM: u64 = 0x4c49_4441_52; // "LIDAR"
+
+/// One LiDAR pulse (its receiver is at the emitter: monostatic).
+#[derive(Debug, Clone, PartialEq)]
+pub struct Pulse {
+    /// Pulse ID (also selects its random stream).
+    pub id: u64,
+    /// Emitter and receiver position (unwrapped scene coordinates), m.
+    pub emitter: DVec3,
+    /// Beam axis (unit propagation direction).
+    pub axis: DVec3,
+}
+
+/// Beam and receiver shared by the pulses of one instrument.
+#[derive(Debug, Clone)]
+pub struct Beam {
+    /// Transverse profile sampler at `reference_range_m` (offsets in metres).
+    pub footprint: crate::lidar::pulse::FootprintSampler,
+    /// Range at which the footprint offsets are drawn, m.
+    pub reference_range_m: f64,
+    /// Cosine of the receiver FOV half-angle.
+    pub cos_fov: f64,
+    /// Receiver aperture, m².
+    pub aperture_m2: f64,
+    /// Pulse energy, J.
+    pub energy_j: f64,
+    /// Photons per pulse.
+    pub photons: u32,
+    /// Path-length gate `[min, max]`, m (two-way).
+    pub gate_m: (f64, f64),
+    /// Digitiser bin, ns.
+    pub bin_ns: f64,
+}
+
+/// Result of one pulse.
+#[derive(Debug, Clone)]
+pub struct PulseResult {
+    /// Pulse ID.
+    pub id: u64,
+    /// Received energy per bin (total and first order), before pulse-shape convolution, J.
+    pub waveform: crate::lidar::waveform::Waveform,
+    /// Received energy outside the gate, J.
+    pub out_of_gate_j: f64,
+    /// Emitted energy that missed the scene (isolated scenes), J.
+    pub missed_j: f64,
+}
+
+/// Runs LiDAR pulses. `inp` must hold single-band optics (the laser's band) and no views; the
+/// pulses run in parallel, each with its own stream (seed, pulse ID) and sequential photons, so
+/// waveforms are bit-identical on any number of threads.
+pub fn run_lidar(
+    inp: &PhotonInput,
+    beam: &Beam,
+    pulses: &[Pulse],
+) -> Result<Vec<PulseResult>, String> {
+    let spec = inp.spec;
+    let size = (
+        spec.n[0] as f64 * spec.cell.x,
+        spec.n[1] as f64 * spec.cell.y,
+    );
+    let mut tur_mat = vec![u32::MAX; inp.optics.len()];
+    let mut tur_ids = Vec::new();
+    for (i, o) in inp.optics.iter().enumerate() {
+        if matches!(o, PhotonOptics::Turbid { .. }) {
+            tur_mat[i] = tur_ids.len() as u32;
+            tur_ids.push(i as u32);
+        }
+    }
+    let tiling = inp.dirs.tiling();
+    let base = Ctx {
+        inp,
+        nb: 1,
+        w: 1,
+        sum: Summary {
+            w: 1,
+            n_dirs: tiling.len(),
+            n_views: 0,
+        },
+        size,
+        tur_mat,
+        tur_ids,
+        g_view: Vec::new(),
+        omega: tiling.iter().map(|d| d.omega).collect(),
+        view_sector: Vec::new(),
+        receiver: None,
+        max_path: f64::INFINITY,
+    };
+    // Validate the binner once.
+    crate::lidar::waveform::WaveformBinner::new(beam.gate_m.0, beam.gate_m.1, beam.bin_ns)
+        .map_err(|e| e.to_string())?;
+    Ok(pulses
+        .par_iter()
+        .map(|pl| run_pulse(&base, beam, pl))
+        .collect())
+}
+
+fn run_pulse(base: &Ctx, beam: &Beam, pl: &Pulse) -> PulseResult {
+    let inp = base.inp;
+    let spec = inp.spec;
+    let ctx = Ctx {
+        receiver: Some(Receiver {
+            position: pl.emitter,
+            axis: pl.axis,
+            cos_fov: beam.cos_fov,
+            aperture_m2: beam.aperture_m2,
+        }),
+        inp,
+        nb: 1,
+        w: 1,
+        sum: base.sum.clone(),
+        size: base.size,
+        tur_mat: base.tur_mat.clone(),
+        tur_ids: base.tur_ids.clone(),
+        g_view: Vec::new(),
+        omega: base.omega.clone(),
+        view_sector: Vec::new(),
+        max_path: beam.gate_m.1,
+    };
+    let binner =
+        crate::lidar::waveform::WaveformBinner::new(beam.gate_m.0, beam.gate_m.1, beam.bin_ns)
+            .expect("validated gate");
+    let mut out = BatchOut {
+        summary: vec![0.0; ctx.sum.len()],
+        abs_tur: Acc::sink(1),
+        int_tur: Acc::sink(1),
+        abs_fac: Acc::sink(1),
+        int_fac: Acc::sink(1),
+        abs_gnd: Acc::sink(1),
+        int_gnd: Acc::sink(1),
+        abs_fluid: HashMap::new(),
+        lost: vec![0.0],
+        roulette: vec![0.0],
+        events: 0,
+        crossings: 0,
+        wave: Some(binner),
+    };
+    let mut rng = crate::scene::spawn::stream(inp.params.seed, LIDAR_STREAM, pl.id);
+    let (e1, e2) = crate::photon::sampling::orthonormal_basis(pl.axis);
+    let w0 = beam.energy_j / beam.photons.max(1) as f64;
+    let mut missed = 0.0;
+    let mut g_cur = vec![0.0; ctx.tur_ids.len()];
+    let mut scratch = vec![0.0; 1];
+    let mut tr = vec![0.0; 1];
+    let top = spec.top();
+    let inside = |q: DVec3| {
+        (0..3).all(|a| {
+            q[a] >= spec.origin[a] && q[a] <= spec.origin[a] + spec.n[a] as f64 * spec.cell[a]
+        })
+    };
+    for _ in 0..beam.photons {
+        let [dx, dy] = beam
+            .footprint
+            .sample_footprint_point(rng.next_f64(), rng.next_f64());
+        let d = (pl.axis * beam.reference_range_m + e1 * dx + e2 * dy).normalize();
+        // Entry point: the emitter itself inside the grid (terrestrial), else the top plane.
+        let (start, s) = if inside(pl.emitter) {
+            (pl.emitter, 0.0)
+        } else if d.z < 0.0 && pl.emitter.z >= top {
+            let s = (pl.emitter.z - top) / -d.z;
+            (pl.emitter + d * s, s)
+        } else {
+            missed += w0;
+            continue;
+        };
+        let mut q = start;
+        let mut shift = DVec3::ZERO;
+        if spec.boundary != BoundaryMode::Isolated {
+            for a in 0..2 {
+                let len = if a == 0 { ctx.size.0 } else { ctx.size.1 };
+                let rel = (q[a] - spec.origin[a]).rem_euclid(len);
+                let wrapped = spec.origin[a] + rel;
+                shift[a] = q[a] - wrapped;
+                q[a] = wrapped;
+            }
+            // Continuous topography: a point k tiles along +x maps to the base tile k·offset
+            // lower (as `wrap` does when a ray leaves through +x).
+            let kx = (shift.x / ctx.size.0).round();
+            let ky = (shift.y / ctx.size.1).round();
+            let dz = kx * spec.topography_offset.0 + ky * spec.topography_offset.1;
+            q.z -= dz;
+            shift.z += dz;
+        } else if !inside(DVec3::new(q.x, q.y, top.min(q.z))) {
+            missed += w0;
+            continue;
+        }
+        let mut ph = Photon {
+            p: q,
+            d,
+            path: s,
+            shift,
+            di: if inp.params.sampler.is_discrete() {
+                inp.dirs.find_sector(d)
+            } else {
+                0
+            },
+            w: vec![w0],
+            w0,
+            off: 0,
+            order: 0,
+            skip_facet: None,
+        };
+        if inp.params.sampler.is_discrete() {
+            ph.d = ctx.omega[ph.di];
+        }
+        trace_photon(
+            &ctx,
+            &mut ph,
+            &mut rng,
+            &mut out,
+            &mut g_cur,
+            &mut scratch,
+            &mut tr,
+        );
+    }
+    let binner = out.wave.take().expect("binner");
+    let l = binner.losses();
+    PulseResult {
+        id: pl.id,
+        waveform: binner.waveform(),
+        out_of_gate_j: l.before_j + l.after_j,
+        missed_j: missed,
     }
 }

@@ -60,6 +60,52 @@ pub struct Material {
     pub kind: MaterialKind,
 }
 
+impl MaterialKind {
+    /// Per-band BRDF models of an RPV/Hapke material (physics.md §5.2–5.3), `None` for other
+    /// kinds.
+    pub fn brdf_models(&self, nb: usize) -> Option<Vec<crate::physics::brdf::Brdf>> {
+        use crate::physics::brdf::Brdf;
+        use crate::scene::desc::OpticsDesc;
+        match self {
+            MaterialKind::Rpv(OpticsDesc::Rpv {
+                rho0,
+                k,
+                theta,
+                rho_c,
+            }) => Some(
+                (0..nb)
+                    .map(|b| Brdf::Rpv {
+                        rho0: rho0[b],
+                        k: k[b],
+                        theta: theta[b],
+                        rho_c: rho_c.as_ref().map(|r| r[b]),
+                    })
+                    .collect(),
+            ),
+            MaterialKind::Hapke(OpticsDesc::Hapke {
+                w,
+                b,
+                c,
+                roughness_deg,
+                b0,
+                h,
+            }) => Some(
+                (0..nb)
+                    .map(|k| Brdf::Hapke {
+                        w: w[k],
+                        b: b[k],
+                        c: c[k],
+                        theta_bar_deg: *roughness_deg,
+                        b0: *b0,
+                        h: *h,
+                    })
+                    .collect(),
+            ),
+            _ => None,
+        }
+    }
+}
+
 impl Material {
     /// True for turbid vegetation.
     pub fn is_turbid(&self) -> bool {

@@ -3,6 +3,7 @@
 pub mod directions;
 pub mod facets;
 pub mod grid;
+pub mod lidar;
 pub mod maket_report;
 pub mod materials;
 pub mod phase_tables;

@@ -40,9 +40,10 @@ pub struct SceneDesc {
     /// Reserved for sensors (not supported yet: rejected when present).
     #[serde(default, skip_serializing)]
     pub sensors: Option<serde::de::IgnoredAny>,
-    /// Reserved for LiDAR instruments (not supported yet: rejected when present).
-    #[serde(default, skip_serializing)]
-    pub lidars: Option<serde::de::IgnoredAny>,
+    /// LiDAR instruments (Photon stage, DART 5 paper §4): waveforms, returns as LAS point
+    /// clouds, photon counting.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub lidars: Option<Vec<LidarDesc>>,
     /// Discrete directions (Direction stage): count, exact view directions, oversampled
     /// regions, fictive directions, angular sectors. Default: 100 directions (DART default).
     #[serde(default, skip_serializing_if = "Option::is_none")]
@@ -779,4 +780,174 @@ pub struct MeshDesc {
 
 fn one() -> f64 {
     1.0
+}
+
+fn default_edge_intensity() -> f64 {
+    0.368
+}
+fn default_pulse_energy() -> f64 {
+    1.0
+}
+fn default_fwhm_ns() -> f64 {
+    4.0
+}
+fn default_aperture() -> f64 {
+    0.1
+}
+fn default_bin_ns() -> f64 {
+    1.0
+}
+fn default_lidar_photons() -> u32 {
+    1000
+}
+fn default_lidar_order() -> u32 {
+    100
+}
+fn default_gate_m() -> f64 {
+    10.0
+}
+
+/// A LiDAR instrument (monostatic: receiver at the emitter). Defaults follow DART's XSD where
+/// it has one (edge intensity 0.368, pulse energy 1 J, aperture 0.1 m², 1 ns bins).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct LidarDesc {
+    /// Name (products go to `DIR/lidar/<name>/`).
+    pub name: String,
+    /// The scene band whose optical properties the laser sees.
+    pub band: String,
+    /// Where the instrument is and where its pulses go.
+    pub platform: LidarPlatform,
+    /// Beam footprint radius at the reference range (airborne: at z = 0; terrestrial: 1 m), m,
+    /// where the Gaussian profile has fallen to `edge_intensity`.
+    #[serde(default)]
+    pub footprint_radius_m: Option<f64>,
+    /// Alternatively the full beam divergence, mrad (radius = range · tan(divergence/2)).
+    #[serde(default)]
+    pub divergence_mrad: Option<f64>,
+    /// Relative intensity at the footprint edge (DART `gaussian_sigma_illu`, default 0.368).
+    #[serde(default = "default_edge_intensity")]
+    pub edge_intensity: f64,
+    /// Receiver field of view: radius at the reference range, m (default: 3 × the footprint
+    /// radius, which sees the whole truncated footprint).
+    #[serde(default)]
+    pub fov_radius_m: Option<f64>,
+    /// Pulse energy, J (results scale linearly; default 1).
+    #[serde(default = "default_pulse_energy")]
+    pub pulse_energy_j: f64,
+    /// Gaussian pulse FWHM, ns (default 4).
+    #[serde(default = "default_fwhm_ns")]
+    pub pulse_fwhm_ns: f64,
+    /// Receiver aperture area, m² (DART `sensorArea`, default 0.1).
+    #[serde(default = "default_aperture")]
+    pub aperture_m2: f64,
+    /// Digitiser bin, ns (default 1).
+    #[serde(default = "default_bin_ns")]
+    pub bin_ns: f64,
+    /// Photons per pulse (default 1000).
+    #[serde(default = "default_lidar_photons")]
+    pub photons_per_pulse: u32,
+    /// Scattering orders traced (default 100).
+    #[serde(default = "default_lidar_order")]
+    pub max_order: u32,
+    /// Range recorded beyond the farthest scene point (two-way gate margin), m (default 10).
+    #[serde(default = "default_gate_m")]
+    pub gate_margin_m: f64,
+    /// Photon-counting detector (ICESat-2-like); absent: waveform LiDAR.
+    #[serde(default)]
+    pub photon_counting: Option<PhotonCountingDesc>,
+}
+
+/// Platform and pulse pattern of a LiDAR.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub enum LidarPlatform {
+    /// Airborne or spaceborne: the sensor flies at `altitude_m` (above z = 0) and looks along
+    /// the view direction (zenith/azimuth of the ground→sensor direction); each pulse is aimed
+    /// at a footprint centre on the plane z = 0.
+    Airborne {
+        /// Sensor altitude above z = 0, m (GLAS: 600 000).
+        altitude_m: f64,
+        /// View zenith (ground→sensor), degrees (0: nadir).
+        #[serde(default)]
+        view_zenith_deg: f64,
+        /// View azimuth (ground→sensor), degrees.
+        #[serde(default)]
+        view_azimuth_deg: f64,
+        /// Footprint centres.
+        pulses: PulsePattern,
+    },
+    /// Terrestrial scanner inside the scene: an angular grid of pulse directions.
+    Terrestrial {
+        /// Scanner position, m.
+        position_m: (f64, f64, f64),
+        /// Zenith angles of the pulse directions (ground→target... i.e. propagation zenith
+        /// measured from +z): (first, last, step), degrees.
+        zenith_deg: (f64, f64, f64),
+        /// Azimuths: (first, last, step), degrees.
+        azimuth_deg: (f64, f64, f64),
+    },
+}
+
+/// Footprint centres of airborne pulses (on the plane z = 0).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub enum PulsePattern {
+    /// One pulse.
+    Single((f64, f64)),
+    /// An explicit list.
+    List(Vec<(f64, f64)>),
+    /// Parallel flight lines: the first from `start` to `end`, the others offset to the left
+    /// by `line_spacing_m`; pulses every `pulse_spacing_m` along each line.
+    Scan {
+        /// First line start, m.
+        start: (f64, f64),
+        /// First line end, m.
+        end: (f64, f64),
+        /// Number of lines.
+        lines: u32,
+        /// Spacing between lines, m.
+        line_spacing_m: f64,
+        /// Spacing between pulses along a line, m.
+        pulse_spacing_m: f64,
+    },
+}
+
+/// Photon-counting detector (physics.md §9.5; DART XSD defaults).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct PhotonCountingDesc {
+    /// Quantum efficiency (DART `quantEff`, default 0.15).
+    #[serde(default = "default_qe")]
+    pub quantum_efficiency: f64,
+    /// Dead time, ns (default 2.5).
+    #[serde(default = "default_dead")]
+    pub dead_time_ns: f64,
+    /// Dark count rate, Hz (default 100).
+    #[serde(default = "default_dark")]
+    pub dark_count_hz: f64,
+    /// Receiver filter bandwidth, nm (default 0.03, ATLAS-like).
+    #[serde(default = "default_filter")]
+    pub filter_bandwidth_nm: f64,
+    /// Laser wavelength, nm (photon energy).
+    pub wavelength_nm: f64,
+    /// Shots simulated per pulse position (default 1).
+    #[serde(default = "default_shots")]
+    pub shots: u32,
+}
+
+fn default_qe() -> f64 {
+    0.15
+}
+fn default_dead() -> f64 {
+    2.5
+}
+fn default_dark() -> f64 {
+    100.0
+}
+fn default_filter() -> f64 {
+    0.03
+}
+fn default_shots() -> u32 {
+    1
 }

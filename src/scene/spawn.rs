@@ -607,6 +607,10 @@ pub fn spawn_scene(
         desc.radiative.as_ref(),
     ));
     world.insert_resource(TerrainRes(terrain));
+    // Model only what the scene needs: LiDAR work exists only with instruments.
+    if let Some(l) = desc.lidars.as_ref().filter(|l| !l.is_empty()) {
+        world.insert_resource(crate::resources::lidar::LidarInstruments(l.clone()));
+    }
     world.insert_resource(Warnings(warnings));
     Ok(())
 }

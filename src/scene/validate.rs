@@ -346,11 +346,6 @@ pub fn validate(desc: &SceneDesc, src: &SceneSource) -> Result<(), SceneError> {
             desc.sensors.is_some(),
             "sensors arrive with the Radiative/Sensor stages",
         ),
-        (
-            "lidars",
-            desc.lidars.is_some(),
-            "LiDAR arrives with the Photon stage",
-        ),
     ] {
         if present {
             return Err(SceneError::NotSupported {
@@ -381,6 +376,9 @@ pub fn validate(desc: &SceneDesc, src: &SceneSource) -> Result<(), SceneError> {
                 "at least one iteration is needed",
             ));
         }
+    }
+    for (i, l) in desc.lidars.iter().flatten().enumerate() {
+        validate_lidar(&v, desc, src, i, l)?;
     }
     // Grid.
     let g = &desc.grid;
@@ -871,6 +869,194 @@ pub fn validate(desc: &SceneDesc, src: &SceneSource) -> Result<(), SceneError> {
                     v.optics_ref(&format!("{f}.groups[{k}].optics"), &gr.optics, role)?;
                 }
             }
+        }
+    }
+    Ok(())
+}
+
+/// Pulses per instrument above which a scene is refused (memory for waveforms).
+pub const MAX_LIDAR_PULSES: u64 = 10_000_000;
+
+/// Number of pulses a LiDAR description asks for.
+pub fn lidar_pulse_count(l: &crate::scene::desc::LidarDesc) -> u64 {
+    use crate::scene::desc::{LidarPlatform, PulsePattern};
+    let steps = |(a, b, s): (f64, f64, f64)| -> u64 {
+        if s > 0.0 && b >= a {
+            ((b - a) / s + 1e-9).floor() as u64 + 1
+        } else {
+            0
+        }
+    };
+    match &l.platform {
+        LidarPlatform::Airborne { pulses, .. } => match pulses {
+            PulsePattern::Single(_) => 1,
+            PulsePattern::List(v) => v.len() as u64,
+            PulsePattern::Scan {
+                start,
+                end,
+                lines,
+                pulse_spacing_m,
+                ..
+            } => {
+                let len = ((end.0 - start.0).powi(2) + (end.1 - start.1).powi(2)).sqrt();
+                if *pulse_spacing_m > 0.0 {
+                    (*lines as u64) * ((len / pulse_spacing_m + 1e-9).floor() as u64 + 1)
+                } else {
+                    0
+                }
+            }
+        },
+        LidarPlatform::Terrestrial {
+            zenith_deg,
+            azimuth_deg,
+            ..
+        } => steps(*zenith_deg) * steps(*azimuth_deg),
+    }
+}
+
+fn validate_lidar(
+    v: &V,
+    desc: &SceneDesc,
+    src: &SceneSource,
+    i: usize,
+    l: &crate::scene::desc::LidarDesc,
+) -> R {
+    use crate::scene::desc::{LidarPlatform, PulsePattern};
+    let f = |x: &str| format!("lidars[{i}].{x}");
+    if l.name.trim().is_empty() || l.name.contains(['/', '\\']) {
+        return Err(src.invalid(f("name"), "needs a name usable as a folder name"));
+    }
+    if desc
+        .lidars
+        .iter()
+        .flatten()
+        .take(i)
+        .any(|o| o.name == l.name)
+    {
+        return Err(src.invalid(f("name"), format!("`{}` is used twice", l.name)));
+    }
+    if !desc.bands.iter().any(|b| b.name == l.band) {
+        return Err(src.invalid(f("band"), format!("no band named `{}` in `bands`", l.band)));
+    }
+    match (l.footprint_radius_m, l.divergence_mrad) {
+        (Some(r), None) => v.positive(&f("footprint_radius_m"), r)?,
+        (None, Some(d)) => v.in_range(&f("divergence_mrad"), d, 1e-9, 1000.0)?,
+        _ => {
+            return Err(src.invalid(
+                f("footprint_radius_m"),
+                "give exactly one of footprint_radius_m and divergence_mrad",
+            ));
+        }
+    }
+    v.in_range(&f("edge_intensity"), l.edge_intensity, 1e-6, 0.999)?;
+    if let Some(r) = l.fov_radius_m {
+        v.positive(&f("fov_radius_m"), r)?;
+    }
+    v.positive(&f("pulse_energy_j"), l.pulse_energy_j)?;
+    v.positive(&f("pulse_fwhm_ns"), l.pulse_fwhm_ns)?;
+    v.positive(&f("aperture_m2"), l.aperture_m2)?;
+    v.in_range(&f("bin_ns"), l.bin_ns, 1e-3, 1e3)?;
+    v.non_negative(&f("gate_margin_m"), l.gate_margin_m)?;
+    if l.photons_per_pulse == 0 {
+        return Err(src.invalid(f("photons_per_pulse"), "must be at least 1"));
+    }
+    if l.max_order == 0 {
+        return Err(src.invalid(f("max_order"), "must be at least 1"));
+    }
+    match &l.platform {
+        LidarPlatform::Airborne {
+            altitude_m,
+            view_zenith_deg,
+            view_azimuth_deg,
+            pulses,
+        } => {
+            v.positive(&f("platform.altitude_m"), *altitude_m)?;
+            v.in_range(&f("platform.view_zenith_deg"), *view_zenith_deg, 0.0, 80.0)?;
+            v.finite(&f("platform.view_azimuth_deg"), *view_azimuth_deg)?;
+            match pulses {
+                PulsePattern::Single(p) => {
+                    v.finite(&f("platform.pulses"), p.0)?;
+                    v.finite(&f("platform.pulses"), p.1)?;
+                }
+                PulsePattern::List(ps) => {
+                    if ps.is_empty() {
+                        return Err(src.invalid(f("platform.pulses"), "the pulse list is empty"));
+                    }
+                    for p in ps {
+                        v.finite(&f("platform.pulses"), p.0)?;
+                        v.finite(&f("platform.pulses"), p.1)?;
+                    }
+                }
+                PulsePattern::Scan {
+                    lines,
+                    line_spacing_m,
+                    pulse_spacing_m,
+                    ..
+                } => {
+                    if *lines == 0 {
+                        return Err(src.invalid(f("platform.pulses.lines"), "must be at least 1"));
+                    }
+                    v.non_negative(&f("platform.pulses.line_spacing_m"), *line_spacing_m)?;
+                    v.positive(&f("platform.pulses.pulse_spacing_m"), *pulse_spacing_m)?;
+                }
+            }
+        }
+        LidarPlatform::Terrestrial {
+            position_m,
+            zenith_deg,
+            azimuth_deg,
+        } => {
+            let (sx, sy) = desc.grid.size_m;
+            if !(position_m.0 >= 0.0
+                && position_m.0 <= sx
+                && position_m.1 >= 0.0
+                && position_m.1 <= sy)
+            {
+                return Err(src.invalid(
+                    f("platform.position_m"),
+                    format!(
+                        "a terrestrial scanner must stand inside the scene [0, {sx}] × [0, {sy}]"
+                    ),
+                ));
+            }
+            v.finite(&f("platform.position_m"), position_m.2)?;
+            for (name, (a, b, s)) in [("zenith_deg", zenith_deg), ("azimuth_deg", azimuth_deg)] {
+                let fld = f(&format!("platform.{name}"));
+                v.finite(&fld, *a)?;
+                v.finite(&fld, *b)?;
+                v.positive(&fld, *s)?;
+                if b < a {
+                    return Err(src.invalid(fld, "needs (first, last, step) with last ≥ first"));
+                }
+            }
+            if zenith_deg.0 < 0.0 || zenith_deg.1 > 180.0 {
+                return Err(src.invalid(f("platform.zenith_deg"), "zenith angles lie in [0, 180]"));
+            }
+        }
+    }
+    let n = lidar_pulse_count(l);
+    if n == 0 || n > MAX_LIDAR_PULSES {
+        return Err(src.invalid(
+            f("platform"),
+            format!("asks for {n} pulses (allowed: 1 to {MAX_LIDAR_PULSES})"),
+        ));
+    }
+    if let Some(pc) = &l.photon_counting {
+        v.in_range(
+            &f("photon_counting.quantum_efficiency"),
+            pc.quantum_efficiency,
+            0.0,
+            1.0,
+        )?;
+        v.non_negative(&f("photon_counting.dead_time_ns"), pc.dead_time_ns)?;
+        v.non_negative(&f("photon_counting.dark_count_hz"), pc.dark_count_hz)?;
+        v.positive(
+            &f("photon_counting.filter_bandwidth_nm"),
+            pc.filter_bandwidth_nm,
+        )?;
+        v.positive(&f("photon_counting.wavelength_nm"), pc.wavelength_nm)?;
+        if pc.shots == 0 {
+            return Err(src.invalid(f("photon_counting.shots"), "must be at least 1"));
         }
     }
     Ok(())

@@ -12,7 +12,6 @@ use crate::geometry::terrain::Terrain;
 use crate::photon::engine::{DiscreteRows, PhotonInput, PhotonOptics, PhotonParams, run};
 use crate::photon::products::photon_products;
 use crate::photon::sampling::{BrdfSampler, LeafSampler};
-use crate::physics::brdf::Brdf;
 use crate::physics::lad::{GTable, LeafAngleDistribution, VolscattKernel};
 use crate::radiative::engine::TrackOptics;
 use crate::resources::facets::{FacetKind, FacetStore};
@@ -20,7 +19,6 @@ use crate::resources::grid::{CellGrid, GridSpec};
 use crate::resources::materials::{MaterialKind, Materials};
 use crate::resources::scene::{RunSettings, SceneInfo, Solver, StageErrors, TerrainRes};
 use crate::resources::tracking::{Directions, OpticsTables};
-use crate::scene::desc::OpticsDesc;
 use bevy_ecs::prelude::*;
 
 /// Inclination bins of the Γ kernel used for peel-off values of non-spherical LADs (the
@@ -28,47 +26,6 @@ use bevy_ecs::prelude::*;
 pub const PEEL_LAD_BINS: usize = 180;
 /// Intervals of the G(μ) table (interpolation error ≈ 1e-8 for the classical LADs).
 pub const G_TABLE_INTERVALS: usize = 4096;
-
-/// Per-band BRDF models of an RPV/Hapke material, or `None` for other kinds.
-pub fn brdf_models(kind: &MaterialKind, nb: usize) -> Option<Vec<Brdf>> {
-    match kind {
-        MaterialKind::Rpv(OpticsDesc::Rpv {
-            rho0,
-            k,
-            theta,
-            rho_c,
-        }) => Some(
-            (0..nb)
-                .map(|b| Brdf::Rpv {
-                    rho0: rho0[b],
-                    k: k[b],
-                    theta: theta[b],
-                    rho_c: rho_c.as_ref().map(|r| r[b]),
-                })
-                .collect(),
-        ),
-        MaterialKind::Hapke(OpticsDesc::Hapke {
-            w,
-            b,
-            c,
-            roughness_deg,
-            b0,
-            h,
-        }) => Some(
-            (0..nb)
-                .map(|k| Brdf::Hapke {
-                    w: w[k],
-                    b: b[k],
-                    c: c[k],
-                    theta_bar_deg: *roughness_deg,
-                    b0: *b0,
-                    h: *h,
-                })
-                .collect(),
-        ),
-        _ => None,
-    }
-}
 
 /// Photon · reads the Maket grid, directions, materials and illumination · writes
 /// RadiativeProducts.
@@ -94,111 +51,14 @@ pub fn track_photons(
         return;
     };
     let nb = info.bands.len();
-    let mut used = vec![false; mats.list.len()];
-    for c in &crowns {
-        used[c.material as usize] = true;
-    }
-    for p in &plots {
-        used[p.material as usize] = true;
-    }
-    for m in &meshes {
-        for part in m.parts.iter().filter(|p| p.as_turbid) {
-            used[part.material as usize] = true;
+    let used = used_turbid(mats.list.len(), &crowns, &plots, &meshes);
+    let optics = match build_photon_optics(&mats, &used, tables.as_deref(), sampler, nb) {
+        Ok(o) => o,
+        Err(e) => {
+            errors.0.push(e);
+            return;
         }
-    }
-    let mut optics = Vec::with_capacity(mats.list.len());
-    for (id, m) in mats.list.iter().enumerate() {
-        let o = match &m.kind {
-            MaterialKind::Turbid {
-                reflectance,
-                transmittance,
-                lad,
-                specular,
-                ..
-            } if used[id] => {
-                if specular.is_some() {
-                    errors.0.push(format!(
-                        "material `{}`: specular leaves are not supported by the Monte Carlo solver yet (use the flux-tracking solver)",
-                        m.name
-                    ));
-                    return;
-                }
-                let lad = match LeafAngleDistribution::new(lad) {
-                    Ok(l) => l,
-                    Err(e) => {
-                        errors.0.push(format!("material `{}`: {e}", m.name));
-                        return;
-                    }
-                };
-                let leaf_sampler = match LeafSampler::new(&lad) {
-                    Ok(s) => s,
-                    Err(e) => {
-                        errors.0.push(format!("material `{}`: {e}", m.name));
-                        return;
-                    }
-                };
-                let discrete = if sampler.is_discrete() {
-                    let Some(TrackOptics::Turbid { tables, .. }) =
-                        tables.as_ref().and_then(|t| t.optics.get(id))
-                    else {
-                        errors.0.push(format!(
-                            "material `{}`: discrete Monte Carlo needs the Phase tables",
-                            m.name
-                        ));
-                        return;
-                    };
-                    match DiscreteRows::new(tables.clone(), sampler) {
-                        Ok(r) => Some(r),
-                        Err(e) => {
-                            errors.0.push(format!("material `{}`: {e}", m.name));
-                            return;
-                        }
-                    }
-                } else {
-                    None
-                };
-                PhotonOptics::Turbid {
-                    sampler: leaf_sampler,
-                    kernel: VolscattKernel::new(&lad, PEEL_LAD_BINS, false),
-                    g: GTable::new(&lad, G_TABLE_INTERVALS),
-                    rho: reflectance.clone(),
-                    tau: transmittance.clone(),
-                    discrete,
-                }
-            }
-            MaterialKind::Lambertian {
-                reflectance,
-                diffuse_transmittance,
-                direct_transmittance,
-            } => PhotonOptics::Lambert {
-                r: reflectance.clone(),
-                t: diffuse_transmittance.clone(),
-                t_dir: direct_transmittance.clone(),
-            },
-            MaterialKind::Leaf {
-                reflectance,
-                transmittance,
-            } => PhotonOptics::Lambert {
-                r: reflectance.clone(),
-                t: transmittance.clone(),
-                t_dir: vec![0.0; reflectance.len()],
-            },
-            k @ (MaterialKind::Rpv(_) | MaterialKind::Hapke(_)) => {
-                let models = brdf_models(k, nb).expect("RPV/Hapke");
-                // The sampler follows band 0's BRDF; other bands are reweighted (unbiased:
-                // RPV and Hapke BRFs are positive wherever band 0's is).
-                match BrdfSampler::new(&models[0], Default::default()) {
-                    Ok(sampler) => PhotonOptics::Brdf { models, sampler },
-                    Err(e) => {
-                        errors.0.push(format!("material `{}`: {e}", m.name));
-                        return;
-                    }
-                }
-            }
-            _ => PhotonOptics::Unused,
-        };
-        optics.push(o);
-    }
+    };
     let flat_ground = match (&terrain.0, grounds.iter().next()) {
         (Terrain::Flat(_), Some(g)) => Some(g.optics),
         _ => None,
@@ -262,4 +122,124 @@ pub fn track_photons(
         &ground_facet,
         secs,
     ));
+}
+
+/// Photon-tracker optics of every material (`used[id]`: turbid materials a component uses).
+pub fn build_photon_optics(
+    mats: &Materials,
+    used: &[bool],
+    tables: Option<&OpticsTables>,
+    sampler: crate::photon::engine::SamplerKind,
+    nb: usize,
+) -> Result<Vec<PhotonOptics>, String> {
+    let mut optics = Vec::with_capacity(mats.list.len());
+    for (id, m) in mats.list.iter().enumerate() {
+        let o = match &m.kind {
+            MaterialKind::Turbid {
+                reflectance,
+                transmittance,
+                lad,
+                specular,
+                ..
+            } if used[id] => {
+                if specular.is_some() {
+                    return Err(format!(
+                        "material `{}`: specular leaves are not supported by the Monte Carlo solver yet (use the flux-tracking solver)",
+                        m.name
+                    ));
+                }
+                let lad = match LeafAngleDistribution::new(lad) {
+                    Ok(l) => l,
+                    Err(e) => {
+                        return Err(format!("material `{}`: {e}", m.name));
+                    }
+                };
+                let leaf_sampler = match LeafSampler::new(&lad) {
+                    Ok(s) => s,
+                    Err(e) => {
+                        return Err(format!("material `{}`: {e}", m.name));
+                    }
+                };
+                let discrete = if sampler.is_discrete() {
+                    let Some(TrackOptics::Turbid { tables, .. }) =
+                        tables.and_then(|t| t.optics.get(id))
+                    else {
+                        return Err(format!(
+                            "material `{}`: discrete Monte Carlo needs the Phase tables",
+                            m.name
+                        ));
+                    };
+                    match DiscreteRows::new(tables.clone(), sampler) {
+                        Ok(r) => Some(r),
+                        Err(e) => {
+                            return Err(format!("material `{}`: {e}", m.name));
+                        }
+                    }
+                } else {
+                    None
+                };
+                PhotonOptics::Turbid {
+                    sampler: leaf_sampler,
+                    kernel: VolscattKernel::new(&lad, PEEL_LAD_BINS, false),
+                    g: GTable::new(&lad, G_TABLE_INTERVALS),
+                    rho: reflectance.clone(),
+                    tau: transmittance.clone(),
+                    discrete,
+                }
+            }
+            MaterialKind::Lambertian {
+                reflectance,
+                diffuse_transmittance,
+                direct_transmittance,
+            } => PhotonOptics::Lambert {
+                r: reflectance.clone(),
+                t: diffuse_transmittance.clone(),
+                t_dir: direct_transmittance.clone(),
+            },
+            MaterialKind::Leaf {
+                reflectance,
+                transmittance,
+            } => PhotonOptics::Lambert {
+                r: reflectance.clone(),
+                t: transmittance.clone(),
+                t_dir: vec![0.0; reflectance.len()],
+            },
+            k @ (MaterialKind::Rpv(_) | MaterialKind::Hapke(_)) => {
+                let models = k.brdf_models(nb).expect("RPV/Hapke");
+                // The sampler follows band 0's BRDF; other bands are reweighted (unbiased:
+                // RPV and Hapke BRFs are positive wherever band 0's is).
+                match BrdfSampler::new(&models[0], Default::default()) {
+                    Ok(sampler) => PhotonOptics::Brdf { models, sampler },
+                    Err(e) => {
+                        return Err(format!("material `{}`: {e}", m.name));
+                    }
+                }
+            }
+            _ => PhotonOptics::Unused,
+        };
+        optics.push(o);
+    }
+    Ok(optics)
+}
+
+/// Turbid materials used by crowns, plots and turbid meshes.
+pub fn used_turbid(
+    n: usize,
+    crowns: &Query<&TurbidCrown>,
+    plots: &Query<&TurbidPlot>,
+    meshes: &Query<&ImportedMesh>,
+) -> Vec<bool> {
+    let mut used = vec![false; n];
+    for c in crowns {
+        used[c.material as usize] = true;
+    }
+    for p in plots {
+        used[p.material as usize] = true;
+    }
+    for m in meshes {
+        for part in m.parts.iter().filter(|p| p.as_turbid) {
+            used[part.material as usize] = true;
+        }
+    }
+    used
 }

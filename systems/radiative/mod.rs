@@ -64,43 +64,7 @@ pub fn track_flux(
     let mut ground_brdf = None;
     if let (Terrain::Flat(_), Some(g)) = (&terrain.0, grounds.iter().next()) {
         let m = &mats.list[g.optics as usize];
-        let per_band: Option<Vec<crate::physics::brdf::Brdf>> = match &m.kind {
-            MaterialKind::Rpv(crate::scene::desc::OpticsDesc::Rpv {
-                rho0,
-                k,
-                theta,
-                rho_c,
-            }) => Some(
-                (0..nb)
-                    .map(|b| crate::physics::brdf::Brdf::Rpv {
-                        rho0: rho0[b],
-                        k: k[b],
-                        theta: theta[b],
-                        rho_c: rho_c.as_ref().map(|r| r[b]),
-                    })
-                    .collect(),
-            ),
-            MaterialKind::Hapke(crate::scene::desc::OpticsDesc::Hapke {
-                w,
-                b,
-                c,
-                roughness_deg,
-                b0,
-                h,
-            }) => Some(
-                (0..nb)
-                    .map(|k| crate::physics::brdf::Brdf::Hapke {
-                        w: w[k],
-                        b: b[k],
-                        c: c[k],
-                        theta_bar_deg: *roughness_deg,
-                        b0: *b0,
-                        h: *h,
-                    })
-                    .collect(),
-            ),
-            _ => None,
-        };
+        let per_band = m.kind.brdf_models(nb);
         if let Some(models) = per_band {
             let mut tables_b = Vec::new();
             for model in &models {

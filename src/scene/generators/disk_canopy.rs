@@ -2,7 +2,9 @@
 //! leaves over Lambertian soil on a repetitive scene (RAMI-3 HOM "DIS" family; Pinty et al.
 //! 2004). Leaf normals follow the requested LAD (inclination by inverse-CDF sampling of f(θ),
 //! azimuth uniform); disk centres are uniform in the canopy volume; a candidate disk that
-//! intersects an already placed disk (exact 3D disk–disk test, periodic) is redrawn.
+//! intersects an already placed disk (exact 3D disk–disk test, periodic) is moved to a new
+//! random position with the same orientation, so the accepted normals are independent draws
+//! from the LAD.
 
 use super::*;
 use crate::scene::spawn::{stream, uniform};
@@ -125,6 +127,10 @@ pub fn draw_disks(p: &DiskCanopyParams) -> Result<Vec<(f64, f64, f64, f64, f64, 
     let mut out = Vec::with_capacity(n);
     let max_attempts = 200 * n.max(1);
     let mut attempts = 0;
+    // The orientation of the next disk, kept until a position accepts it: redrawing it on
+    // rejection would favour the orientations that intersect least (flat disks) and bias the
+    // leaf angle distribution away from the requested one.
+    let mut pending: Option<(f64, DVec3)> = None;
     while out.len() < n {
         attempts += 1;
         if attempts > max_attempts {
@@ -135,15 +141,22 @@ pub fn draw_disks(p: &DiskCanopyParams) -> Result<Vec<(f64, f64, f64, f64, f64, 
                 p.height_m
             ));
         }
-        let theta = sample_inclination(&cdf, uniform(&mut rng));
-        let phi = 2.0 * PI * uniform(&mut rng);
-        let nrm = DVec3::new(
-            theta.sin() * phi.cos(),
-            theta.sin() * phi.sin(),
-            theta.cos(),
-        );
+        let (theta, nrm) = *pending.get_or_insert_with(|| {
+            let theta = sample_inclination(&cdf, uniform(&mut rng));
+            let phi = 2.0 * PI * uniform(&mut rng);
+            (
+                theta,
+                DVec3::new(
+                    theta.sin() * phi.cos(),
+                    theta.sin() * phi.sin(),
+                    theta.cos(),
+                ),
+            )
+        });
         let half = r * theta.sin();
         if p.height_m <= 2.0 * half {
+            // This inclination cannot fit in the canopy height at all: draw another.
+            pending = None;
             continue;
         }
         let c = DVec3::new(
@@ -182,6 +195,7 @@ pub fn draw_disks(p: &DiskCanopyParams) -> Result<Vec<(f64, f64, f64, f64, f64, 
         if ok {
             buckets[bi + g * (bj + g * bk)].push((c, nrm));
             out.push((c.x, c.y, c.z, nrm.x, nrm.y, nrm.z));
+            pending = None;
         }
     }
     let _ = ch;

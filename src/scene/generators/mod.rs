@@ -4,6 +4,7 @@
 
 pub mod disk_canopy;
 pub mod forest;
+pub mod rami;
 pub mod turbid_layer;
 pub mod urban;
 

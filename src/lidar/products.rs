@@ -1,0 +1,155 @@
+//! LiDAR products under `DIR/lidar/<instrument>/` (issue #6): waveforms (convolved with the
+//! pulse, total and first order) as little-endian f32 + CSV index, the unconvolved received
+//! energies in `raw/`, discrete returns as a LAS 1.4 point cloud (PDRF 6, pulse ID in an
+//! extra-bytes dimension), the fusion product (PDRF 7: RGB from the first three bands and one
+//! extra-bytes radiance per band, by pulse ID), photon-counting point clouds, SVG quick-looks and
+//! `lidar.json` (energies per pulse, notes, timings). Every file is written atomically.
+
+use crate::io::atomic::write_atomic;
+use crate::io::las_out::{LasPoint, write_las};
+use crate::lidar::waveform_io::{waveform_svg, write_waveforms};
+use crate::resources::lidar::LidarRun;
+use std::path::Path;
+
+/// Pulse repetition period used for the LAS GPS time of pulse `id` (`id × 1e-5 s`, 100 kHz):
+/// the scene has no flight clock, the time only orders pulses.
+pub const PULSE_PERIOD_S: f64 = 1e-5;
+
+/// Quick-looks written per instrument (the first pulses).
+pub const QUICKLOOKS: usize = 8;
+
+/// Writes every instrument's products.
+pub fn write_lidar(dir: &Path, runs: &[LidarRun], band_names: &[String]) -> Result<(), String> {
+    for run in runs {
+        let d = dir.join("lidar").join(&run.desc.name);
+        std::fs::create_dir_all(d.join("raw"))
+            .map_err(|e| format!("{}: cannot create folder: {e}", d.display()))?;
+        let wf: Vec<_> = run
+            .pulses
+            .iter()
+            .map(|p| (p.id, p.waveform.clone()))
+            .collect();
+        write_waveforms(&d, &wf).map_err(|e| format!("{}: {e}", d.display()))?;
+        let raw: Vec<_> = run.pulses.iter().map(|p| (p.id, p.raw.clone())).collect();
+        write_waveforms(&d.join("raw"), &raw).map_err(|e| format!("{}: {e}", d.display()))?;
+        for p in run.pulses.iter().take(QUICKLOOKS) {
+            write_atomic(
+                &d.join(format!("waveform_{:06}.svg", p.id)),
+                waveform_svg(&p.waveform).as_bytes(),
+            )?;
+        }
+        // Discrete returns.
+        let emax = run
+            .pulses
+            .iter()
+            .flat_map(|p| p.returns.iter().map(|r| r.energy_j))
+            .fold(0.0, f64::max);
+        let mut points = Vec::new();
+        let mut fusion = Vec::new();
+        for (k, p) in run.pulses.iter().enumerate() {
+            let mut rs = p.returns.clone();
+            rs.sort_by(|a, b| a.range_m.total_cmp(&b.range_m));
+            let n = rs.len().min(15);
+            for (i, r) in rs.iter().take(15).enumerate() {
+                let pos = p.emitter + p.axis * r.range_m;
+                let pt = LasPoint {
+                    x: pos.x,
+                    y: pos.y,
+                    z: pos.z,
+                    intensity: if emax > 0.0 {
+                        (r.energy_j / emax * 65535.0).round().clamp(0.0, 65535.0) as u16
+                    } else {
+                        0
+                    },
+                    return_number: (i + 1) as u8,
+                    number_of_returns: n as u8,
+                    pulse_id: p.id,
+                    gps_time: p.id as f64 * PULSE_PERIOD_S,
+                    classification: 0,
+                    scanner_channel: 0,
+                    rgb: None,
+                    extra: Vec::new(),
+                };
+                if let Some(fr) = &run.fusion_radiance {
+                    let rad = &fr[k];
+                    let lmax = fr.iter().flatten().cloned().fold(0.0, f64::max).max(1e-300);
+                    let c = |b: usize| {
+                        (rad.get(b).or(rad.last()).copied().unwrap_or(0.0) / lmax * 65535.0)
+                            .round()
+                            .clamp(0.0, 65535.0) as u16
+                    };
+                    // RGB: bands 3, 2, 1 of the scene (or the available ones).
+                    let nbd = rad.len();
+                    let rgb = [c(2.min(nbd - 1)), c(1.min(nbd - 1)), c(0)];
+                    fusion.push(LasPoint {
+                        rgb: Some(rgb),
+                        extra: rad.clone(),
+                        ..pt.clone()
+                    });
+                }
+                points.push(pt);
+            }
+        }
+        write_las(&d.join("returns.las"), &points, [1e-3; 3], [0.0; 3], &[])?;
+        if run.fusion_radiance.is_some() {
+            let names: Vec<String> = band_names.iter().map(|b| format!("radiance_{b}")).collect();
+            write_las(&d.join("fusion.las"), &fusion, [1e-3; 3], [0.0; 3], &names)?;
+        }
+        if !run.counted.is_empty() {
+            let pts: Vec<LasPoint> = run
+                .counted
+                .iter()
+                .map(|c| LasPoint {
+                    x: c.position.x,
+                    y: c.position.y,
+                    z: c.position.z,
+                    intensity: 1,
+                    return_number: 1,
+                    number_of_returns: 1,
+                    pulse_id: c.pulse,
+                    gps_time: c.pulse as f64 * PULSE_PERIOD_S + c.time_ns * 1e-9,
+                    // ASPRS: 1 unclassified (signal), 7 low noise (solar background, dark).
+                    classification: if c.is_noise { 7 } else { 1 },
+                    scanner_channel: 0,
+                    rgb: None,
+                    extra: Vec::new(),
+                })
+                .collect();
+            write_las(
+                &d.join("photon_counting.las"),
+                &pts,
+                [1e-3; 3],
+                [0.0; 3],
+                &[],
+            )?;
+        }
+        let threads = rayon::current_num_threads().max(1) as f64;
+        let summary = serde_json::json!({
+            "instrument": run.desc,
+            "pulses": run.pulses.len(),
+            "seconds": run.seconds,
+            "pulses_per_second_per_core": run.pulses.len() as f64 / (run.seconds.max(1e-9) * threads),
+            "notes": run.notes,
+            "background_rate_hz": run.background_rate_hz,
+            "photon_counting_detections": run.counted.len(),
+            "photon_counting_noise": run.counted.iter().filter(|c| c.is_noise).count(),
+            "per_pulse": run.pulses.iter().map(|p| serde_json::json!({
+                "id": p.id,
+                "emitter_m": [p.emitter.x, p.emitter.y, p.emitter.z],
+                "axis": [p.axis.x, p.axis.y, p.axis.z],
+                "received_j": p.raw.total_energy_j(),
+                "first_order_j": p.raw.first_order_energy_j(),
+                "out_of_gate_j": p.out_of_gate_j,
+                "missed_j": p.missed_j,
+                "returns": p.returns.len(),
+            })).collect::<Vec<_>>(),
+        });
+        write_atomic(
+            &d.join("lidar.json"),
+            serde_json::to_string_pretty(&summary)
+                .map_err(|e| e.to_string())?
+                .as_bytes(),
+        )?;
+    }
+    Ok(())
+}

@@ -1,0 +1,72 @@
+//! LiDAR resources: the instruments of the scene (spawned only when the scene has a `lidars`
+//! section) and the Photon stage's LiDAR results (written by the Output stage).
+
+use crate::lidar::returns::Return;
+use crate::lidar::waveform::Waveform;
+use crate::scene::desc::LidarDesc;
+use bevy_ecs::prelude::Resource;
+use glam::DVec3;
+
+/// The scene's LiDAR instruments.
+#[derive(Debug, Clone, Resource)]
+pub struct LidarInstruments(pub Vec<LidarDesc>);
+
+/// One simulated pulse.
+#[derive(Debug, Clone)]
+pub struct PulseRecord {
+    /// Pulse ID (unique within the instrument).
+    pub id: u64,
+    /// Emitter position (scene coordinates), m.
+    pub emitter: DVec3,
+    /// Beam axis (unit propagation direction).
+    pub axis: DVec3,
+    /// Received energy per bin before the pulse shape (total and first order), J.
+    pub raw: Waveform,
+    /// Received waveform convolved with the emitted pulse (total and first order), J per bin.
+    pub waveform: Waveform,
+    /// Received energy outside the range gate, J.
+    pub out_of_gate_j: f64,
+    /// Emitted energy that missed the scene (isolated scenes), J.
+    pub missed_j: f64,
+    /// Discrete returns (Gaussian decomposition of `waveform.total`).
+    pub returns: Vec<Return>,
+}
+
+/// A photon-counting detection turned into a point.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct CountedPhoton {
+    /// Pulse ID.
+    pub pulse: u64,
+    /// Shot index for this pulse.
+    pub shot: u32,
+    /// Position (along the beam axis at the detection's range), m.
+    pub position: DVec3,
+    /// Detection time after emission, ns.
+    pub time_ns: f64,
+    /// True for solar background or dark counts.
+    pub is_noise: bool,
+}
+
+/// Results of one instrument.
+#[derive(Debug, Clone)]
+pub struct LidarRun {
+    /// Instrument description.
+    pub desc: LidarDesc,
+    /// Pulses.
+    pub pulses: Vec<PulseRecord>,
+    /// Photon-counting detections (when the instrument has a detector).
+    pub counted: Vec<CountedPhoton>,
+    /// Solar background rate used per pulse (photo-electrons s⁻¹), photon counting only.
+    pub background_rate_hz: Vec<f64>,
+    /// Spectral radiance of the co-registered passive image at each pulse's footprint centre,
+    /// per scene band (W m⁻² sr⁻¹ µm⁻¹), when a passive image exists (fusion product).
+    pub fusion_radiance: Option<Vec<Vec<f64>>>,
+    /// Notes (what was approximated or skipped).
+    pub notes: Vec<String>,
+    /// Wall time, s.
+    pub seconds: f64,
+}
+
+/// The Photon stage's LiDAR results.
+#[derive(Debug, Clone, Default, Resource)]
+pub struct LidarProducts(pub Vec<LidarRun>);

@@ -1,0 +1,206 @@
+//! LiDAR (DART 5 paper §4): every instrument of the scene's `lidars` section, simulated by the
+//! photon engine in receiver mode ([`crate::lidar::simulate`]). Runs in the Photon stage, after
+//! the passive solver, whose radiance feeds the photon-counting solar background and the fusion
+//! product.
+//!
+//! Reads LidarInstruments, SceneInfo, GridSpec, CellGrid, FacetStore, Directions, Materials,
+//! TerrainRes, Ground, TurbidCrown, TurbidPlot, ImportedMesh, RadiativeProducts (optional),
+//! ImageDirections (optional); writes LidarProducts.
+
+use crate::components::{Ground, ImportedMesh, TurbidCrown, TurbidPlot};
+use crate::geometry::terrain::Terrain;
+use crate::lidar::simulate::{PassiveRadiance, simulate_lidar};
+use crate::photon::engine::{PhotonInput, PhotonParams, SamplerKind};
+use crate::radiative::products::RadiativeProducts;
+use crate::resources::facets::{FacetKind, FacetStore};
+use crate::resources::grid::{CellGrid, GridSpec};
+use crate::resources::lidar::{LidarInstruments, LidarProducts};
+use crate::resources::materials::Materials;
+use crate::resources::scene::{SceneInfo, StageErrors, TerrainRes};
+use crate::resources::tracking::Directions;
+use crate::systems::photon::{build_photon_optics, used_turbid};
+use crate::systems::radiative::ImageDirections;
+use bevy_ecs::prelude::*;
+
+/// Passive radiance at sensor level for the LiDAR: the orthographic image of the exact view
+/// direction closest to the LiDAR's (within 2°) when the flux-tracking solver made one, else the
+/// scene-mean radiance in the nearest direction.
+fn passive_radiance(
+    p: &RadiativeProducts,
+    images: Option<&ImageDirections>,
+    dirs: &Directions,
+    spec: &GridSpec,
+    view: glam::DVec3,
+) -> Option<PassiveRadiance> {
+    let raw = &p.raw;
+    let nb = raw.n_bands;
+    let w = raw.n_channels;
+    let (nx, ny) = (spec.n[0], spec.n[1]);
+    let a_px = spec.cell.x * spec.cell.y;
+    let tiling = dirs.set.tiling();
+    if let Some(img) = images
+        && !raw.images.is_empty()
+    {
+        let best = tiling
+            .iter()
+            .enumerate()
+            .filter(|(j, _)| img.0.get(*j).is_some_and(|&k| k != u32::MAX))
+            .max_by(|a, b| a.1.omega.dot(view).total_cmp(&b.1.omega.dot(view)));
+        if let Some((j, d)) = best
+            && d.omega.dot(view) > 2f64.to_radians().cos()
+        {
+            let k = img.0[j] as usize;
+            let npx = nx * ny;
+            let per_band = (0..nb)
+                .map(|b| {
+                    (0..npx)
+                        .map(|px| {
+                            let base = (k * npx + px) * w;
+                            let mut v = raw.images[base + b];
+                            if raw.has_sky {
+                                v += raw.images[base + nb + b];
+                            }
+                            v / (a_px * d.projected_sr)
+                        })
+                        .collect()
+                })
+                .collect();
+            return Some(PassiveRadiance {
+                n: (nx, ny),
+                cell: (spec.cell.x, spec.cell.y),
+                per_band,
+                source: format!(
+                    "the flux-tracking image at view ({:.1}°, {:.1}°), per grid column",
+                    d.zenith_deg(),
+                    d.azimuth_deg()
+                ),
+            });
+        }
+    }
+    // Scene mean in the nearest upward direction: L = Σ escaped / (A ∫|μ|dΩ).
+    let area = nx as f64 * spec.cell.x * ny as f64 * spec.cell.y;
+    let (j, d) = tiling
+        .iter()
+        .enumerate()
+        .filter(|(_, d)| d.omega.z > 0.0)
+        .max_by(|a, b| a.1.omega.dot(view).total_cmp(&b.1.omega.dot(view)))?;
+    let per_band = (0..nb)
+        .map(|b| {
+            let mut v = raw.escaped[j * w + b];
+            if raw.has_sky {
+                v += raw.escaped[j * w + nb + b];
+            }
+            vec![v / (area * d.projected_sr)]
+        })
+        .collect();
+    Some(PassiveRadiance {
+        n: (1, 1),
+        cell: (nx as f64 * spec.cell.x, ny as f64 * spec.cell.y),
+        per_band,
+        source: format!(
+            "the scene-mean passive radiance at ({:.1}°, {:.1}°) (no image in that direction)",
+            d.zenith_deg(),
+            d.azimuth_deg()
+        ),
+    })
+}
+
+/// Photon · LiDAR instruments · writes LidarProducts.
+#[allow(clippy::too_many_arguments)]
+pub fn run_lidars(
+    instruments: Res<LidarInstruments>,
+    info: Res<SceneInfo>,
+    spec: Res<GridSpec>,
+    grid: Res<CellGrid>,
+    facets: Res<FacetStore>,
+    dirs: Res<Directions>,
+    mats: Res<Materials>,
+    terrain: Res<TerrainRes>,
+    passive: Option<Res<RadiativeProducts>>,
+    images: Option<Res<ImageDirections>>,
+    grounds: Query<&Ground>,
+    crowns: Query<&TurbidCrown>,
+    plots: Query<&TurbidPlot>,
+    meshes: Query<&ImportedMesh>,
+    mut errors: ResMut<StageErrors>,
+    mut commands: Commands,
+) {
+    let nb = info.bands.len();
+    let used = used_turbid(mats.list.len(), &crowns, &plots, &meshes);
+    let all = match build_photon_optics(&mats, &used, None, SamplerKind::Continuous, nb) {
+        Ok(o) => o,
+        Err(e) => {
+            errors.0.push(format!("lidar: {e}"));
+            return;
+        }
+    };
+    let flat_ground = match (&terrain.0, grounds.iter().next()) {
+        (Terrain::Flat(_), Some(g)) => Some(g.optics),
+        _ => None,
+    };
+    let ground_facet: Vec<bool> = facets
+        .facets
+        .iter()
+        .map(|f| f.kind == FacetKind::Ground)
+        .collect();
+    let box_lo = spec.origin;
+    let box_hi = spec.origin
+        + glam::DVec3::new(
+            spec.n[0] as f64 * spec.cell.x,
+            spec.n[1] as f64 * spec.cell.y,
+            spec.n[2] as f64 * spec.cell.z,
+        );
+    let mut runs = Vec::new();
+    for l in &instruments.0 {
+        let Some(band) = info.bands.iter().position(|b| b.name == l.band) else {
+            errors
+                .0
+                .push(format!("lidar `{}`: no band `{}`", l.name, l.band));
+            return;
+        };
+        if let crate::scene::desc::LidarPlatform::Airborne { altitude_m, .. } = &l.platform
+            && *altitude_m <= box_hi.z
+        {
+            errors.0.push(format!(
+                "lidar `{}`: altitude {altitude_m} m is not above the scene top ({:.3} m)",
+                l.name, box_hi.z
+            ));
+            return;
+        }
+        let optics: Vec<_> = all.iter().map(|o| o.select_band(band)).collect();
+        let mut params = PhotonParams::new(0, info.seed, SamplerKind::Continuous);
+        params.max_order = l.max_order;
+        // One forced peel-off point per crossing of a turbid or fluid cell (see
+        // `PhotonParams::fluid_peel_points`): at 1000 photons per pulse the first-order
+        // waveform is already smooth, and each point costs a trace to the receiver.
+        params.fluid_peel_points = 1;
+        let input = PhotonInput {
+            spec: &spec,
+            grid: &grid,
+            facets: &facets.facets,
+            ground_facet: &ground_facet,
+            dirs: &dirs.set,
+            optics: &optics,
+            fluid: None,
+            flat_ground,
+            views: Vec::new(),
+            sun: dirs.sun,
+            e_dir: vec![0.0],
+            e_diff: vec![0.0],
+            params,
+        };
+        let (pulses, _) = crate::lidar::simulate::pulses_of(l);
+        let view = pulses.first().map_or(glam::DVec3::Z, |p| -p.axis);
+        let pr = passive
+            .as_ref()
+            .and_then(|p| passive_radiance(p, images.as_deref(), &dirs, &spec, view));
+        match simulate_lidar(l, band, &input, box_lo, box_hi, pr.as_ref()) {
+            Ok(r) => runs.push(r),
+            Err(e) => {
+                errors.0.push(e);
+                return;
+            }
+        }
+    }
+    commands.insert_resource(LidarProducts(runs));
+}
