@@ -807,10 +807,9 @@ fn single_scattering_component_matches_the_closed_form() {
             );
             assert!((co + uc + mlt - e.brf).abs() < 1e-12 * e.brf.max(1e-300) + 1e-15);
             assert_eq!(uc, 0.0, "black soil");
-            // Single scattering is a deterministic-direction estimate (closed-form Γ, exact
-            // attenuation) of uniformly distributed first collisions: its SE is below the
-            // total's; use the total's SE as the bound.
-            let z = (co - want).abs() / e.brf_se.unwrap();
+            let se = e.brf_components_se.unwrap()[0];
+            assert!(se > 0.0 && se < 0.01 * want);
+            let z = (co - want).abs() / se;
             assert!(
                 z <= Z,
                 "LAI {lai} view {vz}/{az}: BRF1 {co} vs {want} (z {z:.2})"

@@ -348,6 +348,7 @@ fn mes_writer_round_trips() {
         co_sgl: Some(0.1 + 0.001 * k),
         uc_sgl: Some(0.05),
         mlt: Some(0.15 + 0.01 * k.sin() - 0.001 * k),
+        components_se: Some([1e-4, 2e-5, 3e-4 * (1.0 + k.cos().abs())]),
         estimator: Some("peel-off".into()),
     };
     let plane = |p: Plane| {
@@ -392,10 +393,12 @@ fn mes_writer_round_trips() {
                             assert!(
                                 (r.vza_rad - v.view_zenith_deg.abs().to_radians()).abs() <= 5e-7
                             );
-                            let se = if c == Component::Total {
-                                v.brf_se.unwrap()
-                            } else {
-                                -1.0
+                            let cs = v.components_se.unwrap();
+                            let se = match c {
+                                Component::Total => v.brf_se.unwrap(),
+                                Component::CoSgl => cs[0],
+                                Component::UcSgl => cs[1],
+                                Component::Mlt => cs[2],
                             };
                             assert!((r.std_dev - se).abs() <= 5e-7);
                         }

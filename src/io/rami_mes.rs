@@ -514,6 +514,9 @@ pub struct RunBrf {
     /// Multiple scattering.
     #[serde(default)]
     pub brf_mlt: Option<f64>,
+    /// Standard errors of the three parts (Monte Carlo).
+    #[serde(default)]
+    pub brf_components_se: Option<[f64; 3]>,
     /// `peel-off`, `escape` or absent (flux tracking).
     #[serde(default)]
     pub estimator: Option<String>,
@@ -536,6 +539,9 @@ pub struct PlaneView {
     pub uc_sgl: Option<f64>,
     /// Multiple scattering (`_mlt`).
     pub mlt: Option<f64>,
+    /// Standard errors of (`co_sgl`, `uc_sgl`, `mlt`) (Monte Carlo).
+    #[serde(default)]
+    pub components_se: Option<[f64; 3]>,
     /// How the value was estimated (`peel-off` in Monte Carlo, absent for flux tracking).
     pub estimator: Option<String>,
 }
@@ -631,12 +637,13 @@ impl RamiMeasurements {
                         vza_rad: v.view_zenith_deg.abs().to_radians(),
                         rel_azimuth_rad: p.relative_azimuth_rad(v.view_zenith_deg),
                         brf: v.component(c)?,
-                        // The standard error is known for the total only.
-                        std_dev: if c == Component::Total {
-                            v.brf_se.unwrap_or(-1.0)
-                        } else {
-                            -1.0
-                        },
+                        std_dev: match c {
+                            Component::Total => v.brf_se,
+                            Component::CoSgl => v.components_se.map(|s| s[0]),
+                            Component::UcSgl => v.components_se.map(|s| s[1]),
+                            Component::Mlt => v.components_se.map(|s| s[2]),
+                        }
+                        .unwrap_or(-1.0),
                     })
                 })
                 .collect::<Option<Vec<_>>>()?,
@@ -776,6 +783,7 @@ pub fn measurements_from_run(
                 co_sgl: e.brf_co_sgl,
                 uc_sgl: e.brf_uc_sgl,
                 mlt: e.brf_mlt,
+                components_se: e.brf_components_se,
                 estimator: e.estimator.clone(),
             });
         }

@@ -148,6 +148,8 @@ pub fn photon_products(
                     e.brf_co_sgl = Some(comp(0));
                     e.brf_uc_sgl = Some(comp(1));
                     e.brf_mlt = Some(comp(2));
+                    let cse = |c: usize| se_of(&batches, |s| s[sm.view_component(v, c, b)]) * sun_f;
+                    e.brf_components_se = Some([cse(0), cse(1), cse(2)]);
                 }
                 None => {
                     let denom = area * d.projected_sr;

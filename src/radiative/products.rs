@@ -42,6 +42,9 @@ pub struct BrfEntry {
     /// See `brf_co_sgl`.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub brf_mlt: Option<f64>,
+    /// Standard errors of (`brf_co_sgl`, `brf_uc_sgl`, `brf_mlt`).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub brf_components_se: Option<[f64; 3]>,
     /// How the value was estimated: `escape` (flux leaving the sector; sector mean) or `peel-off`
     /// (Monte Carlo local estimate in the exact direction); absent for the flux-tracking solver.
     #[serde(skip_serializing_if = "Option::is_none")]
@@ -193,6 +196,7 @@ impl RadiativeProducts {
                     brf_co_sgl: None,
                     brf_uc_sgl: None,
                     brf_mlt: None,
+                    brf_components_se: None,
                     estimator: None,
                 });
             }
