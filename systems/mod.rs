@@ -1,9 +1,11 @@
 //! The DART modules as ECS stages. This folder lives outside `src/` but in the same crate
 //! (`#[path]` in `lib.rs`); only `src/simulation.rs` imports it.
 //!
-//! Stages that exist so far: Maket (scene → cell grid) and Output (Maket products). Direction,
-//! Phase, Radiative, Photon and Sensor have schedule labels and run conditions but no systems
-//! yet (see the open issues); a scene never silently gets results from them.
+//! Stages with systems: Direction (discrete directions), Phase (tables; skipped by the
+//! continuous Monte Carlo solver), Maket (scene → cell grid), Radiative (flux tracking, the
+//! default passive solver), Photon (Monte Carlo passive solver with `--solver monte-carlo`, then
+//! the scene's LiDARs) and Output (products). Sensor has a schedule label but no systems yet
+//! (open issue); a scene never silently gets results from it.
 
 pub mod direction;
 pub mod lidar;
