@@ -11,12 +11,11 @@
 
 use lumenscape::photon::engine::SamplerKind;
 use lumenscape::radiative::products::RadiativeProducts;
-use lumenscape::resources::directions::{DirectionParams, ExactDirection};
 use lumenscape::resources::scene::{RunSettings, Solver};
 use lumenscape::scene::SceneSource;
 use lumenscape::scene::desc::{LadDesc, Preset, SceneDesc};
 use lumenscape::scene::generators::turbid_layer::{TurbidLayerParams, turbid_layer};
-use lumenscape::scene::generators::{BandOptics, disk_canopy, forest};
+use lumenscape::scene::generators::{BandOptics, disk_canopy, forest, principal_plane_directions};
 use lumenscape::simulation::Simulation;
 use std::time::Instant;
 
@@ -40,19 +39,6 @@ fn run(desc: &SceneDesc, solver: Solver, preset: Option<Preset>) -> (f64, Radiat
         t0.elapsed().as_secs_f64(),
         sim.resource::<RadiativeProducts>().clone(),
     )
-}
-
-fn principal_plane(sun_az: f64) -> DirectionParams {
-    let mut exact = vec![ExactDirection::new(0.0, 0.0)];
-    for k in 1..=5 {
-        let z = 15.0 * k as f64;
-        exact.push(ExactDirection::new(z, sun_az));
-        exact.push(ExactDirection::new(z, sun_az + 180.0));
-    }
-    DirectionParams {
-        exact,
-        ..DirectionParams::default()
-    }
 }
 
 /// Worst relative SE over the peel-off BRFs of every band.
@@ -108,7 +94,7 @@ fn main() {
         sun_zenith_deg: 20.0,
         sun_azimuth_deg: 0.0,
     });
-    layer.directions = Some(principal_plane(0.0));
+    layer.directions = Some(principal_plane_directions(0.0));
     println!("turbid layer LAI 3, sun 20°, red+NIR, 11 principal-plane views, {threads} threads");
     println!(
         "{:>12} {:>10} {:>9} {:>14} {:>10} {:>11} {:>8} {:>9}",
@@ -203,12 +189,12 @@ fn main() {
         size_m: 40.0,
         ..Default::default()
     });
-    fo.directions = Some(principal_plane(
+    fo.directions = Some(principal_plane_directions(
         fo.illumination.sun_azimuth_deg.unwrap_or(0.0),
     ));
     let mut dc =
         disk_canopy::disk_canopy(&disk_canopy::DiskCanopyParams::default()).expect("disk canopy");
-    dc.directions = Some(principal_plane(
+    dc.directions = Some(principal_plane_directions(
         dc.illumination.sun_azimuth_deg.unwrap_or(0.0),
     ));
     let n = if quick { 50_000 } else { 400_000 };

@@ -18,8 +18,8 @@ use lumenscape::resources::grid::{CellGrid, GridSpec};
 use lumenscape::resources::scene::{RunSettings, Solver};
 use lumenscape::scene::SceneSource;
 use lumenscape::scene::desc::*;
-use lumenscape::scene::generators::BandOptics;
 use lumenscape::scene::generators::turbid_layer::{TurbidLayerParams, turbid_layer};
+use lumenscape::scene::generators::{BandOptics, principal_plane_directions};
 use lumenscape::simulation::Simulation;
 
 const Z: f64 = 4.0;
@@ -68,18 +68,6 @@ fn assert_closes(p: &RadiativeProducts, what: &str) {
 }
 
 /// Principal-plane directions only (11 views), to keep peel-off cost down.
-fn principal_plane(sun_az: f64) -> DirectionParams {
-    let mut exact = vec![ExactDirection::new(0.0, 0.0)];
-    for k in 1..=5 {
-        let z = 15.0 * k as f64;
-        exact.push(ExactDirection::new(z, sun_az));
-        exact.push(ExactDirection::new(z, sun_az + 180.0));
-    }
-    DirectionParams {
-        exact,
-        ..DirectionParams::default()
-    }
-}
 
 fn layer(lai: f64, sza: f64, bands: Vec<BandOptics>) -> SceneDesc {
     let mut d = turbid_layer(&TurbidLayerParams {
@@ -92,7 +80,7 @@ fn layer(lai: f64, sza: f64, bands: Vec<BandOptics>) -> SceneDesc {
         sun_zenith_deg: sza,
         sun_azimuth_deg: 0.0,
     });
-    d.directions = Some(principal_plane(0.0));
+    d.directions = Some(principal_plane_directions(0.0));
     d
 }
 
@@ -371,7 +359,7 @@ fn fluid_slabs_match_disort() {
 #[test]
 fn monte_carlo_is_bit_identical_on_1_2_and_8_threads() {
     let mut d = small_forest();
-    d.directions = Some(principal_plane(225.0));
+    d.directions = Some(principal_plane_directions(225.0));
     let run_with = |threads: usize| {
         let pool = rayon::ThreadPoolBuilder::new()
             .num_threads(threads)
@@ -423,7 +411,7 @@ fn flux_tracking_and_monte_carlo_agree_on_a_small_forest() {
     const DELTA: f64 = 0.05;
     let mut d = small_forest();
     d.grid.cell_m = (0.5, 0.5, 0.5);
-    d.directions = Some(principal_plane(
+    d.directions = Some(principal_plane_directions(
         d.illumination.sun_azimuth_deg.unwrap_or(0.0),
     ));
     let mc = run_mc(&d, 100_000, SamplerKind::Continuous);
@@ -545,7 +533,7 @@ fn hard_cases_stay_finite_and_closed_in_monte_carlo() {
     // Grazing sun and views, leaf albedo near 1, very dense cells, tiny cells.
     let grazing = {
         let mut d = layer(3.0, 89.0, vec![BandOptics::nir()]);
-        let mut p = principal_plane(0.0);
+        let mut p = principal_plane_directions(0.0);
         p.exact.push(ExactDirection::new(89.0, 0.0));
         d.directions = Some(p);
         d

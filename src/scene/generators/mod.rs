@@ -173,6 +173,25 @@ pub fn rami_directions(sun_azimuth_deg: f64) -> crate::resources::directions::Di
     }
 }
 
+/// Nadir and the principal plane every 15° up to 75° on both sides of the sun (11 exact view
+/// directions): the cheapest set for oracle comparisons (each exact direction costs a peel-off
+/// trace per Monte Carlo event).
+pub fn principal_plane_directions(
+    sun_azimuth_deg: f64,
+) -> crate::resources::directions::DirectionParams {
+    use crate::resources::directions::{DirectionParams, ExactDirection};
+    let mut exact = vec![ExactDirection::new(0.0, 0.0)];
+    for k in 1..=5 {
+        let z = 15.0 * k as f64;
+        exact.push(ExactDirection::new(z, sun_azimuth_deg));
+        exact.push(ExactDirection::new(z, sun_azimuth_deg + 180.0));
+    }
+    DirectionParams {
+        exact,
+        ..DirectionParams::default()
+    }
+}
+
 /// Sun-only illumination.
 pub fn sun(zenith_deg: f64, azimuth_deg: f64) -> IlluminationDesc {
     IlluminationDesc {
