@@ -1562,9 +1562,13 @@ fn trace_photon(
             *g = ctx.g_of(tm, ph.d.z);
         }
         // Forced peel-off: fluids (K > 0) toward the views, and in LiDAR receiver mode turbid
-        // vegetation and fluids toward the receiver.
+        // vegetation and fluids toward the receiver on the first flight.
         let forced_fluid = inp.fluid.is_some() && inp.params.fluid_peel_points > 0;
-        if ctx.receiver.is_some() || (forced_fluid && !inp.views.is_empty()) {
+        // Receiver mode: first flight only (a smooth first-order waveform); later orders use
+        // the collision estimator (one receiver trace per event instead of one per crossing).
+        if (ctx.receiver.is_some() && ph.order == 0)
+            || (ctx.receiver.is_none() && forced_fluid && !inp.views.is_empty())
+        {
             ctx.forced_peel(ph, g_cur, rng, out, scratch, tr);
         }
         let hit = ctx.fly(ph, g_cur, rng, out);
@@ -1594,7 +1598,11 @@ fn trace_photon(
                 // Peel-off: intensity ω P(Θ)/(4π) per unit weight (unless the K-point forced
                 // estimate along the flight already accounted for fluid collisions).
                 let d_in = ph.d;
-                if inp.params.fluid_peel_points == 0 && ctx.receiver.is_none() {
+                let forced_here = match ctx.receiver {
+                    Some(_) => ph.order == 0,
+                    None => inp.params.fluid_peel_points > 0,
+                };
+                if !forced_here {
                     ctx.peel(ph, p, None, false, out, scratch, tr, |_, ov, s| {
                         let pv = f.phase.eval_dirs(d_in, ov) / (4.0 * PI);
                         for b in 0..nb {
@@ -1720,7 +1728,7 @@ fn trace_photon(
                         let closed = kernel.is_closed_form();
                         let n = ev.normal;
                         // (LiDAR receiver mode: done by the forced estimate along the flight.)
-                        let forced = ctx.receiver.is_some();
+                        let forced = ctx.receiver.is_some() && ph.order == 0;
                         ctx.peel(ph, p, None, false, out, scratch, tr, |_, ov, s| {
                             if forced {
                                 return false;
