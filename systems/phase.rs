@@ -87,24 +87,10 @@ pub fn tabulate_phase(
                 g.push(lad.g_function(dirs.sun.z));
                 TrackOptics::Turbid { g, tables }
             }
-            MaterialKind::Lambertian {
-                reflectance,
-                diffuse_transmittance,
-                direct_transmittance,
-            } => TrackOptics::Lambert {
-                r: reflectance.clone(),
-                t: diffuse_transmittance.clone(),
-                t_dir: direct_transmittance.clone(),
+            k => match k.lambert_parts() {
+                Some((r, t, t_dir)) => TrackOptics::Lambert { r, t, t_dir },
+                None => TrackOptics::Unused,
             },
-            MaterialKind::Leaf {
-                reflectance,
-                transmittance,
-            } => TrackOptics::Lambert {
-                r: reflectance.clone(),
-                t: transmittance.clone(),
-                t_dir: vec![0.0; reflectance.len()],
-            },
-            _ => TrackOptics::Unused,
         };
         optics.push(o);
     }

@@ -559,6 +559,7 @@ enum Hit {
     Lost,
 }
 
+#[derive(Clone)]
 struct Ctx<'a> {
     inp: &'a PhotonInput<'a>,
     nb: usize,
@@ -611,6 +612,50 @@ struct Photon {
     off: usize,
     order: u32,
     skip_facet: Option<u32>,
+}
+
+impl<'a> Ctx<'a> {
+    /// The shared tracking context: turbid material indices, tiling directions, peel-off views
+    /// (G and sector per view), `nb` bands and `w` channels; no receiver.
+    fn new(inp: &'a PhotonInput<'a>, nb: usize, w: usize) -> Self {
+        let spec = inp.spec;
+        let mut tur_mat = vec![u32::MAX; inp.optics.len()];
+        let mut tur_ids = Vec::new();
+        for (i, o) in inp.optics.iter().enumerate() {
+            if matches!(o, PhotonOptics::Turbid { .. }) {
+                tur_mat[i] = tur_ids.len() as u32;
+                tur_ids.push(i as u32);
+            }
+        }
+        let tiling = inp.dirs.tiling();
+        let mut ctx = Ctx {
+            inp,
+            nb,
+            w,
+            sum: Summary {
+                w,
+                n_dirs: tiling.len(),
+                n_views: inp.views.len(),
+            },
+            size: (
+                spec.n[0] as f64 * spec.cell.x,
+                spec.n[1] as f64 * spec.cell.y,
+            ),
+            tur_mat,
+            tur_ids,
+            g_view: Vec::new(),
+            omega: tiling.iter().map(|d| d.omega).collect(),
+            view_sector: inp.views.iter().map(|v| inp.dirs.find_sector(*v)).collect(),
+            receiver: None,
+            max_path: f64::INFINITY,
+        };
+        ctx.g_view = inp
+            .views
+            .iter()
+            .map(|v| (0..ctx.tur_ids.len()).map(|tm| ctx.g_of(tm, v.z)).collect())
+            .collect();
+        ctx
+    }
 }
 
 impl Ctx<'_> {
@@ -1289,44 +1334,9 @@ pub fn run(inp: &PhotonInput) -> PhotonResult {
     let nb = inp.e_dir.len();
     let has_sky = inp.e_diff.iter().any(|&e| e > 0.0);
     let w = nb * if has_sky { 2 } else { 1 };
-    let tiling = inp.dirs.tiling();
-    let n_dirs = tiling.len();
-    let size = (
-        spec.n[0] as f64 * spec.cell.x,
-        spec.n[1] as f64 * spec.cell.y,
-    );
-    let mut tur_mat = vec![u32::MAX; inp.optics.len()];
-    let mut tur_ids = Vec::new();
-    for (i, o) in inp.optics.iter().enumerate() {
-        if matches!(o, PhotonOptics::Turbid { .. }) {
-            tur_mat[i] = tur_ids.len() as u32;
-            tur_ids.push(i as u32);
-        }
-    }
-    let mut ctx = Ctx {
-        inp,
-        nb,
-        w,
-        sum: Summary {
-            w,
-            n_dirs,
-            n_views: inp.views.len(),
-        },
-        size,
-        tur_mat,
-        tur_ids,
-        g_view: Vec::new(),
-        omega: tiling.iter().map(|d| d.omega).collect(),
-        view_sector: inp.views.iter().map(|v| inp.dirs.find_sector(*v)).collect(),
-        receiver: None,
-        max_path: f64::INFINITY,
-    };
-    ctx.g_view = inp
-        .views
-        .iter()
-        .map(|v| (0..ctx.tur_ids.len()).map(|tm| ctx.g_of(tm, v.z)).collect())
-        .collect();
-    let area = size.0 * size.1;
+    let n_dirs = inp.dirs.tiling().len();
+    let ctx = Ctx::new(inp, nb, w);
+    let area = ctx.size.0 * ctx.size.1;
     let mut source = vec![0.0; w];
     for b in 0..nb {
         source[b] = inp.e_dir[b] * area;
@@ -2086,38 +2096,7 @@ pub fn run_lidar(
     beam: &Beam,
     pulses: &[Pulse],
 ) -> Result<Vec<PulseResult>, String> {
-    let spec = inp.spec;
-    let size = (
-        spec.n[0] as f64 * spec.cell.x,
-        spec.n[1] as f64 * spec.cell.y,
-    );
-    let mut tur_mat = vec![u32::MAX; inp.optics.len()];
-    let mut tur_ids = Vec::new();
-    for (i, o) in inp.optics.iter().enumerate() {
-        if matches!(o, PhotonOptics::Turbid { .. }) {
-            tur_mat[i] = tur_ids.len() as u32;
-            tur_ids.push(i as u32);
-        }
-    }
-    let tiling = inp.dirs.tiling();
-    let base = Ctx {
-        inp,
-        nb: 1,
-        w: 1,
-        sum: Summary {
-            w: 1,
-            n_dirs: tiling.len(),
-            n_views: 0,
-        },
-        size,
-        tur_mat,
-        tur_ids,
-        g_view: Vec::new(),
-        omega: tiling.iter().map(|d| d.omega).collect(),
-        view_sector: Vec::new(),
-        receiver: None,
-        max_path: f64::INFINITY,
-    };
+    let base = Ctx::new(inp, 1, 1);
     // Validate the binner once.
     crate::lidar::waveform::WaveformBinner::new(beam.gate_m.0, beam.gate_m.1, beam.bin_ns)
         .map_err(|e| e.to_string())?;
@@ -2137,17 +2116,8 @@ fn run_pulse(base: &Ctx, beam: &Beam, pl: &Pulse) -> PulseResult {
             cos_fov: beam.cos_fov,
             aperture_m2: beam.aperture_m2,
         }),
-        inp,
-        nb: 1,
-        w: 1,
-        sum: base.sum.clone(),
-        size: base.size,
-        tur_mat: base.tur_mat.clone(),
-        tur_ids: base.tur_ids.clone(),
-        g_view: Vec::new(),
-        omega: base.omega.clone(),
-        view_sector: Vec::new(),
         max_path: beam.gate_m.1,
+        ..base.clone()
     };
     let binner =
         crate::lidar::waveform::WaveformBinner::new(beam.gate_m.0, beam.gate_m.1, beam.bin_ns)

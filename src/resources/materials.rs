@@ -61,6 +61,32 @@ pub struct Material {
 }
 
 impl MaterialKind {
+    /// Lambertian facet model `(R, T_d, T_dir at normal incidence)` per band of a Lambertian
+    /// property or a bi-Lambertian leaf (R = ρ_L, T_d = τ_L, no direct transmission;
+    /// physics.md §5.1), `None` for other kinds.
+    pub fn lambert_parts(&self) -> Option<(Vec<f64>, Vec<f64>, Vec<f64>)> {
+        match self {
+            MaterialKind::Lambertian {
+                reflectance,
+                diffuse_transmittance,
+                direct_transmittance,
+            } => Some((
+                reflectance.clone(),
+                diffuse_transmittance.clone(),
+                direct_transmittance.clone(),
+            )),
+            MaterialKind::Leaf {
+                reflectance,
+                transmittance,
+            } => Some((
+                reflectance.clone(),
+                transmittance.clone(),
+                vec![0.0; reflectance.len()],
+            )),
+            _ => None,
+        }
+    }
+
     /// Per-band BRDF models of an RPV/Hapke material (physics.md §5.2–5.3), `None` for other
     /// kinds.
     pub fn brdf_models(&self, nb: usize) -> Option<Vec<crate::physics::brdf::Brdf>> {

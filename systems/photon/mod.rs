@@ -187,23 +187,10 @@ pub fn build_photon_optics(
                     discrete,
                 }
             }
-            MaterialKind::Lambertian {
-                reflectance,
-                diffuse_transmittance,
-                direct_transmittance,
-            } => PhotonOptics::Lambert {
-                r: reflectance.clone(),
-                t: diffuse_transmittance.clone(),
-                t_dir: direct_transmittance.clone(),
-            },
-            MaterialKind::Leaf {
-                reflectance,
-                transmittance,
-            } => PhotonOptics::Lambert {
-                r: reflectance.clone(),
-                t: transmittance.clone(),
-                t_dir: vec![0.0; reflectance.len()],
-            },
+            MaterialKind::Lambertian { .. } | MaterialKind::Leaf { .. } => {
+                let (r, t, t_dir) = m.kind.lambert_parts().expect("Lambertian kind");
+                PhotonOptics::Lambert { r, t, t_dir }
+            }
             k @ (MaterialKind::Rpv(_) | MaterialKind::Hapke(_)) => {
                 let models = k.brdf_models(nb).expect("RPV/Hapke");
                 // The sampler follows band 0's BRDF; other bands are reweighted (unbiased:
