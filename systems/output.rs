@@ -185,6 +185,7 @@ fn write_radiative(
         },
         "solver": p.solver,
         "monte_carlo": p.monte_carlo,
+        "launch": p.launch,
         "iterations": p.iterations,
         "converged": p.converged,
         "extrapolation_ratio": p.extrapolation_ratio,

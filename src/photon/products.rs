@@ -67,6 +67,7 @@ pub fn photon_products(
         source: res.source.clone(),
         escaped: res.escaped.clone(),
         images: Vec::new(),
+        launch: Default::default(),
         escaped_per_iteration: Vec::new(),
         absorbed_turbid: res.absorbed_turbid.clone(),
         intercepted_turbid: res.intercepted_turbid.clone(),
@@ -168,6 +169,7 @@ pub fn photon_products(
     }
     let threads = rayon::current_num_threads().max(1) as f64;
     p.solver = "monte-carlo";
+    p.launch = None;
     p.iterations = 0;
     p.monte_carlo = Some(MonteCarloInfo {
         photons: res.photons,

@@ -103,6 +103,9 @@ pub struct RadiativeProducts {
     pub tracking_seconds: f64,
     /// Solver: `flux-tracking` (Radiative stage) or `monte-carlo` (Photon stage).
     pub solver: &'static str,
+    /// Sun and sky launch grids (flux tracking only).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub launch: Option<crate::radiative::engine::LaunchPlan>,
     /// Monte Carlo run description (Photon stage only).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub monte_carlo: Option<crate::photon::products::MonteCarloInfo>,
@@ -224,6 +227,7 @@ impl RadiativeProducts {
             crossings: raw.crossings,
             tracking_seconds: seconds,
             solver: "flux-tracking",
+            launch: Some(raw.launch),
             monte_carlo: None,
             raw,
         }
