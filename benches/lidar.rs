@@ -1,17 +1,20 @@
 //! LiDAR speed (harness = false): `cargo bench --bench lidar` (`-- --quick`: fewer pulses).
 //!
 //! 1. ALS on the 40 m forest (24 trees, 1 m cells): pulses per second per core at 1000
-//!    photons per pulse, multiple scattering (orders ≤ 100), nadir, 0.3 m footprints.
+//!    photons per pulse, multiple scattering (orders ≤ 100), nadir, 0.3 m footprints, for the
+//!    continuous and discrete (Ray-Carlo) samplers and both returns methods, with the mean
+//!    waveform energy and return count per pulse next to each speed.
 //! 2. A multi-pulse scan of the urban scene: 250 000 pulses (500 × 500 grid, 0.12 m spacing)
 //!    at 100 photons per pulse (`--quick`: 10 000 pulses), wall time, pulses/s/core, peak RSS.
 //!
 //! The passive solver is reduced to a 64-photon Monte Carlo run so the timings are the LiDAR's.
 
+use lumenscape::lidar::returns::ReturnsMethod;
 use lumenscape::photon::engine::SamplerKind;
 use lumenscape::resources::lidar::LidarProducts;
 use lumenscape::resources::scene::{RunSettings, Solver};
 use lumenscape::scene::SceneSource;
-use lumenscape::scene::desc::{LidarDesc, LidarPlatform, PulsePattern, SceneDesc};
+use lumenscape::scene::desc::{LidarDesc, LidarPlatform, LidarSampler, PulsePattern, SceneDesc};
 use lumenscape::scene::generators::{forest, urban};
 use lumenscape::simulation::Simulation;
 
@@ -40,10 +43,13 @@ fn lidar(pulses: PulsePattern, photons: u32) -> LidarDesc {
         max_order: 100,
         gate_margin_m: 10.0,
         photon_counting: None,
+        beam: None,
+        returns: ReturnsMethod::GaussianDecomposition,
+        sampler: LidarSampler::Discrete,
     }
 }
 
-fn run(mut d: SceneDesc, l: LidarDesc) -> (f64, usize) {
+fn run(mut d: SceneDesc, l: LidarDesc) -> Outcome {
     d.lidars = Some(vec![l]);
     let mut sim = Simulation::from_desc(
         &d,
@@ -59,7 +65,29 @@ fn run(mut d: SceneDesc, l: LidarDesc) -> (f64, usize) {
     .unwrap();
     sim.run(None).unwrap();
     let r = &sim.resource::<LidarProducts>().0[0];
-    (r.seconds, r.pulses.len())
+    let n = r.pulses.len().max(1) as f64;
+    let energy = r
+        .pulses
+        .iter()
+        .map(|p| p.waveform.total.iter().sum::<f64>())
+        .sum::<f64>()
+        / n;
+    let returns = r.pulses.iter().map(|p| p.returns.len()).sum::<usize>() as f64 / n;
+    Outcome {
+        seconds: r.seconds,
+        pulses: r.pulses.len(),
+        energy,
+        returns,
+    }
+}
+
+/// One LiDAR run: stage wall time, pulses, mean waveform energy per pulse (J) and mean number
+/// of discrete returns per pulse.
+struct Outcome {
+    seconds: f64,
+    pulses: usize,
+    energy: f64,
+    returns: f64,
 }
 
 fn main() {
@@ -71,9 +99,30 @@ fn main() {
     });
     let n = if quick { 200 } else { 2000 };
     let side = (n as f64).sqrt().ceil() as u32;
-    let (secs, pulses) = run(
-        f,
-        lidar(
+    println!(
+        "ALS forest 40 m, 1000 photons/pulse, multiple scattering (100 orders), {threads} threads"
+    );
+    println!(
+        "{:>10} {:>22} {:>7} {:>8} {:>13} {:>15} {:>13} {:>9}",
+        "sampler",
+        "returns",
+        "pulses",
+        "wall_s",
+        "pulses/s/core",
+        "photons/s/core",
+        "mean_E_J",
+        "returns"
+    );
+    for (sampler, method) in [
+        (
+            LidarSampler::Continuous,
+            ReturnsMethod::GaussianDecomposition,
+        ),
+        (LidarSampler::Discrete, ReturnsMethod::GaussianDecomposition),
+        (LidarSampler::Discrete, ReturnsMethod::PeakDetection),
+        (LidarSampler::Continuous, ReturnsMethod::PeakDetection),
+    ] {
+        let mut l = lidar(
             PulsePattern::Scan {
                 start: (1.0, 1.0),
                 end: (39.0, 1.0),
@@ -82,31 +131,40 @@ fn main() {
                 pulse_spacing_m: 38.0 / (side - 1) as f64,
             },
             1000,
-        ),
-    );
-    println!(
-        "ALS forest 40 m, {pulses} pulses × 1000 photons (multiple scattering): {secs:.2} s, {:.0} pulses/s/core, {:.2e} photons/s/core, peak RSS {:.0} MiB",
-        pulses as f64 / secs / threads,
-        pulses as f64 * 1000.0 / secs / threads,
-        peak_rss_mib()
-    );
+        );
+        l.sampler = sampler;
+        l.returns = method;
+        let o = run(f.clone(), l);
+        println!(
+            "{:>10} {:>22} {:>7} {:>8.2} {:>13.0} {:>15.2e} {:>13.4e} {:>9.2}",
+            format!("{sampler:?}"),
+            format!("{method:?}"),
+            o.pulses,
+            o.seconds,
+            o.pulses as f64 / o.seconds / threads,
+            o.pulses as f64 * 1000.0 / o.seconds / threads,
+            o.energy,
+            o.returns
+        );
+    }
+    println!("peak RSS {:.0} MiB", peak_rss_mib());
     let u = urban::urban(&urban::UrbanParams::default());
     let m = if quick { 100 } else { 500 };
-    let (secs, pulses) = run(
-        u,
-        lidar(
-            PulsePattern::Scan {
-                start: (0.0, 0.0),
-                end: (59.9, 0.0),
-                lines: m,
-                line_spacing_m: 59.9 / m as f64,
-                pulse_spacing_m: 59.9 / (m - 1) as f64,
-            },
-            100,
-        ),
+    let mut l = lidar(
+        PulsePattern::Scan {
+            start: (0.0, 0.0),
+            end: (59.9, 0.0),
+            lines: m,
+            line_spacing_m: 59.9 / m as f64,
+            pulse_spacing_m: 59.9 / (m - 1) as f64,
+        },
+        100,
     );
+    l.returns = ReturnsMethod::PeakDetection;
+    let o = run(u, l);
+    let (secs, pulses) = (o.seconds, o.pulses);
     println!(
-        "urban scan, {pulses} pulses × 100 photons: {secs:.1} s, {:.0} pulses/s/core, peak RSS {:.0} MiB",
+        "urban scan, {pulses} pulses × 100 photons, peak-detection returns: {secs:.1} s, {:.0} pulses/s/core, peak RSS {:.0} MiB",
         pulses as f64 / secs / threads,
         peak_rss_mib()
     );

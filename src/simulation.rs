@@ -106,7 +106,18 @@ impl Simulation {
                     s.add_systems(
                         crate::systems::phase::tabulate_phase
                             .run_if(resource_exists::<crate::resources::tracking::Directions>)
-                            .run_if(|s: Res<RunSettings>| s.solver.needs_phase_tables()),
+                            .run_if(
+                                |s: Res<RunSettings>,
+                                 l: Option<Res<crate::resources::lidar::LidarInstruments>>| {
+                                    s.solver.needs_phase_tables()
+                                        || l.is_some_and(|l| {
+                                            l.0.iter().any(|d| {
+                                                d.sampler
+                                                    == crate::scene::desc::LidarSampler::Discrete
+                                            })
+                                        })
+                                },
+                            ),
                     );
                 }
                 Stage::Maket => add_maket_systems(&mut s),

@@ -245,6 +245,24 @@ fn bad_lidar_fields_are_named_with_their_line() {
     let (e, msg) = error_of("lidar_fp.ron", &text);
     assert!(msg.contains("lidars[0].footprint_radius_m"), "{msg}");
     assert_eq!(line_of(&e), Some(7), "{msg}");
+    // A beam table whose radii go backwards: the field, its line and the offending point.
+    let text = GOOD.replacen(
+        "    version: 1,",
+        &format!(
+            "    version: 1,\n{}",
+            lidar.replace("\"nope\"", "\"red\"").replace(
+                "footprint_radius_m: Some(0.2),",
+                "footprint_radius_m: Some(0.2),\n        beam: Some(Tabulated(points: [(0.0, 1.0), (0.5, 1.0), (0.4, 0.0)])),"
+            )
+        ),
+        1,
+    );
+    let (e, msg) = error_of("lidar_beam.ron", &text);
+    assert!(
+        msg.contains("lidars[0].beam") && msg.contains("point 2"),
+        "{msg}"
+    );
+    assert_eq!(line_of(&e), Some(8), "{msg}");
 }
 
 #[test]

@@ -6,6 +6,7 @@
 mod common;
 use common::*;
 use lumenscape::io::las_out::read_las;
+use lumenscape::lidar::returns::ReturnsMethod;
 use lumenscape::lidar::waveform::{
     FirstOrderCanopy, GapCorrelation, Waveform, analytic_first_order,
 };
@@ -39,6 +40,9 @@ fn lidar(name: &str, altitude_m: f64, pulses: PulsePattern, photons: u32) -> Lid
         max_order: 100,
         gate_margin_m: 10.0,
         photon_counting: None,
+        beam: None,
+        returns: ReturnsMethod::GaussianDecomposition,
+        sampler: LidarSampler::Discrete,
     }
 }
 
@@ -371,4 +375,34 @@ fn facet_tree_and_turbid_tree_give_similar_waveforms() {
     assert!((et / ef - 1.0).abs() < 0.2);
     assert!((cf - ct).abs() < 0.5);
     assert!((first(f) - first(t)).abs() < 1.5);
+}
+
+/// DART's Ray-Carlo (discrete directions, the default) against the exact continuous phase
+/// functions on the turbid layer (LAI 2, ρ = τ = 0.45, ρ_g = 0.3): the multiple-scattering
+/// energy agrees within 5 % (discretisation of 100 directions; the passive alias sampler's
+/// angular bias is 0.5 %, tests/photon_samplers.rs), the first order within 1 % (it is the same
+/// forced estimate along the exact pulse direction in both modes). Measured: see the output.
+#[test]
+fn discrete_and_continuous_samplers_agree_on_the_turbid_layer() {
+    let mut e = Vec::new();
+    for sampler in [LidarSampler::Discrete, LidarSampler::Continuous] {
+        let mut l = lidar("als", 1000.0, PulsePattern::Single((2.0, 2.0)), 50_000);
+        l.sampler = sampler;
+        let runs = run(&scene(2.0, 0.3, l), None);
+        let w = &runs[0].pulses[0].raw;
+        let e1 = w.first_order_energy_j();
+        e.push((e1, w.total_energy_j() - e1));
+    }
+    let (d, c) = (e[0], e[1]);
+    eprintln!(
+        "discrete vs continuous: first order {:e} vs {:e} ({:+.2} %), multiple scattering {:e} vs {:e} ({:+.2} %)",
+        d.0,
+        c.0,
+        100.0 * (d.0 / c.0 - 1.0),
+        d.1,
+        c.1,
+        100.0 * (d.1 / c.1 - 1.0)
+    );
+    assert!((d.0 / c.0 - 1.0).abs() < 0.01);
+    assert!((d.1 / c.1 - 1.0).abs() < 0.05);
 }

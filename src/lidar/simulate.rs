@@ -15,7 +15,7 @@
 use crate::lidar::photon_counting::{
     Detector, mean_signal_counts, simulate_shot, solar_background_rate,
 };
-use crate::lidar::pulse::{FootprintProfile, FootprintSampler, PulseShape};
+use crate::lidar::pulse::{BeamProfile, FootprintSampler, PulseShape};
 use crate::photon::engine::{Beam, PhotonInput, Pulse, run_lidar};
 use crate::resources::directions::direction_from_deg;
 use crate::resources::lidar::{CountedPhoton, LidarRun, PulseRecord};
@@ -144,12 +144,18 @@ pub fn simulate_lidar(
         (None, Some(d)) => ref_range * (0.5e-3 * d).tan(),
         _ => return Err("footprint_radius_m or divergence_mrad is required".into()),
     };
-    let profile = FootprintProfile::from_edge_intensity(radius, desc.edge_intensity)
+    let profile = desc.beam.clone().unwrap_or(BeamProfile::Gaussian {
+        edge_intensity: desc.edge_intensity,
+    });
+    // Truncate the profile at 3 footprint radii, or at the end of a longer table (the lost
+    // fraction is reported).
+    let reach = match &profile {
+        BeamProfile::Tabulated { points } => points.last().map_or(1.0, |p| p.0).max(3.0),
+        _ => 3.0,
+    };
+    let footprint = FootprintSampler::from_beam(&profile, radius, reach * radius)
         .map_err(|e| format!("lidar `{}`: {e}", desc.name))?;
-    // Truncate the Gaussian profile at 3 footprint radii (lost fraction reported).
-    let footprint = FootprintSampler::new(&profile, 3.0 * radius)
-        .map_err(|e| format!("lidar `{}`: {e}", desc.name))?;
-    let fov_r = desc.fov_radius_m.unwrap_or(3.0 * radius);
+    let fov_r = desc.fov_radius_m.unwrap_or(reach * radius);
     let fov_half = (fov_r / ref_range).atan();
     // Range gate from the grid box (two-way), plus the margin for multiple scattering.
     let mut d_min = f64::INFINITY;
@@ -195,47 +201,61 @@ pub fn simulate_lidar(
     let results = run_lidar(input, &beam, &pulses)?;
     let shape = PulseShape::from_fwhm_ns(desc.pulse_fwhm_ns, 3.0)
         .map_err(|e| format!("lidar `{}`: {e}", desc.name))?;
-    let mut records = Vec::with_capacity(results.len());
-    for (r, pl) in results.into_iter().zip(&pulses) {
-        let waveform = r
-            .waveform
-            .convolve(&shape, None)
-            .map_err(|e| format!("lidar `{}` pulse {}: {e}", desc.name, r.id))?;
-        let peak = waveform.total.iter().cloned().fold(0.0, f64::max);
-        let returns = if peak > 0.0 {
-            // Up to 15 returns (the LAS limit), 60 Levenberg–Marquardt iterations: the fit
-            // converges in < 20 on the test waveforms and dominated the stage's time at 200.
-            crate::lidar::returns::detect_returns_with(
-                &waveform,
-                1e-3 * peak,
-                &crate::lidar::returns::DecompositionSettings {
-                    max_components: 15,
-                    max_iterations: 60,
-                    ..Default::default()
-                },
-            )
-            .map_err(|e| format!("lidar `{}` pulse {}: {e}", desc.name, r.id))?
-        } else {
-            Vec::new()
-        };
-        records.push(PulseRecord {
-            id: r.id,
-            emitter: pl.emitter,
-            axis: pl.axis,
-            raw: r.waveform,
-            waveform,
-            out_of_gate_j: r.out_of_gate_j,
-            missed_j: r.missed_j,
-            returns,
-        });
-    }
+    // Convolution and returns per pulse, in parallel (each pulse is independent; the order
+    // of the records is the order of the pulses).
+    use rayon::prelude::*;
+    let records = results
+        .into_par_iter()
+        .zip(pulses.par_iter())
+        .map(|(r, pl)| -> Result<PulseRecord, String> {
+            let waveform = r
+                .waveform
+                .convolve(&shape, None)
+                .map_err(|e| format!("lidar `{}` pulse {}: {e}", desc.name, r.id))?;
+            let peak = waveform.total.iter().cloned().fold(0.0, f64::max);
+            let returns = if peak > 0.0 {
+                // Up to 15 returns (the LAS limit), 60 Levenberg–Marquardt iterations: the fit
+                // converges in < 20 on the test waveforms.
+                crate::lidar::returns::detect_returns_method(
+                    &waveform,
+                    1e-3 * peak,
+                    desc.returns,
+                    &crate::lidar::returns::DecompositionSettings {
+                        max_components: 15,
+                        max_iterations: 60,
+                        ..Default::default()
+                    },
+                )
+                .map_err(|e| format!("lidar `{}` pulse {}: {e}", desc.name, r.id))?
+            } else {
+                Vec::new()
+            };
+            Ok(PulseRecord {
+                id: r.id,
+                emitter: pl.emitter,
+                axis: pl.axis,
+                raw: r.waveform,
+                waveform,
+                out_of_gate_j: r.out_of_gate_j,
+                missed_j: r.missed_j,
+                returns,
+            })
+        })
+        .collect::<Result<Vec<_>, String>>()?;
     let mut notes = vec![format!(
-        "footprint: Gaussian, radius {radius:.4} m at {ref_range:.1} m (edge intensity {}), truncated at 3 radii (energy outside: {:.2e}); receiver FOV half-angle {:.3e} rad; gate {:.3}–{:.3} m of path",
-        desc.edge_intensity,
+        "footprint: {} profile{}, radius {radius:.4} m at {ref_range:.1} m, truncated at {reach} radii (energy outside: {:.2e}); receiver FOV half-angle {:.3e} rad; gate {:.3}–{:.3} m of path; returns: {:?}; sampler: {:?}",
+        profile.name(),
+        match &profile {
+            BeamProfile::Gaussian { edge_intensity } =>
+                format!(" (edge intensity {edge_intensity})"),
+            _ => String::new(),
+        },
         beam.footprint.lost_energy_fraction(),
         fov_half,
         gate.0,
-        gate.1
+        gate.1,
+        desc.returns,
+        desc.sampler
     )];
     notes.push("turbid cells: independent gaps on the return path (pure turbid medium, two-way transmittance); facets are exactly correlated".into());
     // Fusion: passive radiance at each footprint centre (every band).

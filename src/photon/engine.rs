@@ -1685,8 +1685,13 @@ fn trace_photon(
                 match drows {
                     Some(rows) if discrete => {
                         let row = ph.di.min(rows.samplers.len() - 1);
-                        // Peel-off with the containing sector's tabulated value: T_{i,m}/ΔΩ_m.
+                        // Peel-off with the containing sector's tabulated value: T_{i,m}/ΔΩ_m
+                        // (LiDAR receiver mode, first flight: done by the forced estimate).
+                        let forced = ctx.receiver.is_some() && ph.order == 0;
                         ctx.peel(ph, p, None, false, out, scratch, tr, |v, ov, s| {
+                            if forced {
+                                return false;
+                            }
                             let m = match ctx.view_sector.get(v) {
                                 Some(&m) => m,
                                 None => inp.dirs.find_sector(ov),
@@ -2202,9 +2207,8 @@ fn run_pulse(base: &Ctx, beam: &Beam, pl: &Pulse) -> PulseResult {
             order: 0,
             skip_facet: None,
         };
-        if inp.params.sampler.is_discrete() {
-            ph.d = ctx.omega[ph.di];
-        }
+        // Discrete mode: the pulse keeps its exact direction (its first scattering uses the
+        // rows of the sector that contains it); later orders follow the discrete directions.
         trace_photon(
             &ctx,
             &mut ph,

@@ -949,6 +949,20 @@ fn validate_lidar(
         }
     }
     v.in_range(&f("edge_intensity"), l.edge_intensity, 1e-6, 0.999)?;
+    if let Some(beam) = &l.beam {
+        if l.edge_intensity != crate::scene::desc::default_edge_intensity() {
+            return Err(src.invalid(
+                f("edge_intensity"),
+                "with a `beam` profile, give the edge intensity inside it (`Gaussian(edge_intensity: ..)`)",
+            ));
+        }
+        if let crate::lidar::pulse::BeamProfile::Gaussian { edge_intensity } = beam {
+            v.in_range(&f("beam.edge_intensity"), *edge_intensity, 1e-6, 0.999)?;
+        }
+        if let Err(e) = beam.validate() {
+            return Err(src.invalid(f("beam"), e.to_string()));
+        }
+    }
     if let Some(r) = l.fov_radius_m {
         v.positive(&f("fov_radius_m"), r)?;
     }

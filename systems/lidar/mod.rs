@@ -5,7 +5,7 @@
 //!
 //! Reads LidarInstruments, SceneInfo, GridSpec, CellGrid, FacetStore, Directions, Materials,
 //! TerrainRes, Ground, TurbidCrown, TurbidPlot, ImportedMesh, RadiativeProducts (optional),
-//! ImageDirections (optional); writes LidarProducts.
+//! ImageDirections (optional), OpticsTables (discrete sampler); writes LidarProducts.
 
 use crate::components::{Ground, ImportedMesh, TurbidCrown, TurbidPlot};
 use crate::geometry::terrain::Terrain;
@@ -17,7 +17,8 @@ use crate::resources::grid::{CellGrid, GridSpec};
 use crate::resources::lidar::{LidarInstruments, LidarProducts};
 use crate::resources::materials::Materials;
 use crate::resources::scene::{SceneInfo, StageErrors, TerrainRes};
-use crate::resources::tracking::Directions;
+use crate::resources::tracking::{Directions, OpticsTables};
+use crate::scene::desc::LidarSampler;
 use crate::systems::photon::{build_photon_optics, used_turbid};
 use crate::systems::radiative::ImageDirections;
 use bevy_ecs::prelude::*;
@@ -116,8 +117,11 @@ pub fn run_lidars(
     dirs: Res<Directions>,
     mats: Res<Materials>,
     terrain: Res<TerrainRes>,
-    passive: Option<Res<RadiativeProducts>>,
-    images: Option<Res<ImageDirections>>,
+    (passive, images, tables): (
+        Option<Res<RadiativeProducts>>,
+        Option<Res<ImageDirections>>,
+        Option<Res<OpticsTables>>,
+    ),
     grounds: Query<&Ground>,
     crowns: Query<&TurbidCrown>,
     plots: Query<&TurbidPlot>,
@@ -127,13 +131,8 @@ pub fn run_lidars(
 ) {
     let nb = info.bands.len();
     let used = used_turbid(mats.list.len(), &crowns, &plots, &meshes);
-    let all = match build_photon_optics(&mats, &used, None, SamplerKind::Continuous, nb) {
-        Ok(o) => o,
-        Err(e) => {
-            errors.0.push(format!("lidar: {e}"));
-            return;
-        }
-    };
+    // Optics per sampler kind, built once for the instruments that use it.
+    let mut built: [Option<Vec<crate::photon::engine::PhotonOptics>>; 2] = [None, None];
     let flat_ground = match (&terrain.0, grounds.iter().next()) {
         (Terrain::Flat(_), Some(g)) => Some(g.optics),
         _ => None,
@@ -167,8 +166,22 @@ pub fn run_lidars(
             ));
             return;
         }
+        let (slot, kind) = match l.sampler {
+            LidarSampler::Discrete => (0, SamplerKind::Alias),
+            LidarSampler::Continuous => (1, SamplerKind::Continuous),
+        };
+        if built[slot].is_none() {
+            match build_photon_optics(&mats, &used, tables.as_deref(), kind, nb) {
+                Ok(o) => built[slot] = Some(o),
+                Err(e) => {
+                    errors.0.push(format!("lidar `{}`: {e}", l.name));
+                    return;
+                }
+            }
+        }
+        let all = built[slot].as_ref().expect("built above");
         let optics: Vec<_> = all.iter().map(|o| o.select_band(band)).collect();
-        let mut params = PhotonParams::new(0, info.seed, SamplerKind::Continuous);
+        let mut params = PhotonParams::new(0, info.seed, kind);
         params.max_order = l.max_order;
         // One forced peel-off point per crossing of a turbid or fluid cell (see
         // `PhotonParams::fluid_peel_points`): at 1000 photons per pulse the first-order
