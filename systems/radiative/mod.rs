@@ -6,7 +6,7 @@
 
 use crate::components::Ground;
 use crate::geometry::terrain::Terrain;
-use crate::radiative::engine::{RadiativeInput, TrackOptics, run};
+use crate::radiative::engine::{RadiativeInput, TrackOptics, remap_wrong_side, run};
 use crate::radiative::products::RadiativeProducts;
 use crate::resources::facets::FacetStore;
 use crate::resources::grid::{CellGrid, GridSpec};
@@ -41,17 +41,16 @@ pub fn track_flux(
     mut commands: Commands,
 ) {
     let nb = info.bands.len();
-    // Facet and ground models the tracker supports so far: Lambertian and bi-Lambertian.
-    let facet_ok = |m: u32| {
-        matches!(
-            mats.list[m as usize].kind,
-            MaterialKind::Lambertian { .. } | MaterialKind::Leaf { .. }
-        )
-    };
-    if let Some(f) = facets.facets.iter().find(|f| !facet_ok(f.material)) {
-        errors.0.push(format!("material `{}`: RPV and Hapke facets are not supported by the Radiative stage yet (use a Lambertian property)", mats.list[f.material as usize].name));
-        return;
-    }
+    // RPV / Hapke facets (DEM, roofs, meshes): one table set (per band) per material and facet
+    // normal, normals quantised to 1/64 per component (≤ 0.9°) so a DEM shares tables.
+    let (facet_brdf, facet_tables) =
+        match brdf_facet_tables(&facets.facets, &mats, &dirs, &settings, nb) {
+            Ok(t) => t,
+            Err(e) => {
+                errors.0.push(e);
+                return;
+            }
+        };
     let flat_ground = match (&terrain.0, grounds.iter().next()) {
         (Terrain::Flat(_), Some(g)) => match &mats.list[g.optics as usize].kind {
             MaterialKind::Lambertian { reflectance, .. }
@@ -86,25 +85,28 @@ pub fn track_flux(
         }
     }
     let n_dirs = dirs.set.tiling().len();
-    let fractions: Vec<(Vec<f32>, Vec<f32>)> =
-        if facets.facets.len() * n_dirs <= EXACT_FRACTIONS_LIMIT {
-            facets
-                .facets
-                .par_iter()
-                .map(|f| {
-                    let n = (f.v[1] - f.v[0])
-                        .cross(f.v[2] - f.v[0])
-                        .normalize_or(glam::DVec3::Z);
-                    let fr = lambertian_facet_fractions(&dirs.set, n);
-                    (
-                        fr.front[..n_dirs].iter().map(|&x| x as f32).collect(),
-                        fr.back[..n_dirs].iter().map(|&x| x as f32).collect(),
-                    )
-                })
-                .collect()
-        } else {
-            Vec::new()
-        };
+    let omega: Vec<glam::DVec3> = dirs.set.tiling().iter().map(|d| d.omega).collect();
+    let fractions: Vec<(Vec<f32>, Vec<f32>)> = if facets.facets.len() * n_dirs
+        <= EXACT_FRACTIONS_LIMIT
+    {
+        facets
+            .facets
+            .par_iter()
+            .map(|f| {
+                let n = (f.v[1] - f.v[0])
+                    .cross(f.v[2] - f.v[0])
+                    .normalize_or(glam::DVec3::Z);
+                let fr = lambertian_facet_fractions(&dirs.set, n);
+                let mut front: Vec<f32> = fr.front[..n_dirs].iter().map(|&x| x as f32).collect();
+                let mut back: Vec<f32> = fr.back[..n_dirs].iter().map(|&x| x as f32).collect();
+                remap_wrong_side(&mut front, n, &omega);
+                remap_wrong_side(&mut back, -n, &omega);
+                (front, back)
+            })
+            .collect()
+    } else {
+        Vec::new()
+    };
     let il = &info.illumination;
     let e_tot: Vec<f64> = (0..nb)
         .map(|b| il.irradiance_w_m2_um.get(b).copied().unwrap_or(1.0))
@@ -139,6 +141,8 @@ pub fn track_flux(
         grid: &grid,
         facets: &facets.facets,
         facet_fractions: &fractions,
+        facet_brdf: &facet_brdf,
+        facet_tables: &facet_tables,
         dirs: &dirs.set,
         sector_of: &dirs.sector_of,
         n_sectors: dirs.n_sectors,
@@ -172,4 +176,75 @@ pub fn track_flux(
         &ground_facet,
         secs,
     ));
+}
+
+/// Table sets of the RPV/Hapke facets: `facet_brdf[f]` indexes `sets` (u32::MAX for other
+/// facets); each set holds one [`brdf_facet_table`](crate::resources::phase_tables::brdf_facet_table)
+/// per band for the facet's material and its normal quantised to 1/64 per component (≤ 0.9°:
+/// far below the sector width of the direction sets), so facets with the same orientation share
+/// one set.
+#[allow(clippy::type_complexity)]
+fn brdf_facet_tables(
+    facets: &[crate::resources::facets::Facet],
+    mats: &Materials,
+    dirs: &Directions,
+    settings: &RadiativeSettings,
+    nb: usize,
+) -> Result<
+    (
+        Vec<u32>,
+        Vec<Vec<crate::resources::phase_tables::PhaseTable>>,
+    ),
+    String,
+> {
+    use std::collections::HashMap;
+    let mut key_of: HashMap<(u32, [i32; 3]), u32> = HashMap::new();
+    let mut keys: Vec<(u32, [i32; 3])> = Vec::new();
+    let mut facet_brdf = vec![u32::MAX; facets.len()];
+    for (i, f) in facets.iter().enumerate() {
+        if mats.list[f.material as usize]
+            .kind
+            .brdf_models(nb)
+            .is_none()
+        {
+            continue;
+        }
+        let n = (f.v[1] - f.v[0])
+            .cross(f.v[2] - f.v[0])
+            .normalize_or(glam::DVec3::Z);
+        let q = [
+            (n.x * 64.0).round() as i32,
+            (n.y * 64.0).round() as i32,
+            (n.z * 64.0).round() as i32,
+        ];
+        let k = (f.material, q);
+        let id = *key_of.entry(k).or_insert_with(|| {
+            keys.push(k);
+            keys.len() as u32 - 1
+        });
+        facet_brdf[i] = id;
+    }
+    let sets: Result<Vec<_>, String> = keys
+        .par_iter()
+        .map(|(m, q)| {
+            let mat = &mats.list[*m as usize];
+            let n = glam::DVec3::new(q[0] as f64, q[1] as f64, q[2] as f64)
+                .normalize_or(glam::DVec3::Z);
+            let models = mat.kind.brdf_models(nb).expect("BRDF material");
+            models
+                .iter()
+                .map(|model| {
+                    crate::resources::phase_tables::brdf_facet_table(
+                        &dirs.set,
+                        model,
+                        n,
+                        Some(dirs.sun),
+                        &settings.tables,
+                    )
+                    .map_err(|e| format!("material `{}`: {e}", mat.name))
+                })
+                .collect()
+        })
+        .collect();
+    Ok((facet_brdf, sets?))
 }
