@@ -183,6 +183,24 @@ pub struct RadiativeInput<'a> {
     pub e_diff: Vec<f64>,
     /// Parameters.
     pub params: TrackingParams,
+    /// Other sources (the seam for thermal emission, atmosphere path radiance, lamps): power
+    /// put into (point, direction) pairs and tracked from iteration 1 with the sun and sky.
+    pub emitters: &'a [Emission],
+}
+
+/// One source ray: `power` (W, per channel: bands, then the sky channels if the run has them)
+/// leaves `origin` (inside the grid box) along tiling direction `dir` (or the sun's,
+/// `dir = n_dirs`), ignoring facet `skip_facet` (the emitting facet). Counted in the source.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Emission {
+    /// Start point, m.
+    pub origin: DVec3,
+    /// Tiling direction index (or the number of tiling directions for the sun's).
+    pub dir: usize,
+    /// Power per channel, W.
+    pub power: Vec<f64>,
+    /// Facet the ray starts on (not intersected), if any.
+    pub skip_facet: Option<u32>,
 }
 
 /// What the engine computed; every array is per channel (`n_channels` values per element).
@@ -1341,8 +1359,14 @@ pub fn run(inp: &RadiativeInput) -> RadiativeResult {
             source[nb + b] = inp.e_diff[b] * area;
         }
     }
-    let n_source_rays =
-        (plan.sun_n.0 * plan.sun_n.1) as f64 + (plan.sky_n.0 * plan.sky_n.1 * n_sky_dirs) as f64;
+    for e in inp.emitters {
+        for (s, v) in source.iter_mut().zip(&e.power) {
+            *s += v;
+        }
+    }
+    let n_source_rays = (plan.sun_n.0 * plan.sun_n.1) as f64
+        + (plan.sky_n.0 * plan.sky_n.1 * n_sky_dirs) as f64
+        + inp.emitters.len() as f64;
     let min_ray = inp.params.ray_threshold * source.iter().sum::<f64>() / n_source_rays;
     // Rows of the interception slots: the phase rows of each slot's member directions,
     // averaged with the power a smooth diffuse field deposits along each member: ∝ G(Ω_i) ΔΩ_i
@@ -1530,6 +1554,29 @@ pub fn run(inp: &RadiativeInput) -> RadiativeResult {
             out
         })
         .collect();
+    // Other sources, in fixed chunks after the launch rows.
+    let mut outs = outs;
+    outs.extend(
+        inp.emitters
+            .par_chunks(chunk_len(inp.emitters.len()))
+            .map(|chunk| {
+                let mut out = new_out(&ctx);
+                let mut pw = vec![0.0; w];
+                for e in chunk {
+                    pw.iter_mut().for_each(|v| *v = 0.0);
+                    for (a, b) in pw.iter_mut().zip(&e.power) {
+                        *a = *b;
+                    }
+                    if e.dir <= n_dirs && pw.iter().any(|&v| v > 0.0) {
+                        ctx.trace(e.origin, e.dir, e.skip_facet, &mut pw, &mut out);
+                    } else {
+                        add(&mut out.lost, &pw);
+                    }
+                }
+                out
+            })
+            .collect::<Vec<_>>(),
+    );
     let mut stores = new_stores(&ctx);
     let mut last = vec![0.0; w]; // escaped in the last iteration
     merge(&ctx, outs, &mut stores, &mut res, &mut last);

@@ -154,6 +154,7 @@ pub fn track_flux(
         e_dir: e_dir.clone(),
         e_diff: e_diff.clone(),
         params: settings.tracking.clone(),
+        emitters: &[],
     };
     let t0 = std::time::Instant::now();
     let raw = run(&input);
