@@ -2,7 +2,14 @@
 //! NIR, sun zenith 20°, 1 m × 1 m periodic) it runs each preset × direction count × cell size and
 //! prints wall time, cell crossings per second per core, the process peak RSS and the worst BRF
 //! and albedo errors against the DISORT oracle (assets/reference/turbid_canopy_disort.csv); then
-//! the forest scene's timing. `cargo bench --bench radiative` (`-- --quick` for fewer rows).
+//! the forest scene's timing. `cargo bench --bench radiative` (`-- --quick` for fewer rows;
+//! `-- --dump FILE` writes every row's albedos and BRFs, full precision, one JSON object per
+//! line, to compare products between two builds).
+//!
+//! Throughput columns: `Mcross/s/core` is cell crossings / (wall time of the engine run ×
+//! threads), i.e. including emission, merging and extrapolation; `kernel` is cell crossings /
+//! `RadiativeResult::kernel_seconds`, the thread-seconds spent inside the ray-tracking loops
+//! only (source launch loops and each emitter's loop over its outgoing directions).
 
 use lumenscape::radiative::products::RadiativeProducts;
 use lumenscape::resources::scene::RunSettings;
@@ -39,7 +46,33 @@ fn run_timed(
 }
 
 fn main() {
-    let quick = std::env::args().any(|a| a == "--quick");
+    let args: Vec<String> = std::env::args().collect();
+    let quick = args.iter().any(|a| a == "--quick");
+    let mut dump = args
+        .iter()
+        .position(|a| a == "--dump")
+        .and_then(|i| args.get(i + 1))
+        .map(|path| std::fs::File::create(path).expect("dump file"));
+    let mut write_dump = |name: String, p: &RadiativeProducts| {
+        use std::io::Write;
+        if let Some(f) = dump.as_mut() {
+            let bands: Vec<serde_json::Value> = p
+                .bands
+                .iter()
+                .map(|b| {
+                    serde_json::json!({
+                        "albedo": b.albedo,
+                        "fabs": b.fabs,
+                        "ftran": b.ftran,
+                        "closure": b.energy_closure,
+                        "brf": b.brf.iter().map(|e| e.brf).collect::<Vec<f64>>(),
+                    })
+                })
+                .collect();
+            let line = serde_json::json!({"row": name, "bands": bands, "crossings": p.crossings});
+            writeln!(f, "{line}").expect("dump write");
+        }
+    };
     let threads = rayon::current_num_threads();
     let oracle = std::fs::read_to_string(concat!(
         env!("CARGO_MANIFEST_DIR"),
@@ -54,13 +87,14 @@ fn main() {
         .collect();
     println!("turbid layer LAI 3, sun 20°, red+NIR, {threads} threads");
     println!(
-        "{:>9} {:>5} {:>6} {:>9} {:>6} {:>14} {:>10} {:>11} {:>11}",
+        "{:>9} {:>5} {:>6} {:>9} {:>6} {:>14} {:>7} {:>10} {:>11} {:>11}",
         "preset",
         "dirs",
         "cell",
         "wall_s",
         "iters",
         "Mcross/s/core",
+        "kernel",
         "peakRSS",
         "worstBRF%",
         "worstAlb%"
@@ -95,19 +129,22 @@ fn main() {
                     wa = wa.max((p.bands[b].albedo / r[5].parse::<f64>().unwrap() - 1.0).abs());
                 }
                 let rate = p.crossings as f64 / p.tracking_seconds / threads as f64 / 1e6;
+                let kernel = p.crossings as f64 / p.raw.kernel_seconds / 1e6;
                 let n = if preset == Preset::Reference {
                     dirs.max(400)
                 } else {
                     dirs
                 };
+                write_dump(format!("{preset:?} {n} {cell}"), &p);
                 println!(
-                    "{:>9} {:>5} {:>6} {:>9.3} {:>6} {:>14.2} {:>8.1}MiB {:>11.3} {:>11.3}",
+                    "{:>9} {:>5} {:>6} {:>9.3} {:>6} {:>14.2} {:>7.2} {:>8.1}MiB {:>11.3} {:>11.3}",
                     format!("{preset:?}"),
                     n,
                     cell,
                     wall,
                     p.iterations,
                     rate,
+                    kernel,
                     peak_rss_mib(),
                     100.0 * wb,
                     100.0 * wa
@@ -122,10 +159,12 @@ fn main() {
     });
     for preset in [Preset::Preview, Preset::Default] {
         let (wall, p) = run_timed(&f, preset);
+        write_dump(format!("forest {preset:?}"), &p);
         println!(
-            "forest 40 m, 24 trees, 1 m cells, {preset:?}: wall {wall:.2} s, {} iterations, {:.2} Mcrossings/s/core, closure {:.1e}, peak RSS {:.1} MiB",
+            "forest 40 m, 24 trees, 1 m cells, {preset:?}: wall {wall:.2} s, {} iterations, {:.2} Mcrossings/s/core (kernel {:.2}), closure {:.1e}, peak RSS {:.1} MiB",
             p.iterations,
             p.crossings as f64 / p.tracking_seconds / threads as f64 / 1e6,
+            p.crossings as f64 / p.raw.kernel_seconds / 1e6,
             p.bands.iter().map(|b| b.energy_closure).fold(0.0, f64::max),
             peak_rss_mib()
         );

@@ -84,6 +84,7 @@ pub fn photon_products(
         converged: true,
         rays: res.photons,
         crossings: res.crossings,
+        kernel_seconds: 0.0,
     };
     let mut p = RadiativeProducts::new(
         raw,

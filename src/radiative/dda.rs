@@ -38,6 +38,10 @@ pub struct Dda {
     lo: DVec3,
     size: DVec3,
     n: [i64; 3],
+    /// Linear index of `cell` (kept up to date by [`Dda::advance`] while inside the grid).
+    lin: i64,
+    /// Linear-index increment of one step along each axis (`step × stride`).
+    dlin: [i64; 3],
 }
 
 impl Dda {
@@ -71,6 +75,7 @@ impl Dda {
             }
             t_max[a] = t_max[a].max(0.0);
         }
+        let stride = [1, n[0], n[0] * n[1]];
         Some(Self {
             cell,
             step,
@@ -81,13 +86,19 @@ impl Dda {
             lo,
             size,
             n,
+            lin: cell[0] + n[0] * (cell[1] + n[1] * cell[2]),
+            dlin: [
+                step[0] * stride[0],
+                step[1] * stride[1],
+                step[2] * stride[2],
+            ],
         })
     }
 
     /// Linear index of the current cell.
     #[inline]
     pub fn index(&self) -> usize {
-        (self.cell[0] + self.n[0] * (self.cell[1] + self.n[1] * self.cell[2])) as usize
+        self.lin as usize
     }
 
     /// Distance at which the ray leaves the current cell.
@@ -112,6 +123,7 @@ impl Dda {
         for a in 0..3 {
             if self.t_max[a] <= te {
                 self.cell[a] += self.step[a];
+                self.lin += self.dlin[a];
                 let idx = self.cell[a];
                 if idx < 0 || idx >= self.n[a] {
                     let e = match a {

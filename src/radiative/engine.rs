@@ -246,6 +246,13 @@ pub struct RadiativeResult {
     pub rays: u64,
     /// Cell crossings (DDA steps).
     pub crossings: u64,
+    /// Thread-seconds spent tracking rays, summed over all chunks and iterations: the wall time
+    /// of each source chunk's launch loop and of each emitter's loop over its outgoing
+    /// directions (ray set-up and [`Ctx::trace`] calls), measured inside the worker threads.
+    /// Excludes the emission products (phase rows × intercepted power), the active-emitter
+    /// scan, chunk allocation, merging and extrapolation. Tracking throughput per core is
+    /// `crossings / kernel_seconds` (time a worker spends descheduled counts as kernel time).
+    pub kernel_seconds: f64,
     /// How the sources were sampled on the top plane.
     pub launch: LaunchPlan,
 }
@@ -280,8 +287,10 @@ pub struct LaunchPlan {
 /// side (`ω·n ≤ 0`: a sector straddling the facet plane whose centre lies behind it) to the
 /// front-side direction closest to the mirror image `ω − 2(ω·n)n`. Without it that power would
 /// start into the facet and, for one-sided ground facets, leave through the grid bottom as
-/// "lost" (−2 % albedo on a 17° RPV slope). The row sum is unchanged.
-pub fn remap_wrong_side<T>(row: &mut [T], normal: DVec3, omega: &[DVec3])
+/// "lost" (−2 % albedo on a 17° RPV slope). Only `eligible` directions receive (the regular
+/// sectors: an exact view direction's tiny sector must not collect a large sector's power).
+/// The row sum is unchanged.
+pub fn remap_wrong_side<T>(row: &mut [T], normal: DVec3, omega: &[DVec3], eligible: &[bool])
 where
     T: Copy + Default + PartialEq + std::ops::AddAssign,
 {
@@ -293,7 +302,7 @@ where
         let best = omega
             .iter()
             .enumerate()
-            .filter(|(_, o)| o.dot(normal) > 0.0)
+            .filter(|(k, o)| o.dot(normal) > 0.0 && eligible.get(*k).copied().unwrap_or(false))
             .max_by(|a, b| a.1.dot(m).total_cmp(&b.1.dot(m)))
             .map(|(k, _)| k);
         if let Some(k) = best
@@ -478,7 +487,7 @@ impl KeyAcc {
         }
     }
 
-    #[inline]
+    #[inline(always)]
     fn get(&mut self, key: u32) -> &mut [f64] {
         match self {
             KeyAcc::Dense {
@@ -566,6 +575,8 @@ struct ChunkOut {
     absorbed_val: Vec<f64>,
     rays: u64,
     crossings: u64,
+    /// Thread-seconds spent tracking (see [`RadiativeResult::kernel_seconds`]).
+    kernel_seconds: f64,
 }
 
 /// Mutable per-iteration element stores.
@@ -645,6 +656,25 @@ impl SubPoints {
     }
 }
 
+/// A cell as the tracker reads it: its turbid entries `Ctx::ents[ent_lo..ent_hi]` and its
+/// facet refs `CellGrid::facet_ids[fac_lo..fac_hi]` (one 16-byte read per crossing).
+#[derive(Debug, Clone, Copy, Default)]
+struct CellRec {
+    ent_lo: u32,
+    ent_hi: u32,
+    fac_lo: u32,
+    fac_hi: u32,
+}
+
+/// A turbid entry whose material is tracked: entry index (into `CellGrid::turbid`), turbid
+/// material slot, and leaf area volume density u_f (m² m⁻³).
+#[derive(Debug, Clone, Copy)]
+struct Ent {
+    idx: u32,
+    tm: u32,
+    density: f64,
+}
+
 struct Ctx<'a> {
     inp: &'a RadiativeInput<'a>,
     w: usize,
@@ -653,10 +683,16 @@ struct Ctx<'a> {
     n_slots: usize,
     /// Direction vectors (tiling) + sun last.
     omega: Vec<DVec3>,
-    /// Turbid material slot per material id (index into g_flat rows), or u32::MAX.
+    /// Turbid material slot per material id (column of `g_dir`), or u32::MAX.
     tur_mat: Vec<u32>,
-    /// G per (turbid material, direction incl. sun).
-    g_flat: Vec<f64>,
+    /// Number of turbid materials.
+    n_tm: usize,
+    /// G per (direction incl. sun, turbid material): the row of one direction is contiguous.
+    g_dir: Vec<f64>,
+    /// What the tracker reads per cell.
+    cells: Vec<CellRec>,
+    /// Turbid entries with a tracked material, in cell order (see [`CellRec`]).
+    ents: Vec<Ent>,
     /// Cell index of each turbid entry.
     entry_cell: Vec<u32>,
     size: (f64, f64),
@@ -698,11 +734,6 @@ impl Ctx<'_> {
         let n_sec = self.n_slots - 1;
         let base = ((tm * self.nb + band) * n_sec + slot) * self.n_dirs;
         &self.slot_rows[base..base + self.n_dirs]
-    }
-
-    #[inline]
-    fn g(&self, tm: u32, dir: usize) -> f64 {
-        self.g_flat[tm as usize * (self.n_dirs + 1) + dir]
     }
 
     /// Sub-cell (of D³) of cell `c` that holds `p`.
@@ -764,112 +795,141 @@ impl Ctx<'_> {
         out.img_val.extend_from_slice(pw);
     }
 
-    /// Traces one ray; `pw` holds the channel powers and is consumed.
-    #[allow(clippy::too_many_arguments)]
+    /// Traces one ray; `pw` holds the channel powers and is consumed. Dispatches to a copy of
+    /// the tracker specialised for the channel count (1, 2 or 4 channels: loops over channels
+    /// unrolled), with the turbid accumulators taken out of `out` for the ray's duration.
     fn trace(
+        &self,
+        p: DVec3,
+        dir: usize,
+        skip_facet: Option<u32>,
+        pw: &mut [f64],
+        out: &mut ChunkOut,
+    ) {
+        let mut tur = out.tur.take().expect("accumulator");
+        let mut pts = out.tur_pts.take().expect("accumulator");
+        match self.w {
+            1 => self.trace_w::<1>(p, dir, skip_facet, pw, &mut tur, &mut pts, out),
+            2 => self.trace_w::<2>(p, dir, skip_facet, pw, &mut tur, &mut pts, out),
+            4 => self.trace_w::<4>(p, dir, skip_facet, pw, &mut tur, &mut pts, out),
+            _ => self.trace_w::<0>(p, dir, skip_facet, pw, &mut tur, &mut pts, out),
+        }
+        out.tur = Some(tur);
+        out.tur_pts = Some(pts);
+    }
+
+    /// [`Ctx::trace`] for `W` channels (`W = 0`: any count, read from `self.w`).
+    ///
+    /// Per crossing: one [`CellRec`] read; the facet loop only in cells with facets; the turbid
+    /// extinction `k = Σ_m G_m(Ω) u_m` from the ray's row of G per material; cells with one
+    /// entry skip the share computation (share = 1 exactly); the channel sum of `pw` is carried
+    /// from one crossing to the next instead of being recomputed.
+    #[allow(clippy::too_many_arguments)]
+    fn trace_w<const W: usize>(
         &self,
         mut p: DVec3,
         dir: usize,
         mut skip_facet: Option<u32>,
         pw: &mut [f64],
+        tur: &mut KeyAcc,
+        pts: &mut KeyAcc,
         out: &mut ChunkOut,
     ) {
+        let w = if W == 0 { self.w } else { W };
+        let pw = &mut pw[..w];
         let spec = self.inp.spec;
         let grid = self.inp.grid;
         let d = self.omega[dir];
         let slot = self.slot_of(dir) as u32;
+        let n_slots = self.n_slots as u32;
+        let n_tm = self.n_tm;
+        // G of every turbid material along this direction.
+        let gd = &self.g_dir[dir * n_tm..(dir + 1) * n_tm];
         out.rays += 1;
+        let mut n_cross = 0u64;
         let mut crossings = 0u32;
         'restart: loop {
             let Some(mut dda) = Dda::new(spec, p, d) else {
                 // Started outside the grid (numerical edge): book as lost.
                 add(&mut out.lost, pw);
-                return;
+                break 'restart;
             };
+            // Σ pw, kept equal to `pw.iter().sum()` whenever `pw` changes.
+            let mut psum: f64 = pw.iter().sum();
             loop {
-                out.crossings += 1;
+                n_cross += 1;
                 let c = dda.index();
+                let cr = self.cells[c];
                 let t0 = dda.t;
                 let mut t1 = dda.t_exit();
                 // Facets in this cell: nearest hit inside the segment.
                 let mut hit: Option<(u32, u32, f64)> = None;
-                let fs = grid.facet_start.get(c).copied().unwrap_or(0) as usize;
-                let fe = grid.facet_start.get(c + 1).copied().unwrap_or(0) as usize;
-                for r in fs..fe {
-                    let f = grid.facet_ids[r];
-                    if Some(f) == skip_facet {
-                        continue;
-                    }
-                    let fa = &self.inp.facets[f as usize];
-                    if let Some(t) = intersect(&fa.v, dda.point(0.0), d)
-                        && t >= t0 - 1e-12
-                        && t <= t1 + 1e-12
-                        && hit.is_none_or(|h| t < h.2)
-                    {
-                        let n = (fa.v[1] - fa.v[0]).cross(fa.v[2] - fa.v[0]);
-                        let front = n.dot(d) < 0.0;
-                        if front || fa.two_sided {
-                            hit = Some((r as u32, f, t));
+                if cr.fac_lo != cr.fac_hi {
+                    let o = dda.point(0.0);
+                    for r in cr.fac_lo as usize..cr.fac_hi as usize {
+                        let f = grid.facet_ids[r];
+                        if Some(f) == skip_facet {
+                            continue;
+                        }
+                        let fa = &self.inp.facets[f as usize];
+                        if let Some(t) = intersect(&fa.v, o, d)
+                            && t >= t0 - 1e-12
+                            && t <= t1 + 1e-12
+                            && hit.is_none_or(|h| t < h.2)
+                        {
+                            let n = (fa.v[1] - fa.v[0]).cross(fa.v[2] - fa.v[0]);
+                            let front = n.dot(d) < 0.0;
+                            if front || fa.two_sided {
+                                hit = Some((r as u32, f, t));
+                            }
                         }
                     }
-                }
-                if let Some((_, _, th)) = hit {
-                    t1 = th.max(t0);
+                    if let Some((_, _, th)) = hit {
+                        t1 = th.max(t0);
+                    }
                 }
                 // Turbid attenuation over [t0, t1].
-                let (ts, te) = (
-                    grid.turbid_start[c] as usize,
-                    grid.turbid_start[c + 1] as usize,
-                );
-                if te > ts && t1 > t0 {
+                if cr.ent_lo != cr.ent_hi && t1 > t0 {
                     let ell = t1 - t0;
+                    let ents = &self.ents[cr.ent_lo as usize..cr.ent_hi as usize];
                     let mut k = 0.0;
-                    for e in &grid.turbid[ts..te] {
-                        let tm = self.tur_mat[e.material as usize];
-                        if tm != u32::MAX {
-                            k += self.g(tm, dir) * e.density as f64;
-                        }
+                    for e in ents {
+                        k += gd[e.tm as usize] * e.density;
                     }
                     if k > 0.0 {
                         let x = k * ell;
                         let frac = -(-x).exp_m1(); // 1 − e^{−kℓ}
                         let tr = 1.0 - frac;
-                        // Interception points: barycentres of the two halves of the intercepted energy.
+                        // Interception points: barycentres of the two halves of the intercepted
+                        // energy.
                         let (s1, s2) = half_barycentres_fast(k, ell);
                         let p1 = dda.point(t0 + s1);
                         let p2 = dda.point(t0 + s2);
-                        let wsum: f64 = pw.iter().sum::<f64>() * frac;
-                        for e_idx in ts..te {
-                            let e = &grid.turbid[e_idx];
-                            let tm = self.tur_mat[e.material as usize];
-                            if tm == u32::MAX {
-                                continue;
-                            }
-                            let share = self.g(tm, dir) * e.density as f64 / k;
-                            let rec = out
-                                .tur
-                                .as_mut()
-                                .expect("accumulator")
-                                .get(e_idx as u32 * self.n_slots as u32 + slot);
+                        let wsum = psum * frac;
+                        if let [e] = ents {
+                            // One material: share = k/k = 1 exactly.
+                            let rec = &mut tur.get(e.idx * n_slots + slot)[..w];
                             for (r, v) in rec.iter_mut().zip(pw.iter()) {
-                                *r += v * frac * share;
+                                *r += v * frac;
                             }
-                            let wt = wsum * share;
-                            let pr = out.tur_pts.as_mut().expect("accumulator").get(e_idx as u32);
-                            pr[0] += p1.x * wt;
-                            pr[1] += p1.y * wt;
-                            pr[2] += p1.z * wt;
-                            pr[3] += p2.x * wt;
-                            pr[4] += p2.y * wt;
-                            pr[5] += p2.z * wt;
-                            pr[6] += wt;
+                            add_points(pts.get(e.idx), p1, p2, wsum);
+                        } else {
+                            for e in ents {
+                                let share = gd[e.tm as usize] * e.density / k;
+                                let rec = &mut tur.get(e.idx * n_slots + slot)[..w];
+                                for (r, v) in rec.iter_mut().zip(pw.iter()) {
+                                    *r += v * frac * share;
+                                }
+                                add_points(pts.get(e.idx), p1, p2, wsum * share);
+                            }
                         }
                         for v in pw.iter_mut() {
                             *v *= tr;
                         }
-                        if pw.iter().sum::<f64>() < self.min_ray {
+                        psum = pw.iter().sum();
+                        if psum < self.min_ray {
                             add(&mut out.lost, pw);
-                            return;
+                            break 'restart;
                         }
                     }
                 }
@@ -886,7 +946,6 @@ impl Ctx<'_> {
                     let mut any_direct = false;
                     out.fac_key
                         .push((r, f, from_front, self.sub_of(c, hp), slot));
-                    let wsum: f64 = pw.iter().sum();
                     for (ch, v) in pw.iter_mut().enumerate() {
                         let td = t_dir.map_or(0.0, |t| t[ch % self.nb]);
                         let through = if td > 0.0 { td.powf(1.0 / mu) } else { 0.0 };
@@ -894,10 +953,10 @@ impl Ctx<'_> {
                         *v *= through;
                         any_direct |= *v > 0.0;
                     }
-                    out.fac_val.extend_from_slice(&[hp.x, hp.y, hp.z, wsum]);
+                    out.fac_val.extend_from_slice(&[hp.x, hp.y, hp.z, psum]);
                     if !any_direct || pw.iter().sum::<f64>() < self.min_ray {
                         add(&mut out.lost, pw);
-                        return;
+                        break 'restart;
                     }
                     // Directly transmitted part continues from the hit point.
                     p = hp;
@@ -908,7 +967,7 @@ impl Ctx<'_> {
                     Exit::Inside => {}
                     Exit::Top => {
                         self.escape(dda.point(dda.t), dir, pw, out);
-                        return;
+                        break 'restart;
                     }
                     Exit::Bottom => {
                         let hp = dda.point(dda.t);
@@ -935,22 +994,21 @@ impl Ctx<'_> {
                             };
                             out.gnd_key.push(((i + spec.n[0] * j) as u32, slot, sub));
                             out.gnd_val.extend_from_slice(pw);
-                            out.gnd_val
-                                .extend_from_slice(&[hp.x, hp.y, hp.z, pw.iter().sum()]);
+                            out.gnd_val.extend_from_slice(&[hp.x, hp.y, hp.z, psum]);
                         } else {
                             add(&mut out.lost, pw);
                         }
-                        return;
+                        break 'restart;
                     }
                     Exit::Side(axis, s) => {
                         if spec.boundary == BoundaryMode::Isolated {
                             add(&mut out.lost, pw);
-                            return;
+                            break 'restart;
                         }
                         crossings += 1;
                         if crossings > self.inp.params.max_crossings {
                             add(&mut out.lost, pw);
-                            return;
+                            break 'restart;
                         }
                         let mut q = dda.point(dda.t);
                         let (len, off) = if axis == 0 {
@@ -968,7 +1026,7 @@ impl Ctx<'_> {
                         };
                         if q.z > spec.top() && d.z >= 0.0 {
                             self.escape(q, dir, pw, out);
-                            return;
+                            break 'restart;
                         }
                         // Continuous topography: re-entering above the neighbouring tile's top
                         // while going down — march through the empty air of the repeated tiles
@@ -998,7 +1056,7 @@ impl Ctx<'_> {
                                         // down the slope forever without meeting it again —
                                         // it has left the scene (a downward escape).
                                         self.escape(q, dir, pw, out);
-                                        return;
+                                        break 'restart;
                                     }
                                     q += d * t.max(0.0);
                                     let (len, off) = if a == 0 {
@@ -1022,7 +1080,7 @@ impl Ctx<'_> {
                         }
                         if q.z < spec.origin.z {
                             add(&mut out.lost, pw);
-                            return;
+                            break 'restart;
                         }
                         p = q;
                         skip_facet = None;
@@ -1031,7 +1089,22 @@ impl Ctx<'_> {
                 }
             }
         }
+        out.crossings += n_cross;
     }
+}
+
+/// Adds one interception's weighted points to a `tur_pts` record: Σw·p_first (3),
+/// Σw·p_second (3), Σw.
+#[inline(always)]
+fn add_points(pr: &mut [f64], p1: DVec3, p2: DVec3, wt: f64) {
+    let pr = &mut pr[..7];
+    pr[0] += p1.x * wt;
+    pr[1] += p1.y * wt;
+    pr[2] += p1.z * wt;
+    pr[3] += p2.x * wt;
+    pr[4] += p2.y * wt;
+    pr[5] += p2.z * wt;
+    pr[6] += wt;
 }
 
 /// `[slot][dir]` rows: the table rows of each slot's member directions averaged with `weights`.
@@ -1333,6 +1406,36 @@ pub fn run(inp: &RadiativeInput) -> RadiativeResult {
             entry_cell[e as usize] = c as u32;
         }
     }
+    // Tracker tables: G transposed to [direction][material]; per-cell records.
+    let n_tm = tur_ids.len();
+    let mut g_dir = vec![0.0; (n_dirs + 1) * n_tm];
+    for tm in 0..n_tm {
+        for dir in 0..=n_dirs {
+            g_dir[dir * n_tm + tm] = g_flat[tm * (n_dirs + 1) + dir];
+        }
+    }
+    let mut ents = Vec::with_capacity(grid.turbid.len());
+    let mut cells = Vec::with_capacity(n_cells);
+    for c in 0..n_cells {
+        let ent_lo = ents.len() as u32;
+        for e in grid.turbid_start[c]..grid.turbid_start[c + 1] {
+            let te = &grid.turbid[e as usize];
+            let tm = tur_mat[te.material as usize];
+            if tm != u32::MAX {
+                ents.push(Ent {
+                    idx: e,
+                    tm,
+                    density: te.density as f64,
+                });
+            }
+        }
+        cells.push(CellRec {
+            ent_lo,
+            ent_hi: ents.len() as u32,
+            fac_lo: grid.facet_start.get(c).copied().unwrap_or(0),
+            fac_hi: grid.facet_start.get(c + 1).copied().unwrap_or(0),
+        });
+    }
     let size = (
         spec.n[0] as f64 * spec.cell.x,
         spec.n[1] as f64 * spec.cell.y,
@@ -1436,6 +1539,10 @@ pub fn run(inp: &RadiativeInput) -> RadiativeResult {
             }
         }
         let dir_omega: Vec<DVec3> = tiling.iter().map(|d| d.omega).collect();
+        let dir_regular: Vec<bool> = tiling
+            .iter()
+            .map(|d| d.kind == crate::resources::directions::DirectionKind::Regular)
+            .collect();
         for (s, set) in inp.facet_tables.iter().enumerate() {
             let weights: Vec<f64> = tiling
                 .iter()
@@ -1452,7 +1559,7 @@ pub fn run(inp: &RadiativeInput) -> RadiativeResult {
                         .map(|&x| x as f64),
                 );
                 for row in rows.chunks_mut(n_dirs) {
-                    remap_wrong_side(row, normal[s], &dir_omega);
+                    remap_wrong_side(row, normal[s], &dir_omega, &dir_regular);
                 }
                 facet_rows.extend(rows);
             }
@@ -1466,7 +1573,10 @@ pub fn run(inp: &RadiativeInput) -> RadiativeResult {
         n_slots,
         omega,
         tur_mat,
-        g_flat,
+        n_tm,
+        g_dir,
+        cells,
+        ents,
         entry_cell,
         size,
         min_ray,
@@ -1523,6 +1633,7 @@ pub fn run(inp: &RadiativeInput) -> RadiativeResult {
         .map(|chunk| {
             let mut out = new_out(&ctx);
             let mut pw = vec![0.0; w];
+            let t_kernel = std::time::Instant::now();
             for &(sky, jy) in chunk {
                 let (nlx, nly) = if sky { plan.sky_n } else { plan.sun_n };
                 let da = area / (nlx * nly) as f64;
@@ -1551,6 +1662,7 @@ pub fn run(inp: &RadiativeInput) -> RadiativeResult {
                     }
                 }
             }
+            out.kernel_seconds += t_kernel.elapsed().as_secs_f64();
             out
         })
         .collect();
@@ -1825,6 +1937,7 @@ fn merge(
     for out in outs {
         res.rays += out.rays;
         res.crossings += out.crossings;
+        res.kernel_seconds += out.kernel_seconds;
         add(&mut res.escaped, &out.escaped);
         for (k, v) in out.escaped.iter().enumerate() {
             esc[k % w] += v;
@@ -2174,6 +2287,7 @@ fn emit(
                     normal = None;
                 }
                 let split = k < n_t;
+                let t_kernel = std::time::Instant::now();
                 for j in 0..n_dirs {
                     let v = &outgoing[j * w..(j + 1) * w];
                     if v.iter().all(|&x| x == 0.0) {
@@ -2220,6 +2334,7 @@ fn emit(
                         ctx.trace(origin, j, skip, &mut pw, &mut out);
                     }
                 }
+                out.kernel_seconds += t_kernel.elapsed().as_secs_f64();
             }
             out
         })

@@ -86,6 +86,12 @@ pub fn track_flux(
     }
     let n_dirs = dirs.set.tiling().len();
     let omega: Vec<glam::DVec3> = dirs.set.tiling().iter().map(|d| d.omega).collect();
+    let regular: Vec<bool> = dirs
+        .set
+        .tiling()
+        .iter()
+        .map(|d| d.kind == crate::resources::directions::DirectionKind::Regular)
+        .collect();
     let fractions: Vec<(Vec<f32>, Vec<f32>)> = if facets.facets.len() * n_dirs
         <= EXACT_FRACTIONS_LIMIT
     {
@@ -99,8 +105,8 @@ pub fn track_flux(
                 let fr = lambertian_facet_fractions(&dirs.set, n);
                 let mut front: Vec<f32> = fr.front[..n_dirs].iter().map(|&x| x as f32).collect();
                 let mut back: Vec<f32> = fr.back[..n_dirs].iter().map(|&x| x as f32).collect();
-                remap_wrong_side(&mut front, n, &omega);
-                remap_wrong_side(&mut back, -n, &omega);
+                remap_wrong_side(&mut front, n, &omega, &regular);
+                remap_wrong_side(&mut back, -n, &omega, &regular);
                 (front, back)
             })
             .collect()
