@@ -415,41 +415,7 @@ fn orthographic_images_average_to_the_direction_brf() {
 
 #[test]
 fn rpv_and_hapke_ground_reflect_their_brf() {
-    use lumenscape::physics::brdf::Brdf;
-    let models = [
-        (
-            OpticsDesc::Rpv {
-                rho0: vec![0.1],
-                k: vec![0.8],
-                theta: vec![-0.1],
-                rho_c: None,
-            },
-            Brdf::Rpv {
-                rho0: 0.1,
-                k: 0.8,
-                theta: -0.1,
-                rho_c: None,
-            },
-        ),
-        (
-            OpticsDesc::Hapke {
-                w: vec![0.6],
-                b: vec![0.3],
-                c: vec![0.4],
-                roughness_deg: 15.0,
-                b0: 0.5,
-                h: 0.1,
-            },
-            Brdf::Hapke {
-                w: 0.6,
-                b: 0.3,
-                c: 0.4,
-                theta_bar_deg: 15.0,
-                b0: 0.5,
-                h: 0.1,
-            },
-        ),
-    ];
+    let models = brdf_models();
     for (desc, model) in models {
         for sza in [0.0, 30.0, 60.0] {
             let mut d = base_scene((2.0, 2.0), (1.0, 1.0, 1.0), BoundaryMode::Repetitive);
@@ -594,41 +560,7 @@ fn small_facets_get_a_launch_grid_that_resolves_them() {
 /// The flat DEM's exact-direction BRFs equal the flat-ground path's to 1e-9 (same tables).
 #[test]
 fn rpv_and_hapke_dem_facets_reflect_their_local_albedo() {
-    use lumenscape::physics::brdf::Brdf;
-    let models = [
-        (
-            OpticsDesc::Rpv {
-                rho0: vec![0.1],
-                k: vec![0.8],
-                theta: vec![-0.1],
-                rho_c: None,
-            },
-            Brdf::Rpv {
-                rho0: 0.1,
-                k: 0.8,
-                theta: -0.1,
-                rho_c: None,
-            },
-        ),
-        (
-            OpticsDesc::Hapke {
-                w: vec![0.6],
-                b: vec![0.3],
-                c: vec![0.4],
-                roughness_deg: 15.0,
-                b0: 0.5,
-                h: 0.1,
-            },
-            Brdf::Hapke {
-                w: 0.6,
-                b: 0.3,
-                c: 0.4,
-                theta_bar_deg: 15.0,
-                b0: 0.5,
-                h: 0.1,
-            },
-        ),
-    ];
+    let models = brdf_models();
     let slope = 0.3;
     for (desc, model) in models {
         for sza in [0.0, 40.0] {
@@ -705,4 +637,43 @@ fn rpv_and_hapke_dem_facets_reflect_their_local_albedo() {
             }
         }
     }
+}
+
+/// The RPV and Hapke parameter sets of the BRDF tests, as scene optics and as models.
+fn brdf_models() -> [(OpticsDesc, lumenscape::physics::brdf::Brdf); 2] {
+    use lumenscape::physics::brdf::Brdf;
+    [
+        (
+            OpticsDesc::Rpv {
+                rho0: vec![0.1],
+                k: vec![0.8],
+                theta: vec![-0.1],
+                rho_c: None,
+            },
+            Brdf::Rpv {
+                rho0: 0.1,
+                k: 0.8,
+                theta: -0.1,
+                rho_c: None,
+            },
+        ),
+        (
+            OpticsDesc::Hapke {
+                w: vec![0.6],
+                b: vec![0.3],
+                c: vec![0.4],
+                roughness_deg: 15.0,
+                b0: 0.5,
+                h: 0.1,
+            },
+            Brdf::Hapke {
+                w: 0.6,
+                b: 0.3,
+                c: 0.4,
+                theta_bar_deg: 15.0,
+                b0: 0.5,
+                h: 0.1,
+            },
+        ),
+    ]
 }
