@@ -715,16 +715,14 @@ impl Ctx<'_> {
     /// BRDF-ground row of an interception slot (tiling sectors only).
     #[inline]
     fn ground_row(&self, band: usize, slot: usize) -> &[f64] {
-        let n_sec = self.n_slots - 1;
-        let base = (band * n_sec + slot) * self.n_dirs;
+        let base = (band * self.n_slots + slot) * self.n_dirs;
         &self.ground_rows[base..base + self.n_dirs]
     }
 
     /// RPV/Hapke facet row of table set `set` for an interception slot (the sun's included).
     #[inline]
     fn facet_row(&self, set: usize, band: usize, slot: usize) -> &[f64] {
-        let n_sec = self.n_slots - 1;
-        let base = ((set * self.nb + band) * (n_sec + 1) + slot) * self.n_dirs;
+        let base = ((set * self.nb + band) * self.n_slots + slot) * self.n_dirs;
         &self.facet_rows[base..base + self.n_dirs]
     }
 
@@ -739,18 +737,27 @@ impl Ctx<'_> {
     /// Sub-cell (of D³) of cell `c` that holds `p`.
     #[inline]
     fn sub_of(&self, c: usize, p: DVec3) -> u32 {
+        let [i, j, k] = self.inp.spec.ijk(c);
+        self.sub_index(p, [i, j, k], 3)
+    }
+
+    /// Sub-cell index of `p` in the cell (or, for `axes = 2`, the ground column) whose integer
+    /// position is `ijk`: D per axis along the first `axes` axes.
+    #[inline]
+    fn sub_index(&self, p: DVec3, ijk: [usize; 3], axes: usize) -> u32 {
         if self.sub == 1 {
             return 0;
         }
         let spec = self.inp.spec;
-        let [i, j, k] = spec.ijk(c);
         let d = self.sub as f64;
-        let lo = spec.origin + DVec3::new(i as f64, j as f64, k as f64) * spec.cell;
-        let s = |a: usize| {
-            (((p[a] - lo[a]) / spec.cell[a] * d).floor() as i64).clamp(0, self.sub as i64 - 1)
-                as u32
-        };
-        s(0) + self.sub * (s(1) + self.sub * s(2))
+        let lo = spec.origin + DVec3::new(ijk[0] as f64, ijk[1] as f64, ijk[2] as f64) * spec.cell;
+        let mut idx = 0;
+        for a in (0..axes).rev() {
+            let s = (((p[a] - lo[a]) / spec.cell[a] * d).floor() as i64)
+                .clamp(0, self.sub as i64 - 1) as u32;
+            idx = idx * self.sub + s;
+        }
+        idx
     }
 
     fn slot_of(&self, dir: usize) -> usize {
@@ -980,18 +987,7 @@ impl Ctx<'_> {
                                 .floor()
                                 .clamp(0.0, (spec.n[1] - 1) as f64)
                                 as usize;
-                            let sub = if self.sub == 1 {
-                                0
-                            } else {
-                                let d = self.sub as f64;
-                                let s = |v: f64, lo: f64, w: f64| {
-                                    ((((v - lo) / w - (((v - lo) / w).floor())) * d).floor() as i64)
-                                        .clamp(0, self.sub as i64 - 1)
-                                        as u32
-                                };
-                                s(hp.x, spec.origin.x, spec.cell.x)
-                                    + self.sub * s(hp.y, spec.origin.y, spec.cell.y)
-                            };
+                            let sub = self.sub_index(hp, [i, j, 0], 2);
                             out.gnd_key.push(((i + spec.n[0] * j) as u32, slot, sub));
                             out.gnd_val.extend_from_slice(pw);
                             out.gnd_val.extend_from_slice(&[hp.x, hp.y, hp.z, psum]);
@@ -1500,6 +1496,7 @@ pub fn run(inp: &RadiativeInput) -> RadiativeResult {
     if let Some(tables) = &inp.ground_brdf {
         let weights: Vec<f64> = tiling.iter().map(|d| d.projected_sr).collect();
         for table in tables.iter().take(nb) {
+            // Slots, then the sun row last: `[band][slot 0..=n_sec][dir]`.
             ground_rows.extend(slot_average_rows(
                 table,
                 &weights,
@@ -1507,6 +1504,13 @@ pub fn run(inp: &RadiativeInput) -> RadiativeResult {
                 n_sec,
                 n_dirs,
             ));
+            ground_rows.extend(
+                table
+                    .row(table.sun_row().unwrap_or(0))
+                    .iter()
+                    .take(n_dirs)
+                    .map(|&x| x as f64),
+            );
         }
     }
     // RPV/Hapke facets: compact ref index and slot-averaged rows per table set (weights: the
@@ -2190,33 +2194,21 @@ fn emit(
                     let (fr, bk) = &fractions[f as usize];
                     let bi = ctx.brdf_ref.get(r).copied().unwrap_or(u32::MAX);
                     if bi != u32::MAX {
-                        // RPV/Hapke: rows of each incidence slot (sun: the table's sun row).
+                        // RPV/Hapke: rows of each incidence slot (the sun's last).
                         let set = ctx.inp.facet_brdf[f as usize] as usize;
-                        for ch in 0..w {
-                            let b = ch % nb;
-                            let mut a = 0.0;
-                            for slot in 0..ns {
-                                let val = st.fac_slot[(bi as usize * ns + slot) * w + ch];
-                                if val == 0.0 {
-                                    continue;
-                                }
-                                a += val;
-                                let row = ctx.facet_row(set, b, slot);
-                                for j in 0..n_dirs {
-                                    outgoing[j * w + ch] += val * row[j];
-                                }
-                            }
-                            let emitted: f64 = (0..n_dirs).map(|j| outgoing[j * w + ch]).sum();
-                            if a - emitted != 0.0 {
+                        let bi = bi as usize;
+                        scatter_slots(
+                            &st.fac_slot[bi * ns * w..(bi + 1) * ns * w],
+                            (w, nb, n_dirs),
+                            |b, slot| ctx.facet_row(set, b, slot),
+                            &mut outgoing,
+                            |ch, a| {
                                 out.absorbed_facet.push((f, ch));
-                                out.absorbed_val.push(a - emitted);
-                            }
-                        }
+                                out.absorbed_val.push(a);
+                            },
+                        );
                     }
-                    for ch in 0..w {
-                        if bi != u32::MAX {
-                            break;
-                        }
+                    for ch in (0..w).filter(|_| bi == u32::MAX) {
                         let (a, b) = (st.fac_front[r * w + ch], st.fac_back[r * w + ch]);
                         for j in 0..n_dirs {
                             outgoing[j * w + ch] += a * fr[j] as f64 + b * bk[j] as f64;
@@ -2237,34 +2229,17 @@ fn emit(
                     normal = Some((fa.v[1] - fa.v[0]).cross(fa.v[2] - fa.v[0]).normalize());
                 } else {
                     let c = k - n_t - n_f;
-                    if let Some(tables) = &ctx.inp.ground_brdf {
-                        for ch in 0..w {
-                            let b = ch % nb;
-                            let mut a = 0.0;
-                            for slot in 0..ns {
-                                let val = st.gnd[(c * ns + slot) * w + ch];
-                                if val == 0.0 {
-                                    continue;
-                                }
-                                a += val;
-                                if slot == ns - 1 {
-                                    let row = tables[b].row(tables[b].sun_row().unwrap_or(0));
-                                    for j in 0..n_dirs {
-                                        outgoing[j * w + ch] += val * row[j] as f64;
-                                    }
-                                } else {
-                                    let row = ctx.ground_row(b, slot);
-                                    for j in 0..n_dirs {
-                                        outgoing[j * w + ch] += val * row[j];
-                                    }
-                                }
-                            }
-                            let emitted: f64 = (0..n_dirs).map(|j| outgoing[j * w + ch]).sum();
-                            if a - emitted != 0.0 {
+                    if ctx.inp.ground_brdf.is_some() {
+                        scatter_slots(
+                            &st.gnd[c * ns * w..(c + 1) * ns * w],
+                            (w, nb, n_dirs),
+                            |b, slot| ctx.ground_row(b, slot),
+                            &mut outgoing,
+                            |ch, a| {
                                 out.absorbed_ground.push((c as u32, ch));
-                                out.absorbed_val.push(a - emitted);
-                            }
-                        }
+                                out.absorbed_val.push(a);
+                            },
+                        );
                     } else {
                         for ch in 0..w {
                             let a = st.gnd[c * w + ch];
@@ -2339,6 +2314,39 @@ fn emit(
             out
         })
         .collect()
+}
+
+/// Scatters one element's power stored per incidence slot (`stored[slot · w + ch]`, w channels
+/// of `nb` bands) with each slot's row (`row(band, slot)`, over the tiling directions) into
+/// `outgoing[dir · w + ch]`, and reports per channel the stored power not scattered
+/// (absorbed, W) through `absorbed(ch, W)` when it is not zero.
+fn scatter_slots<'r>(
+    stored: &[f64],
+    (w, nb, n_dirs): (usize, usize, usize),
+    row: impl Fn(usize, usize) -> &'r [f64],
+    outgoing: &mut [f64],
+    mut absorbed: impl FnMut(usize, f64),
+) {
+    let ns = stored.len() / w;
+    for ch in 0..w {
+        let b = ch % nb;
+        let mut a = 0.0;
+        for slot in 0..ns {
+            let val = stored[slot * w + ch];
+            if val == 0.0 {
+                continue;
+            }
+            a += val;
+            let r = row(b, slot);
+            for j in 0..n_dirs {
+                outgoing[j * w + ch] += val * r[j];
+            }
+        }
+        let emitted: f64 = (0..n_dirs).map(|j| outgoing[j * w + ch]).sum();
+        if a - emitted != 0.0 {
+            absorbed(ch, a - emitted);
+        }
+    }
 }
 
 fn cell_centre(spec: &GridSpec, c: usize) -> DVec3 {
