@@ -94,6 +94,7 @@ fn main() {
         sun_zenith_deg: 20.0,
         sun_azimuth_deg: 0.0,
     });
+    common::no_hotspot(&mut layer);
     layer.directions = Some(principal_plane_directions(0.0));
     println!("turbid layer LAI 3, sun 20°, red+NIR, 11 principal-plane views, {threads} threads");
     println!(

@@ -117,6 +117,7 @@ fn main() {
                     sun_zenith_deg: 20.0,
                     sun_azimuth_deg: 0.0,
                 });
+                common::no_hotspot(&mut d);
                 d.directions.as_mut().unwrap().count = dirs;
                 let (wall, p) = run_timed(&d, preset);
                 let (mut wb, mut wa) = (0.0f64, 0.0f64);

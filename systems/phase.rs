@@ -46,7 +46,7 @@ pub fn tabulate_phase(
                 transmittance,
                 lad,
                 specular,
-                ..
+                leaf_size_m,
             } if used[id] => {
                 let lad = match LeafAngleDistribution::new(lad) {
                     Ok(l) => l,
@@ -85,7 +85,11 @@ pub fn tabulate_phase(
                     .map(|d| lad.g_function(d.omega.z))
                     .collect();
                 g.push(lad.g_function(dirs.sun.z));
-                TrackOptics::Turbid { g, tables }
+                TrackOptics::Turbid {
+                    g,
+                    tables,
+                    leaf_size_m: *leaf_size_m,
+                }
             }
             k => match k.lambert_parts() {
                 Some((r, t, t_dir)) => TrackOptics::Lambert { r, t, t_dir },

@@ -80,6 +80,7 @@ fn layer(lai: f64, sza: f64, bands: Vec<BandOptics>) -> SceneDesc {
         sun_zenith_deg: sza,
         sun_azimuth_deg: 0.0,
     });
+    no_hotspot(&mut d);
     d.directions = Some(principal_plane_directions(0.0));
     d
 }
@@ -779,6 +780,7 @@ fn single_scattering_component_matches_the_closed_form() {
             sun_zenith_deg: 30.0,
             sun_azimuth_deg: 0.0,
         });
+        no_hotspot(&mut d);
         d.directions = Some(DirectionParams {
             exact: rows.iter().map(|r| ExactDirection::new(r.0, r.1)).collect(),
             ..DirectionParams::default()

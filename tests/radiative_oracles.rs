@@ -42,8 +42,10 @@ fn assert_closes(p: &RadiativeProducts, tol: f64, what: &str) {
     }
 }
 
+/// The pure turbid layer of the oracles (no hotspot: DISORT and the closed forms have point
+/// scatterers).
 fn layer(lai: f64, sza: f64, cell: f64, bands: Vec<BandOptics>, lad: LadDesc) -> SceneDesc {
-    turbid_layer(&TurbidLayerParams {
+    let mut d = turbid_layer(&TurbidLayerParams {
         lai,
         lad,
         bands,
@@ -52,7 +54,9 @@ fn layer(lai: f64, sza: f64, cell: f64, bands: Vec<BandOptics>, lad: LadDesc) ->
         size_m: 1.0,
         sun_zenith_deg: sza,
         sun_azimuth_deg: 0.0,
-    })
+    });
+    no_hotspot(&mut d);
+    d
 }
 
 /// BRF of the entry nearest to view zenith `vz` in the principal plane (vz > 0: sun side).

@@ -11,3 +11,14 @@ pub fn peak_rss_mib() -> f64 {
         })
         .map_or(f64::NAN, |kib| kib / 1024.0)
 }
+
+/// Sets the leaf size of every turbid material to 0 (no hotspot), so that the scene is the pure
+/// turbid medium the DISORT oracle solves.
+#[allow(dead_code)]
+pub fn no_hotspot(d: &mut lumenscape::scene::desc::SceneDesc) {
+    for o in d.optics.values_mut() {
+        if let lumenscape::scene::desc::OpticsDesc::Turbid { leaf_size_m, .. } = o {
+            *leaf_size_m = 0.0;
+        }
+    }
+}

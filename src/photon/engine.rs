@@ -183,6 +183,8 @@ pub enum PhotonOptics {
         tau: Vec<f64>,
         /// Ray-Carlo tables (discrete mode only).
         discrete: Option<DiscreteRows>,
+        /// Leaf dimension for the hotspot, m (DART `dimFoliar`; 0 = no hotspot).
+        leaf_size_m: f64,
     },
     /// Lambertian facet (a bi-Lambertian leaf is R = ρ_L, T_d = τ_L, T_dir = 0).
     Lambert {
@@ -216,6 +218,7 @@ impl PhotonOptics {
                 rho,
                 tau,
                 discrete,
+                leaf_size_m,
             } => PhotonOptics::Turbid {
                 sampler: sampler.clone(),
                 kernel: kernel.clone(),
@@ -226,6 +229,7 @@ impl PhotonOptics {
                     tables: d.tables.get(b).cloned().into_iter().collect(),
                     samplers: d.samplers.clone(),
                 }),
+                leaf_size_m: *leaf_size_m,
             },
             PhotonOptics::Lambert { r, t, t_dir } => PhotonOptics::Lambert {
                 r: one(r),
@@ -572,6 +576,10 @@ struct Ctx<'a> {
     tur_ids: Vec<u32>,
     /// G toward each view `[view][turbid material]`.
     g_view: Vec<Vec<f64>>,
+    /// Hotspot terms per view and turbid material (see
+    /// [`crate::radiative::engine::hotspot_terms`]) for the peel-off of first-order sun
+    /// photons; empty rows when no material has a leaf size.
+    hs_view: Vec<Vec<[f64; 2]>>,
     /// Tiling direction vectors.
     omega: Vec<DVec3>,
     /// Sector containing each view and its solid angle (discrete-mode peel-off).
@@ -644,6 +652,7 @@ impl<'a> Ctx<'a> {
             tur_mat,
             tur_ids,
             g_view: Vec::new(),
+            hs_view: Vec::new(),
             omega: tiling.iter().map(|d| d.omega).collect(),
             view_sector: inp.views.iter().map(|v| inp.dirs.find_sector(*v)).collect(),
             receiver: None,
@@ -654,6 +663,35 @@ impl<'a> Ctx<'a> {
             .iter()
             .map(|v| (0..ctx.tur_ids.len()).map(|tm| ctx.g_of(tm, v.z)).collect())
             .collect();
+        // Hotspot (physics.md §3.5): the peel-off of a photon's first collision with the direct
+        // sun beam goes back through the gaps the sun came through.
+        let leaf: Vec<f64> = ctx
+            .tur_ids
+            .iter()
+            .map(|&m| match &inp.optics[m as usize] {
+                PhotonOptics::Turbid { leaf_size_m, .. } => *leaf_size_m,
+                _ => 0.0,
+            })
+            .collect();
+        if leaf.iter().any(|&l| l > 0.0) {
+            let g_sun: Vec<f64> = (0..ctx.tur_ids.len())
+                .map(|tm| ctx.g_of(tm, inp.sun.z))
+                .collect();
+            ctx.hs_view = inp
+                .views
+                .iter()
+                .zip(&ctx.g_view)
+                .map(|(&v, gv)| {
+                    (0..ctx.tur_ids.len())
+                        .map(|tm| {
+                            crate::radiative::engine::hotspot_terms(
+                                inp.sun, v, g_sun[tm], gv[tm], leaf[tm],
+                            )
+                        })
+                        .collect()
+                })
+                .collect();
+        }
         ctx
     }
 }
@@ -882,7 +920,9 @@ impl Ctx<'_> {
 
     /// Transmittance per band from `p` along `d` to the top of the scene or over `max_dist`
     /// metres (turbid and fluid extinction, facets opaque unless directly transmitting);
-    /// `g_dir` holds G(d) per turbid material.
+    /// `g_dir` holds G(d) per turbid material; `hs` (empty: none) the hotspot terms per turbid
+    /// material of a first-order sun photon's peel-off (the turbid extinction per unit height
+    /// at height z above `p` is `u_f (k_v − b e^{−c z})`, physics.md §3.5).
     #[allow(clippy::too_many_arguments)]
     fn transmittance(
         &self,
@@ -890,6 +930,7 @@ impl Ctx<'_> {
         d: DVec3,
         max_dist: f64,
         g_dir: &[f64],
+        hs: &[[f64; 2]],
         skip: Option<u32>,
         t_out: &mut [f64],
     ) {
@@ -928,7 +969,18 @@ impl Ctx<'_> {
                     for e in self.inp.grid.turbid_of(c) {
                         let tm = self.tur_mat[e.material as usize];
                         if tm != u32::MAX {
-                            tau_v += g_dir[tm as usize] * e.density as f64 * ell;
+                            let g = g_dir[tm as usize];
+                            match hs.get(tm as usize) {
+                                Some(&[b, c]) if b > 0.0 => {
+                                    let corr = b * crate::radiative::engine::hotspot_integral(
+                                        c,
+                                        (travelled + t0) * d.z,
+                                        ell * d.z,
+                                    );
+                                    tau_v += e.density as f64 * (g * ell - corr).max(0.0);
+                                }
+                                _ => tau_v += g * e.density as f64 * ell,
+                            }
                         }
                     }
                     if let Some(f) = self.fluid_of(c) {
@@ -1237,7 +1289,7 @@ impl Ctx<'_> {
         let g: Vec<f64> = (0..self.tur_ids.len())
             .map(|tm| self.g_of(tm, u.z))
             .collect();
-        self.transmittance(p, u, r, &g, skip, tr);
+        self.transmittance(p, u, r, &g, &[], skip, tr);
         if tr.iter().all(|&t| t <= 0.0) {
             return;
         }
@@ -1271,7 +1323,11 @@ impl Ctx<'_> {
             // non-spherical LADs) phase value is not needed. Contributions below 1e-30 of the
             // photon weight are dropped (relative bias < 1e-30).
             let d = self.inp.views[v];
-            self.transmittance(p, d, f64::INFINITY, &self.g_view[v], skip, tr);
+            let hs: &[[f64; 2]] = match self.hs_view.get(v) {
+                Some(h) if ph.order == 0 && ph.off == 0 => h,
+                _ => &[],
+            };
+            self.transmittance(p, d, f64::INFINITY, &self.g_view[v], hs, skip, tr);
             if tr.iter().all(|&t| t < 1e-30) || !f(v, d, scratch) {
                 continue;
             }

@@ -27,6 +27,13 @@
 //!   to the other side with the exact projected-solid-angle fractions (physics.md §5.1, §2.5);
 //!   one store and one scattering point (barycentre of hits) per (facet, cell).
 //! * **Flat ground** is the exact plane z = z0 (Lambertian), one store per column.
+//! * **Hotspot** (physics.md §3.5; Kuusk 1985, SAILH): what turbid cells, facets and the ground
+//!   scatter of the direct sun beam (the first emission after the launch) goes up through the
+//!   same gaps the sun came through: along it the extinction of a turbid material of leaf size
+//!   l > 0 per unit height z above the scattering point is `u_f (k_v − √(k_s k_v) e^{−c z})`,
+//!   `c = 2Δ/(l(k_s+k_v))`, integrated exactly per cell crossing. In a homogeneous layer this
+//!   is SAILH's joint gap probability. Sky light and higher orders are not correlated. Energy
+//!   still closes exactly (the correlated ray is tracked like any other).
 //! * **Boundaries**: repetitive (re-entry on the opposite side, with the altitude offset in
 //!   continuous-topography scenes) or isolated (lost); escapes through the top are the scene
 //!   exitance per direction; everything else is booked as lost (thresholds, crossings limit,
@@ -55,6 +62,8 @@ pub enum TrackOptics {
         g: Vec<f64>,
         /// Phase table per band (rows: tiling directions then the sun).
         tables: Vec<PhaseTable>,
+        /// Leaf dimension for the hotspot, m (DART `dimFoliar`; 0 = no hotspot).
+        leaf_size_m: f64,
     },
     /// Lambertian facet (a bi-Lambertian leaf is R = ρ_L, T_d = τ_L).
     Lambert {
@@ -709,6 +718,12 @@ struct Ctx<'a> {
     n_brdf_refs: usize,
     /// RPV/Hapke facet rows averaged over each slot: `[set][band][slot][dir]`.
     facet_rows: Vec<f64>,
+    /// Hotspot correlation per (tiling direction, turbid material): `[b, c]` with
+    /// `b = √(k_s k_v)` and `c = 2Δ/(l(k_s + k_v))` (m⁻¹), see [`hotspot_terms`]; all zero
+    /// when the direction goes down or the material has no leaf size.
+    hs: Vec<[f64; 2]>,
+    /// Whether a first-order sun ray along each tiling direction is hotspot-correlated.
+    hs_dir: Vec<bool>,
 }
 
 impl Ctx<'_> {
@@ -816,23 +831,42 @@ impl Ctx<'_> {
         let mut tur = out.tur.take().expect("accumulator");
         let mut pts = out.tur_pts.take().expect("accumulator");
         match self.w {
-            1 => self.trace_w::<1>(p, dir, skip_facet, pw, &mut tur, &mut pts, out),
-            2 => self.trace_w::<2>(p, dir, skip_facet, pw, &mut tur, &mut pts, out),
-            4 => self.trace_w::<4>(p, dir, skip_facet, pw, &mut tur, &mut pts, out),
-            _ => self.trace_w::<0>(p, dir, skip_facet, pw, &mut tur, &mut pts, out),
+            1 => self.trace_w::<1, false>(p, dir, skip_facet, pw, &mut tur, &mut pts, out),
+            2 => self.trace_w::<2, false>(p, dir, skip_facet, pw, &mut tur, &mut pts, out),
+            4 => self.trace_w::<4, false>(p, dir, skip_facet, pw, &mut tur, &mut pts, out),
+            _ => self.trace_w::<0, false>(p, dir, skip_facet, pw, &mut tur, &mut pts, out),
         }
         out.tur = Some(tur);
         out.tur_pts = Some(pts);
     }
 
-    /// [`Ctx::trace`] for `W` channels (`W = 0`: any count, read from `self.w`).
+    /// [`Ctx::trace`] for a first-order sun ray leaving its scattering point `p` along an
+    /// upward direction: turbid extinction gets the hotspot correlation of [`hotspot_terms`]
+    /// (the ray goes back through the gaps the sun came through).
+    fn trace_hotspot(
+        &self,
+        p: DVec3,
+        dir: usize,
+        skip_facet: Option<u32>,
+        pw: &mut [f64],
+        out: &mut ChunkOut,
+    ) {
+        let mut tur = out.tur.take().expect("accumulator");
+        let mut pts = out.tur_pts.take().expect("accumulator");
+        self.trace_w::<0, true>(p, dir, skip_facet, pw, &mut tur, &mut pts, out);
+        out.tur = Some(tur);
+        out.tur_pts = Some(pts);
+    }
+
+    /// [`Ctx::trace`] for `W` channels (`W = 0`: any count, read from `self.w`); `HS`: with the
+    /// hotspot correlation of a first-order sun ray (see [`Ctx::trace_hotspot`]).
     ///
     /// Per crossing: one [`CellRec`] read; the facet loop only in cells with facets; the turbid
     /// extinction `k = Σ_m G_m(Ω) u_m` from the ray's row of G per material; cells with one
     /// entry skip the share computation (share = 1 exactly); the channel sum of `pw` is carried
     /// from one crossing to the next instead of being recomputed.
     #[allow(clippy::too_many_arguments)]
-    fn trace_w<const W: usize>(
+    fn trace_w<const W: usize, const HS: bool>(
         &self,
         mut p: DVec3,
         dir: usize,
@@ -852,6 +886,13 @@ impl Ctx<'_> {
         let n_tm = self.n_tm;
         // G of every turbid material along this direction.
         let gd = &self.g_dir[dir * n_tm..(dir + 1) * n_tm];
+        let hsv: &[[f64; 2]] = if HS {
+            &self.hs[dir * n_tm..(dir + 1) * n_tm]
+        } else {
+            &[]
+        };
+        // Distance travelled from the ray's origin to the current restart point, m.
+        let mut s_base = 0.0;
         out.rays += 1;
         let mut n_cross = 0u64;
         let mut crossings = 0u32;
@@ -899,9 +940,27 @@ impl Ctx<'_> {
                 if cr.ent_lo != cr.ent_hi && t1 > t0 {
                     let ell = t1 - t0;
                     let ents = &self.ents[cr.ent_lo as usize..cr.ent_hi as usize];
+                    // Height of the segment above the origin, and its height extent, m.
+                    let (z0, dz) = if HS {
+                        ((s_base + t0) * d.z, ell * d.z)
+                    } else {
+                        (0.0, 0.0)
+                    };
+                    // Extinction coefficient of one entry along this segment, m⁻¹.
+                    let k_of = |e: &Ent| -> f64 {
+                        let g = gd[e.tm as usize];
+                        if HS {
+                            let [b, c] = hsv[e.tm as usize];
+                            if b > 0.0 {
+                                let corr = b * hotspot_integral(c, z0, dz) / ell;
+                                return e.density * (g - corr).max(0.0);
+                            }
+                        }
+                        g * e.density
+                    };
                     let mut k = 0.0;
                     for e in ents {
-                        k += gd[e.tm as usize] * e.density;
+                        k += k_of(e);
                     }
                     if k > 0.0 {
                         let x = k * ell;
@@ -922,7 +981,7 @@ impl Ctx<'_> {
                             add_points(pts.get(e.idx), p1, p2, wsum);
                         } else {
                             for e in ents {
-                                let share = gd[e.tm as usize] * e.density / k;
+                                let share = k_of(e) / k;
                                 let rec = &mut tur.get(e.idx * n_slots + slot)[..w];
                                 for (r, v) in rec.iter_mut().zip(pw.iter()) {
                                     *r += v * frac * share;
@@ -966,6 +1025,7 @@ impl Ctx<'_> {
                         break 'restart;
                     }
                     // Directly transmitted part continues from the hit point.
+                    s_base += th;
                     p = hp;
                     skip_facet = Some(f);
                     continue 'restart;
@@ -1006,6 +1066,7 @@ impl Ctx<'_> {
                             add(&mut out.lost, pw);
                             break 'restart;
                         }
+                        s_base += dda.t;
                         let mut q = dda.point(dda.t);
                         let (len, off) = if axis == 0 {
                             (self.size.0, spec.topography_offset.0)
@@ -1055,6 +1116,7 @@ impl Ctx<'_> {
                                         break 'restart;
                                     }
                                     q += d * t.max(0.0);
+                                    s_base += t.max(0.0);
                                     let (len, off) = if a == 0 {
                                         (self.size.0, spec.topography_offset.0)
                                     } else {
@@ -1070,6 +1132,7 @@ impl Ctx<'_> {
                                 }
                                 _ => {
                                     q += d * t_top;
+                                    s_base += t_top;
                                     q.z = spec.top();
                                 }
                             }
@@ -1474,7 +1537,7 @@ pub fn run(inp: &RadiativeInput) -> RadiativeResult {
     let n_sec = n_slots - 1;
     let mut slot_rows = Vec::with_capacity(tur_ids.len() * nb * n_sec * n_dirs);
     for &m in &tur_ids {
-        let TrackOptics::Turbid { g, tables } = &inp.optics[m] else {
+        let TrackOptics::Turbid { g, tables, .. } = &inp.optics[m] else {
             unreachable!("tur_ids holds turbid materials only");
         };
         let weights: Vec<f64> = tiling
@@ -1569,6 +1632,23 @@ pub fn run(inp: &RadiativeInput) -> RadiativeResult {
             }
         }
     }
+    // Hotspot terms (physics.md §3.5): sun–view gap correlation of first-order sun rays.
+    let mut hs = vec![[0.0; 2]; n_dirs * n_tm];
+    for (tm, &m) in tur_ids.iter().enumerate() {
+        let TrackOptics::Turbid { leaf_size_m, .. } = &inp.optics[m] else {
+            unreachable!("tur_ids holds turbid materials only");
+        };
+        if *leaf_size_m > 0.0 && inp.sun.z < 0.0 {
+            let g_sun = g_dir[n_dirs * n_tm + tm];
+            for j in 0..n_dirs {
+                hs[j * n_tm + tm] =
+                    hotspot_terms(inp.sun, omega[j], g_sun, g_dir[j * n_tm + tm], *leaf_size_m);
+            }
+        }
+    }
+    let hs_dir: Vec<bool> = (0..n_dirs)
+        .map(|j| (0..n_tm).any(|tm| hs[j * n_tm + tm][0] > 0.0))
+        .collect();
     let ctx = Ctx {
         inp,
         w,
@@ -1590,6 +1670,8 @@ pub fn run(inp: &RadiativeInput) -> RadiativeResult {
         brdf_ref,
         n_brdf_refs,
         facet_rows,
+        hs,
+        hs_dir,
     };
     let mut res = RadiativeResult {
         n_channels: w,
@@ -1734,7 +1816,7 @@ pub fn run(inp: &RadiativeInput) -> RadiativeResult {
             break;
         }
         let before = Increments::new(&res);
-        let outs = emit(&ctx, &stores, fractions, &ground_fr);
+        let outs = emit(&ctx, &stores, res.iterations == 1, fractions, &ground_fr);
         let mut new_stores = new_stores(&ctx);
         let mut esc = vec![0.0; w];
         merge(&ctx, outs, &mut new_stores, &mut res, &mut esc);
@@ -2076,10 +2158,50 @@ fn cosine_fractions(ctx: &Ctx, f: &Facet) -> (Vec<f32>, Vec<f32>) {
     )
 }
 
-/// Iteration i: scatters every store of iteration i−1 along every tiling direction.
+/// Traces `share × v` (channel powers, W) from `o` along tiling direction `j`, ignoring facet
+/// `skip`. With `hs_j` (first emission after the launch, so the sun channels hold only
+/// scattered direct sun) the sun channels go on a hotspot-correlated ray and the sky channels
+/// on an ordinary one.
+#[allow(clippy::too_many_arguments)]
+fn send(
+    ctx: &Ctx,
+    o: DVec3,
+    j: usize,
+    skip: Option<u32>,
+    v: &[f64],
+    share: f64,
+    hs_j: bool,
+    pw: &mut [f64],
+    out: &mut ChunkOut,
+) {
+    if !hs_j {
+        for (a, b) in pw.iter_mut().zip(v) {
+            *a = b * share;
+        }
+        ctx.trace(o, j, skip, pw, out);
+        return;
+    }
+    let nb = ctx.nb;
+    for (ch, (a, b)) in pw.iter_mut().zip(v).enumerate() {
+        *a = if ch < nb { b * share } else { 0.0 };
+    }
+    if pw.iter().any(|&x| x > 0.0) {
+        ctx.trace_hotspot(o, j, skip, pw, out);
+    }
+    if v.len() > nb && v[nb..].iter().any(|&x| x != 0.0) {
+        for (ch, (a, b)) in pw.iter_mut().zip(v).enumerate() {
+            *a = if ch < nb { 0.0 } else { b * share };
+        }
+        ctx.trace(o, j, skip, pw, out);
+    }
+}
+
+/// Iteration i: scatters every store of iteration i−1 along every tiling direction; `first`:
+/// the stores are those of the launch (direct sun and sky).
 fn emit(
     ctx: &Ctx,
     st: &Stores,
+    first: bool,
     fractions: &[(Vec<f32>, Vec<f32>)],
     ground_fr: &[f64],
 ) -> Vec<ChunkOut> {
@@ -2262,6 +2384,9 @@ fn emit(
                     normal = None;
                 }
                 let split = k < n_t;
+                // First-order sun rays (what turbid cells, facets and the ground scatter of the
+                // direct beam) get the hotspot correlation through turbid cells on their way up.
+                let hs = first && ctx.inp.emitters.is_empty();
                 let t_kernel = std::time::Instant::now();
                 for j in 0..n_dirs {
                     let v = &outgoing[j * w..(j + 1) * w];
@@ -2272,10 +2397,17 @@ fn emit(
                         // Two-point quadrature of the interception distribution: half the power
                         // from the barycentre of each half of the intercepted energy.
                         for o in [origin_up, origin_dn] {
-                            for (a, b) in pw.iter_mut().zip(v) {
-                                *a = 0.5 * b;
-                            }
-                            ctx.trace(o, j, None, &mut pw, &mut out);
+                            send(
+                                ctx,
+                                o,
+                                j,
+                                None,
+                                v,
+                                0.5,
+                                hs && ctx.hs_dir[j],
+                                &mut pw,
+                                &mut out,
+                            );
                         }
                         continue;
                     }
@@ -2293,9 +2425,6 @@ fn emit(
                         points
                     };
                     for &(pt, share) in pts {
-                        for (a, b) in pw.iter_mut().zip(v) {
-                            *a = b * share;
-                        }
                         let mut origin = if ground {
                             DVec3::new(pt.x, pt.y, spec.origin.z)
                         } else {
@@ -2306,7 +2435,8 @@ fn emit(
                             let side = n.dot(tiling[j].omega).signum();
                             origin += n * side * 1e-9 * spec.cell.min_element();
                         }
-                        ctx.trace(origin, j, skip, &mut pw, &mut out);
+                        let hs_j = hs && ctx.hs_dir[j];
+                        send(ctx, origin, j, skip, v, share, hs_j, &mut pw, &mut out);
                     }
                 }
                 out.kernel_seconds += t_kernel.elapsed().as_secs_f64();
@@ -2346,6 +2476,43 @@ fn scatter_slots<'r>(
         if a - emitted != 0.0 {
             absorbed(ch, a - emitted);
         }
+    }
+}
+
+/// Hotspot terms of one turbid material for the first-order sun ray scattered along `view`
+/// (upward): `[b, c]` such that along that ray the extinction per unit height at height z above
+/// the scattering point is `u_f (k_v − b e^{−c z})` instead of `u_f k_v` (physics.md §3.5, the
+/// SAILH joint gap probability of Kuusk 1985 / Verhoef 1998 put into the ray tracking):
+/// `k_s = G_s/μ_s`, `k_v = G_v/μ_v` (per unit leaf area and height), `b = √(k_s k_v)`,
+/// `c = 2Δ/(l (k_s + k_v))` (m⁻¹) with `Δ = |tan θ_v e_v − tan θ_s e_s|` the horizontal
+/// separation of the sun and view rays per unit height and `l` the leaf dimension, m.
+/// `sun` is the propagation vector of the beam (downward). `[0, 0]` for downward views.
+pub fn hotspot_terms(
+    sun: DVec3,
+    view: DVec3,
+    g_sun: f64,
+    g_view: f64,
+    leaf_size_m: f64,
+) -> [f64; 2] {
+    let (mu_s, mu_v) = (-sun.z, view.z);
+    if mu_s <= 0.0 || mu_v <= 0.0 || leaf_size_m <= 0.0 || g_sun <= 0.0 || g_view <= 0.0 {
+        return [0.0; 2];
+    }
+    let (ks, kv) = (g_sun / mu_s, g_view / mu_v);
+    let dx = view.x / mu_v + sun.x / mu_s;
+    let dy = view.y / mu_v + sun.y / mu_s;
+    let delta = (dx * dx + dy * dy).sqrt();
+    [(ks * kv).sqrt(), 2.0 * delta / (leaf_size_m * (ks + kv))]
+}
+
+/// `∫_{z0}^{z0+dz} e^{−c z} dz` (m), stable for c → 0 and large c·z.
+#[inline]
+pub fn hotspot_integral(c: f64, z0: f64, dz: f64) -> f64 {
+    let x = c * dz;
+    if x < 1e-9 {
+        (-c * z0).exp() * dz * (1.0 - 0.5 * x)
+    } else {
+        (-c * z0).exp() * (-(-x).exp_m1()) / c
     }
 }
 

@@ -140,7 +140,7 @@ pub fn build_photon_optics(
                 transmittance,
                 lad,
                 specular,
-                ..
+                leaf_size_m,
             } if used[id] => {
                 if specular.is_some() {
                     return Err(format!(
@@ -185,6 +185,7 @@ pub fn build_photon_optics(
                     rho: reflectance.clone(),
                     tau: transmittance.clone(),
                     discrete,
+                    leaf_size_m: *leaf_size_m,
                 }
             }
             MaterialKind::Lambertian { .. } | MaterialKind::Leaf { .. } => {

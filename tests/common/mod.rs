@@ -209,3 +209,14 @@ pub fn black_disk_canopy() -> SceneDesc {
     }
     desc
 }
+
+/// Sets the leaf size of every turbid material to 0 (no hotspot): the scene is then the pure
+/// turbid medium of point scatterers that DISORT and the single-scattering closed forms solve
+/// (physics.md §3.4, §13 tests 3–4; the hotspot has its own oracles in radiative_hotspot.rs).
+pub fn no_hotspot(d: &mut SceneDesc) {
+    for o in d.optics.values_mut() {
+        if let OpticsDesc::Turbid { leaf_size_m, .. } = o {
+            *leaf_size_m = 0.0;
+        }
+    }
+}
