@@ -247,3 +247,51 @@ fn first_order_hotspot_shape_follows_sailh() {
     // sample the correlation, which varies on the scale l(k_s+k_v)/(2Δ) ≥ 0.2 m here.
     assert!(worst < 0.002, "worst {worst}");
 }
+
+#[test]
+fn monte_carlo_peel_off_has_the_same_hotspot() {
+    // Continuous Monte Carlo, black leaves over a Lambertian soil: the peel-off of first-order
+    // sun photons from the soil follows ρ_g P_sv(1) within 3 standard errors + 0.5 % (the
+    // exact-direction sector the flux tracking needs plays no role here).
+    use lumenscape::photon::engine::SamplerKind;
+    use lumenscape::resources::scene::Solver;
+    let rho_g = 0.2;
+    let black = BandOptics {
+        name: "b".into(),
+        wavelength_nm: 650.0,
+        leaf_r: 0.0,
+        leaf_t: 0.0,
+        soil_r: rho_g,
+    };
+    let views = [0.0, 25.0, 30.0, 35.0];
+    let d = layer(2.0, black, 0.1, 0.5, &views);
+    let settings = RunSettings {
+        solver: Solver::MonteCarlo {
+            photons: 200_000,
+            sampler: SamplerKind::Continuous,
+        },
+        ..Default::default()
+    };
+    let mut sim = Simulation::from_desc(&d, &SceneSource::generated(), settings)
+        .unwrap_or_else(|e| panic!("{e}"));
+    sim.run(None).unwrap_or_else(|e| panic!("{e}"));
+    let p = sim.resource::<RadiativeProducts>().clone();
+    assert_closes(&p, "Monte Carlo");
+    for &vz in &views {
+        for (az, psi) in [(0.0, 0.0), (180.0, 180.0)] {
+            let e = p.brf_at(0, vz, az).unwrap();
+            assert!((e.zenith_deg - vz).abs() < 1e-9);
+            let want = rho_g * p_sv(2.0, 0.1, vz, psi, 1.0);
+            let se = e.brf_se.unwrap();
+            eprintln!(
+                "MC view ({vz}, {az}): {:.5} ± {se:.5} vs ρ_g P_sv(1) = {want:.5}",
+                e.brf
+            );
+            assert!(
+                (e.brf - want).abs() <= 3.0 * se + 0.005 * want,
+                "view ({vz}, {az}): {} ± {se} vs {want}",
+                e.brf
+            );
+        }
+    }
+}
