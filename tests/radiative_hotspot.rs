@@ -55,6 +55,40 @@ fn layer(lai: f64, leaf: BandOptics, l: f64, cell: f64, views: &[f64]) -> SceneD
     d
 }
 
+/// Runs `d` for the sources and one scattering iteration: the exitance is exactly first order.
+fn first_order(mut d: SceneDesc) -> RadiativeProducts {
+    d.radiative = Some(RadiativeDesc {
+        max_iterations: Some(2),
+        extrapolate: Some(false),
+        ..Default::default()
+    });
+    let p = run(&d);
+    assert_closes(&p, "single scattering");
+    p
+}
+
+/// The leaves of physics.md §13 tests 4–5: ρ = τ = 0.45 over a black soil.
+fn physics_test_leaves() -> BandOptics {
+    BandOptics {
+        name: "g".into(),
+        wavelength_nm: 550.0,
+        leaf_r: 0.45,
+        leaf_t: 0.45,
+        soil_r: 0.0,
+    }
+}
+
+/// Black leaves over a Lambertian soil of reflectance `rho_g`.
+fn black_leaves(rho_g: f64) -> BandOptics {
+    BandOptics {
+        name: "b".into(),
+        wavelength_nm: 650.0,
+        leaf_r: 0.0,
+        leaf_t: 0.0,
+        soil_r: rho_g,
+    }
+}
+
 fn brf(p: &RadiativeProducts, vz: f64, az: f64) -> f64 {
     let e = p.brf_at(0, vz, az).unwrap();
     assert!(
@@ -124,13 +158,7 @@ fn black_leaves_soil_brf_follows_the_sailh_joint_gap_probability() {
     // integrates the correlated extinction analytically per cell crossing, so the only error is
     // floating point.
     let rho_g = 0.2;
-    let black = BandOptics {
-        name: "b".into(),
-        wavelength_nm: 650.0,
-        leaf_r: 0.0,
-        leaf_t: 0.0,
-        soil_r: rho_g,
-    };
+    let black = black_leaves(rho_g);
     let views = [
         0.0, 10.0, 20.0, 25.0, 28.0, 29.0, 30.0, 31.0, 32.0, 35.0, 40.0, 50.0,
     ];
@@ -171,23 +199,9 @@ fn black_leaves_soil_brf_follows_the_sailh_joint_gap_probability() {
 fn exact_hotspot_single_scattering_matches_physics_test_5() {
     // physics.md §13 test 5: LAI 3, spherical, ρ = τ = 0.45, black soil, θ_s = θ_v = 30° on
     // the sun side, q > 0: BRF_1 = w(1 − e^{−kL})/k = 0.28512 (0.16778 without hotspot).
-    let leaves = BandOptics {
-        name: "g".into(),
-        wavelength_nm: 550.0,
-        leaf_r: 0.45,
-        leaf_t: 0.45,
-        soil_r: 0.0,
-    };
+    let leaves = physics_test_leaves();
     for (l, want) in [(0.01, 0.28512), (0.0, 0.16778)] {
-        let mut d = layer(3.0, leaves.clone(), l, 0.1, &[SZA]);
-        // Sources then one scattering iteration: the exitance is exactly first order.
-        d.radiative = Some(RadiativeDesc {
-            max_iterations: Some(2),
-            extrapolate: Some(false),
-            ..Default::default()
-        });
-        let p = run(&d);
-        assert_closes(&p, "single scattering");
+        let p = first_order(layer(3.0, leaves.clone(), l, 0.1, &[SZA]));
         let got = brf(&p, SZA, 0.0);
         eprintln!(
             "first-order BRF at the hotspot, l = {l}: {got:.5} vs {want} ({:+.3} %)",
@@ -207,27 +221,11 @@ fn first_order_hotspot_shape_follows_sailh() {
     // Single scattering by leaves over black soil, LAI 2, leaf size 0.2 m (q = 0.1): the ratio
     // BRF_1(l)/BRF_1(l = 0) is the SAILH ratio ∫P_sv dx / ∫P_s P_v dx, whatever Γ. The phase
     // function cancels, the cell discretisation mostly too.
-    let leaves = BandOptics {
-        name: "g".into(),
-        wavelength_nm: 550.0,
-        leaf_r: 0.45,
-        leaf_t: 0.45,
-        soil_r: 0.0,
-    };
+    let leaves = physics_test_leaves();
     let views = [
         0.0, 15.0, 20.0, 25.0, 28.0, 30.0, 32.0, 35.0, 40.0, 45.0, 60.0,
     ];
-    let first = |l: f64| {
-        let mut d = layer(2.0, leaves.clone(), l, 0.1, &views);
-        d.radiative = Some(RadiativeDesc {
-            max_iterations: Some(2),
-            extrapolate: Some(false),
-            ..Default::default()
-        });
-        let p = run(&d);
-        assert_closes(&p, "single scattering");
-        p
-    };
+    let first = |l: f64| first_order(layer(2.0, leaves.clone(), l, 0.1, &views));
     let (with, without) = (first(0.2), first(0.0));
     let mut worst: f64 = 0.0;
     for &vz in &views {
@@ -256,13 +254,7 @@ fn monte_carlo_peel_off_has_the_same_hotspot() {
     use lumenscape::photon::engine::SamplerKind;
     use lumenscape::resources::scene::Solver;
     let rho_g = 0.2;
-    let black = BandOptics {
-        name: "b".into(),
-        wavelength_nm: 650.0,
-        leaf_r: 0.0,
-        leaf_t: 0.0,
-        soil_r: rho_g,
-    };
+    let black = black_leaves(rho_g);
     let views = [0.0, 25.0, 30.0, 35.0];
     let d = layer(2.0, black, 0.1, 0.5, &views);
     let settings = RunSettings {

@@ -817,9 +817,7 @@ impl Ctx<'_> {
         out.img_val.extend_from_slice(pw);
     }
 
-    /// Traces one ray; `pw` holds the channel powers and is consumed. Dispatches to a copy of
-    /// the tracker specialised for the channel count (1, 2 or 4 channels: loops over channels
-    /// unrolled), with the turbid accumulators taken out of `out` for the ray's duration.
+    /// Traces one ray; `pw` holds the channel powers and is consumed.
     fn trace(
         &self,
         p: DVec3,
@@ -828,16 +826,7 @@ impl Ctx<'_> {
         pw: &mut [f64],
         out: &mut ChunkOut,
     ) {
-        let mut tur = out.tur.take().expect("accumulator");
-        let mut pts = out.tur_pts.take().expect("accumulator");
-        match self.w {
-            1 => self.trace_w::<1, false>(p, dir, skip_facet, pw, &mut tur, &mut pts, out),
-            2 => self.trace_w::<2, false>(p, dir, skip_facet, pw, &mut tur, &mut pts, out),
-            4 => self.trace_w::<4, false>(p, dir, skip_facet, pw, &mut tur, &mut pts, out),
-            _ => self.trace_w::<0, false>(p, dir, skip_facet, pw, &mut tur, &mut pts, out),
-        }
-        out.tur = Some(tur);
-        out.tur_pts = Some(pts);
+        self.trace_any::<false>(p, dir, skip_facet, pw, out);
     }
 
     /// [`Ctx::trace`] for a first-order sun ray leaving its scattering point `p` along an
@@ -851,9 +840,28 @@ impl Ctx<'_> {
         pw: &mut [f64],
         out: &mut ChunkOut,
     ) {
+        self.trace_any::<true>(p, dir, skip_facet, pw, out);
+    }
+
+    /// Dispatches to a copy of the tracker specialised for the channel count (1, 2 or 4
+    /// channels: loops over channels unrolled), with the turbid accumulators taken out of `out`
+    /// for the ray's duration.
+    fn trace_any<const HS: bool>(
+        &self,
+        p: DVec3,
+        dir: usize,
+        skip_facet: Option<u32>,
+        pw: &mut [f64],
+        out: &mut ChunkOut,
+    ) {
         let mut tur = out.tur.take().expect("accumulator");
         let mut pts = out.tur_pts.take().expect("accumulator");
-        self.trace_w::<0, true>(p, dir, skip_facet, pw, &mut tur, &mut pts, out);
+        match self.w {
+            1 => self.trace_w::<1, HS>(p, dir, skip_facet, pw, &mut tur, &mut pts, out),
+            2 => self.trace_w::<2, HS>(p, dir, skip_facet, pw, &mut tur, &mut pts, out),
+            4 => self.trace_w::<4, HS>(p, dir, skip_facet, pw, &mut tur, &mut pts, out),
+            _ => self.trace_w::<0, HS>(p, dir, skip_facet, pw, &mut tur, &mut pts, out),
+        }
         out.tur = Some(tur);
         out.tur_pts = Some(pts);
     }
