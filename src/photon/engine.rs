@@ -921,8 +921,8 @@ impl Ctx<'_> {
     /// Transmittance per band from `p` along `d` to the top of the scene or over `max_dist`
     /// metres (turbid and fluid extinction, facets opaque unless directly transmitting);
     /// `g_dir` holds G(d) per turbid material; `hs` (empty: none) the hotspot terms per turbid
-    /// material of a first-order sun photon's peel-off (the turbid extinction per unit height
-    /// at height z above `p` is `u_f (k_v − b e^{−c z})`, physics.md §3.5).
+    /// material of a first-order photon's peel-off (the turbid extinction coefficient at
+    /// distance s from `p` is `u_f (G − b e^{−c s})`, physics.md §3.5).
     #[allow(clippy::too_many_arguments)]
     fn transmittance(
         &self,
@@ -974,8 +974,8 @@ impl Ctx<'_> {
                                 Some(&[b, c]) if b > 0.0 => {
                                     let corr = b * crate::radiative::engine::hotspot_integral(
                                         c,
-                                        (travelled + t0) * d.z,
-                                        ell * d.z,
+                                        travelled + t0,
+                                        ell,
                                     );
                                     tau_v += e.density as f64 * (g * ell - corr).max(0.0);
                                 }

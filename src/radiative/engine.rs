@@ -948,19 +948,15 @@ impl Ctx<'_> {
                 if cr.ent_lo != cr.ent_hi && t1 > t0 {
                     let ell = t1 - t0;
                     let ents = &self.ents[cr.ent_lo as usize..cr.ent_hi as usize];
-                    // Height of the segment above the origin, and its height extent, m.
-                    let (z0, dz) = if HS {
-                        ((s_base + t0) * d.z, ell * d.z)
-                    } else {
-                        (0.0, 0.0)
-                    };
+                    // Distance of the segment from the ray's origin, m.
+                    let s0 = if HS { s_base + t0 } else { 0.0 };
                     // Extinction coefficient of one entry along this segment, m⁻¹.
                     let k_of = |e: &Ent| -> f64 {
                         let g = gd[e.tm as usize];
                         if HS {
                             let [b, c] = hsv[e.tm as usize];
                             if b > 0.0 {
-                                let corr = b * hotspot_integral(c, z0, dz) / ell;
+                                let corr = b * hotspot_integral(c, s0, ell) / ell;
                                 return e.density * (g - corr).max(0.0);
                             }
                         }
@@ -2488,13 +2484,15 @@ fn scatter_slots<'r>(
 }
 
 /// Hotspot terms of one turbid material for the first-order sun ray scattered along `view`
-/// (upward): `[b, c]` such that along that ray the extinction per unit height at height z above
-/// the scattering point is `u_f (k_v − b e^{−c z})` instead of `u_f k_v` (physics.md §3.5, the
-/// SAILH joint gap probability of Kuusk 1985 / Verhoef 1998 put into the ray tracking):
-/// `k_s = G_s/μ_s`, `k_v = G_v/μ_v` (per unit leaf area and height), `b = √(k_s k_v)`,
-/// `c = 2Δ/(l (k_s + k_v))` (m⁻¹) with `Δ = |tan θ_v e_v − tan θ_s e_s|` the horizontal
-/// separation of the sun and view rays per unit height and `l` the leaf dimension, m.
-/// `sun` is the propagation vector of the beam (downward). `[0, 0]` for downward views.
+/// (upward), per unit path length: `[b, c]` such that at distance s (m) from the scattering
+/// point the extinction coefficient along the ray is `u_f (G_v − b e^{−c s})` instead of
+/// `u_f G_v`. This is physics.md §3.5, the SAILH joint gap probability of Kuusk 1985 /
+/// Verhoef 1998 put into the ray tracking: per unit *height* z = s μ_v the extinction is
+/// `u_f (k_v − √(k_s k_v) e^{−c_z z})` with `k_s = G_s/μ_s`, `k_v = G_v/μ_v`,
+/// `c_z = 2Δ/(l (k_s + k_v))` (m⁻¹), `Δ = |tan θ_v e_v − tan θ_s e_s|` the horizontal separation
+/// of the sun and view rays per unit height and `l` the leaf dimension, m; so
+/// `b = √(k_s k_v) μ_v` and `c = c_z μ_v`. `sun` is the propagation vector of the beam
+/// (downward). `[0, 0]` for downward views.
 pub fn hotspot_terms(
     sun: DVec3,
     view: DVec3,
@@ -2510,10 +2508,13 @@ pub fn hotspot_terms(
     let dx = view.x / mu_v + sun.x / mu_s;
     let dy = view.y / mu_v + sun.y / mu_s;
     let delta = (dx * dx + dy * dy).sqrt();
-    [(ks * kv).sqrt(), 2.0 * delta / (leaf_size_m * (ks + kv))]
+    [
+        (ks * kv).sqrt() * mu_v,
+        2.0 * delta / (leaf_size_m * (ks + kv)) * mu_v,
+    ]
 }
 
-/// `∫_{z0}^{z0+dz} e^{−c z} dz` (m), stable for c → 0 and large c·z.
+/// `∫_{z0}^{z0+dz} e^{−c z} dz` (m), stable for c → 0 and large c·z (z, dz in m, c in m⁻¹).
 #[inline]
 pub fn hotspot_integral(c: f64, z0: f64, dz: f64) -> f64 {
     let x = c * dz;
