@@ -7,7 +7,7 @@
 //! density_m2_m3).
 
 use crate::io::atomic::write_atomic;
-use crate::io::exr_out::{ExrLayer, write_exr_layers};
+use crate::io::exr_out::{ExrLayer, ExrMeta, write_exr_layers, write_exr_layers_with};
 use crate::resources::facets::FacetStore;
 use crate::resources::grid::{CellGrid, GridSpec};
 use crate::resources::maket_report::MaketReport;
@@ -178,6 +178,7 @@ fn write_radiative(
             "preset": format!("{:?}", settings.preset),
             "tracking": settings.tracking,
             "per_direction_stores": settings.per_direction_stores,
+            "image_oversampling": settings.image_oversampling,
             "directions": dirs.set.tiling().len(),
             "sectors": dirs.n_sectors,
             "sun_zenith_deg": info.illumination.sun_zenith_deg,
@@ -186,6 +187,7 @@ fn write_radiative(
         "solver": p.solver,
         "monte_carlo": p.monte_carlo,
         "launch": p.launch,
+        "images": (!p.raw.images.is_empty()).then_some(p.raw.image_grid),
         "iterations": p.iterations,
         "converged": p.converged,
         "extrapolation_ratio": p.extrapolation_ratio,
@@ -383,11 +385,14 @@ fn write_radiative(
     Ok(())
 }
 
-/// Orthographic images (DART 5 paper §5; physics.md §8.1): one multi-channel EXR per exact
-/// view direction, `images/view_<zenith>_<azimuth>.exr`, channels `brf.<band>` (and
-/// `hdrf.<band>` with sky light), one pixel per grid column; the BRF of pixel (i, j) is
-/// π W_ij / (A_pixel ∫_{ΔΩ}|μ|dΩ E_dir). The image mean equals the direction's BRF. A PNG
-/// quick-look of the first band (linear grey scale from 0 to the image maximum) goes alongside.
+/// Orthographic images (DART 5 paper §3.2, §5; physics.md §6.6, §8.1): one multi-channel EXR
+/// per exact view direction, `images/view_<zenith>_<azimuth>.exr`, channels `brf.<band>` (and
+/// `hdrf.<band>` with sky light), pixels of (Δx/η, Δy/η) (η = `radiative.image_oversampling`;
+/// [`crate::radiative::images`]); the BRF of pixel (i, j) is π W_ij / (A_pixel ∫_{ΔΩ}|μ|dΩ E_dir).
+/// The image mean equals the direction's BRF. The EXR header carries the pixel size
+/// (`pixel_size_x_m`, `pixel_size_y_m`, `pixelAspectRatio`), η (`image_oversampling`), the
+/// scene origin and the view direction. A PNG quick-look of the first band (linear grey scale
+/// from 0 to the image maximum) goes alongside.
 fn write_images(
     dir: &std::path::Path,
     p: &crate::radiative::products::RadiativeProducts,
@@ -397,15 +402,16 @@ fn write_images(
 ) -> Result<(), String> {
     let raw = &p.raw;
     let (w, nb) = (raw.n_channels, raw.n_bands);
-    let (nx, ny) = (spec.n[0], spec.n[1]);
-    let npx = nx * ny;
+    let ig = raw.image_grid;
+    let (nx, ny) = ig.n;
+    let npx = ig.pixels();
     if raw.images.is_empty() {
         return Ok(());
     }
     std::fs::create_dir_all(dir.join("images"))
         .map_err(|e| format!("{}: cannot create images folder: {e}", dir.display()))?;
-    let a_px = spec.cell.x * spec.cell.y;
-    let area = a_px * npx as f64;
+    let a_px = ig.pixel_m.0 * ig.pixel_m.1;
+    let area = spec.n[0] as f64 * spec.cell.x * spec.n[1] as f64 * spec.cell.y;
     let e_dir: Vec<f64> = (0..nb).map(|b| raw.source[b] / area).collect();
     let e_diff: Vec<f64> = (0..nb)
         .map(|b| {
@@ -460,7 +466,7 @@ fn write_images(
             }
         }
         let name = format!("view_{:05.1}_{:05.1}", d.zenith_deg(), d.azimuth_deg());
-        write_exr_layers(
+        write_exr_layers_with(
             &dir.join("images").join(format!("{name}.exr")),
             nx,
             ny,
@@ -468,6 +474,16 @@ fn write_images(
                 name: "reflectance".into(),
                 channels,
             }],
+            &ExrMeta {
+                pixel_size_m: Some(ig.pixel_m),
+                values: vec![
+                    ("image_oversampling".into(), ig.oversampling as f64),
+                    ("origin_x_m".into(), spec.origin.x),
+                    ("origin_y_m".into(), spec.origin.y),
+                    ("view_zenith_deg".into(), d.zenith_deg()),
+                    ("view_azimuth_deg".into(), d.azimuth_deg()),
+                ],
+            },
         )?;
         img += 1;
     }

@@ -354,3 +354,47 @@ fn unknown_fields_inside_enum_variants_are_errors() {
     assert!(msg.contains("smooth"), "{msg}");
     assert_eq!(line_of(&e), Some(line_containing(&text, "smooth")));
 }
+
+#[test]
+fn bad_image_oversampling_is_rejected_with_its_field_and_line() {
+    let with = |v: &str| {
+        GOOD.replace(
+            "    illumination:",
+            &format!("    radiative: (image_oversampling: {v}),\n    illumination:"),
+        )
+    };
+    let ok = write("eta_ok.ron", &with("3"));
+    Simulation::load(&ok, RunSettings::default()).expect("η = 3 is valid");
+    for (name, v, what) in [
+        ("eta_zero.ron", "0", "1..=64"),
+        ("eta_big.ron", "65", "1..=64"),
+        ("eta_negative.ron", "-2", ""),
+        ("eta_float.ron", "1.5", ""),
+    ] {
+        let text = with(v);
+        let (e, msg) = error_of(name, &text);
+        assert!(msg.contains(what), "{name}: {msg}");
+        if !what.is_empty() {
+            assert!(matches!(e, SceneError::Invalid { .. }), "{name}: {msg}");
+            assert!(
+                msg.contains("radiative.image_oversampling"),
+                "{name}: {msg}"
+            );
+            assert_eq!(
+                line_of(&e),
+                Some(line_containing(&text, "image_oversampling")),
+                "{name}: {msg}"
+            );
+        } else {
+            assert!(line_of(&e).is_some(), "{name}: {msg}");
+        }
+    }
+    // 10⁶ columns × 10² pixels each exceed the image size limit.
+    let text = with("10").replace("size_m: (10.0, 10.0)", "size_m: (1000.0, 1000.0)");
+    let (e, msg) = error_of("eta_pixels.ron", &text);
+    assert!(matches!(e, SceneError::Invalid { .. }), "{msg}");
+    assert!(
+        msg.contains("radiative.image_oversampling") && msg.contains("pixels"),
+        "{msg}"
+    );
+}

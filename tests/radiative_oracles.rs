@@ -342,7 +342,24 @@ fn facets_in_cell_faces_and_isolated_sides_keep_energy_closed() {
 
 #[test]
 fn products_are_bit_identical_on_1_2_and_8_threads() {
-    let d = small_forest();
+    // With images (three exact views, η = 2: footprints spread over 0.5 m pixels).
+    let mut d = small_forest();
+    d.directions = Some(lumenscape::resources::directions::DirectionParams {
+        exact: [(0.0, 0.0), (30.0, 225.0), (55.0, 100.0)]
+            .into_iter()
+            .map(|(z, a)| lumenscape::resources::directions::ExactDirection {
+                zenith_deg: z,
+                azimuth_deg: a,
+                label: None,
+                solid_angle_sr: None,
+            })
+            .collect(),
+        ..Default::default()
+    });
+    d.radiative = Some(RadiativeDesc {
+        image_oversampling: 2,
+        ..Default::default()
+    });
     let go = |n| {
         let pool = rayon::ThreadPoolBuilder::new()
             .num_threads(n)
@@ -361,10 +378,17 @@ fn products_are_bit_identical_on_1_2_and_8_threads() {
                     .iter()
                     .map(|v| v.to_bits())
                     .collect::<Vec<_>>(),
+                r.images.iter().map(|v| v.to_bits()).collect::<Vec<_>>(),
             )
         })
     };
     let one = go(1);
+    assert_eq!(
+        one.3.len(),
+        3 * 24 * 24 * 2,
+        "three η = 2 images of 24 × 24 pixels, 2 bands"
+    );
+    assert!(one.3.iter().any(|&b| f64::from_bits(b) > 0.0));
     assert_eq!(one, go(2));
     assert_eq!(one, go(8));
 }

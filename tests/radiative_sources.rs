@@ -41,6 +41,7 @@ fn ground_scene(e_dir: f64, emitters: &[Emission]) -> RadiativeResult {
         n_sectors: n_dirs,
         optics: &[],
         image_of: &image_of,
+        image_oversampling: 1,
         flat_ground: Some(vec![0.4]),
         ground_brdf: None,
         sun: -direction_from_deg(30.0, 0.0),

@@ -237,6 +237,18 @@ fn radiative_estimate(sim: &mut Simulation, report: &MaketReport) -> (u64, usize
     let info = sim.resource::<crate::resources::scene::SceneInfo>().clone();
     let sky = info.illumination.skyl.iter().any(|&s| s > 0.0);
     let n_facets = report.facet_count.values().sum::<u64>() as usize;
+    // Orthographic images: one per exact upward direction, columns × η² pixels.
+    let n_images = set
+        .tiling()
+        .iter()
+        .filter(|d| {
+            matches!(
+                d.kind,
+                crate::resources::directions::DirectionKind::Exact { .. }
+            ) && d.omega.z > 0.0
+        })
+        .count();
+    let eta = settings.image_oversampling.max(1) as usize;
     let est = crate::radiative::memory_estimate(
         n_dirs,
         slots,
@@ -247,6 +259,7 @@ fn radiative_estimate(sim: &mut Simulation, report: &MaketReport) -> (u64, usize
         report.memory.facet_refs_max as usize,
         n_facets,
         report.cells[0] * report.cells[1],
+        n_images * report.cells[0] * report.cells[1] * eta * eta,
     );
     (est, n_dirs, slots)
 }

@@ -14,12 +14,33 @@ pub struct ExrLayer {
     pub channels: Vec<(String, Vec<f64>)>,
 }
 
+/// Header metadata of an EXR file.
+#[derive(Debug, Clone, Default)]
+pub struct ExrMeta {
+    /// Pixel size (x, y), m: written as the attributes `pixel_size_x_m` and `pixel_size_y_m`
+    /// (f64) and as the standard `pixelAspectRatio` (y / x).
+    pub pixel_size_m: Option<(f64, f64)>,
+    /// Other named numbers, written as f64 attributes.
+    pub values: Vec<(String, f64)>,
+}
+
 /// Writes the layers into one EXR file atomically.
 pub fn write_exr_layers(
     path: &Path,
     nx: usize,
     ny: usize,
     layers: &[ExrLayer],
+) -> std::result::Result<(), String> {
+    write_exr_layers_with(path, nx, ny, layers, &ExrMeta::default())
+}
+
+/// [`write_exr_layers`] with header metadata.
+pub fn write_exr_layers_with(
+    path: &Path,
+    nx: usize,
+    ny: usize,
+    layers: &[ExrLayer],
+    meta: &ExrMeta,
 ) -> std::result::Result<(), String> {
     let mut list = Vec::new();
     for l in layers {
@@ -44,10 +65,19 @@ pub fn write_exr_layers(
         );
         list.push(layer);
     }
-    let image = Image::from_layers(
-        ImageAttributes::new(IntegerBounds::from_dimensions((nx, ny))),
-        list,
-    );
+    let mut attributes = ImageAttributes::new(IntegerBounds::from_dimensions((nx, ny)));
+    let mut values = meta.values.clone();
+    if let Some((px, py)) = meta.pixel_size_m {
+        attributes.pixel_aspect = (py / px) as f32;
+        values.push(("pixel_size_x_m".into(), px));
+        values.push(("pixel_size_y_m".into(), py));
+    }
+    for (name, v) in values {
+        let key = Text::new_or_none(name.as_str())
+            .ok_or_else(|| format!("{}: bad EXR attribute name `{name}`", path.display()))?;
+        attributes.other.insert(key, AttributeValue::F64(v));
+    }
+    let image = Image::from_layers(attributes, list);
     let tmp = tmp_path(path);
     image
         .write()
@@ -59,6 +89,32 @@ pub fn write_exr_layers(
     })?;
     let _ = write_atomic;
     Ok(())
+}
+
+/// Reads the f64 attributes of an EXR file's header (see [`ExrMeta`]), plus
+/// `pixelAspectRatio`.
+pub fn read_exr_values(path: &Path) -> std::result::Result<Vec<(String, f64)>, String> {
+    let meta = exr::meta::MetaData::read_from_file(path, false)
+        .map_err(|e| format!("{}: {e}", path.display()))?;
+    let mut out = Vec::new();
+    if let Some(h) = meta.headers.first() {
+        out.push((
+            "pixelAspectRatio".to_string(),
+            h.shared_attributes.pixel_aspect as f64,
+        ));
+        for (k, v) in h
+            .shared_attributes
+            .other
+            .iter()
+            .chain(&h.own_attributes.other)
+        {
+            if let AttributeValue::F64(x) = v {
+                out.push((k.to_string(), *x));
+            }
+        }
+    }
+    out.sort_by(|a, b| a.0.cmp(&b.0));
+    Ok(out)
 }
 
 /// Reads every channel of an EXR file as (name, values indexed `i + nx·j`), plus (nx, ny).

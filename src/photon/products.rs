@@ -67,6 +67,7 @@ pub fn photon_products(
         source: res.source.clone(),
         escaped: res.escaped.clone(),
         images: Vec::new(),
+        image_grid: Default::default(),
         launch: Default::default(),
         escaped_per_iteration: Vec::new(),
         absorbed_turbid: res.absorbed_turbid.clone(),

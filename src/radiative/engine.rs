@@ -43,6 +43,7 @@
 //!   of threads.
 
 use super::dda::{Dda, Exit};
+use super::images::ImageGrid;
 use crate::resources::directions::DirectionSet;
 use crate::resources::facets::{Facet, FacetKind};
 use crate::resources::grid::{CellGrid, GridSpec};
@@ -174,9 +175,11 @@ pub struct RadiativeInput<'a> {
     pub n_sectors: usize,
     /// Optics per material id.
     pub optics: &'a [TrackOptics],
-    /// Image index of each tiling direction (`u32::MAX`: no image); images have one pixel per
-    /// column of the grid.
+    /// Image index of each tiling direction (`u32::MAX`: no image).
     pub image_of: &'a [u32],
+    /// Image oversampling factor η ≥ 1 (0 is taken as 1): image pixels are (Δx/η, Δy/η) and
+    /// escaping fluxes are spread over them (see [`super::images`]).
+    pub image_oversampling: u32,
     /// Flat ground material (Lambertian reflectance per band), if the ground is the plane z0.
     pub flat_ground: Option<Vec<f64>>,
     /// Flat ground with a BRDF (RPV, Hapke): one phase table per band for the horizontal
@@ -225,8 +228,11 @@ pub struct RadiativeResult {
     pub source: Vec<f64>,
     /// Power escaping through the top per tiling direction, `[dir][channel]`, W (extrapolated).
     pub escaped: Vec<f64>,
-    /// Orthographic images: `[image][pixel i + nx·j][channel]` escaped power, W (extrapolated).
+    /// Orthographic images: `[image][pixel i + n_x·j][channel]` escaped power, W
+    /// (extrapolated); pixel grid in `image_grid`.
     pub images: Vec<f64>,
+    /// Pixel grid of `images` (η, pixel counts and size).
+    pub image_grid: ImageGrid,
     /// Escaped power per iteration (scene total per channel), for convergence reports.
     pub escaped_per_iteration: Vec<Vec<f64>>,
     /// Power absorbed per turbid entry (index of `CellGrid::turbid`), W.
@@ -574,8 +580,13 @@ struct ChunkOut {
     gnd_key: Vec<(u32, u32, u32)>,
     gnd_val: Vec<f64>,
     escaped: Vec<f64>,
-    /// Image events: (image, pixel); values: W.
-    img_key: Vec<(u32, u32)>,
+    /// Horizontal size (x, y) of the element emitting the ray being traced, m ((0, 0): a
+    /// point); set before each [`Ctx::trace`] call, read when the ray escapes.
+    foot: (f64, f64),
+    /// Image events: image index; exit point projected onto z0 (x, y from the grid origin,
+    /// wrapped in repetitive scenes) and footprint (x, y), m; values: W per channel.
+    img_key: Vec<u32>,
+    img_pos: Vec<[f64; 4]>,
     img_val: Vec<f64>,
     lost: Vec<f64>,
     absorbed_turbid: Vec<(u32, usize)>,
@@ -718,12 +729,14 @@ struct Ctx<'a> {
     n_brdf_refs: usize,
     /// RPV/Hapke facet rows averaged over each slot: `[set][band][slot][dir]`.
     facet_rows: Vec<f64>,
-    /// Hotspot correlation per (tiling direction, turbid material): `[b, c]` with
-    /// `b = √(k_s k_v)` and `c = 2Δ/(l(k_s + k_v))` (m⁻¹), see [`hotspot_terms`]; all zero
-    /// when the direction goes down or the material has no leaf size.
+    /// Hotspot correlation per (tiling direction, turbid material): `[b, c]` per unit path
+    /// length, see [`hotspot_terms`]; all zero when the direction goes down or the material has
+    /// no leaf size.
     hs: Vec<[f64; 2]>,
     /// Whether a first-order sun ray along each tiling direction is hotspot-correlated.
     hs_dir: Vec<bool>,
+    /// Pixel grid of the orthographic images.
+    image_grid: ImageGrid,
 }
 
 impl Ctx<'_> {
@@ -785,7 +798,9 @@ impl Ctx<'_> {
 
     /// Books power leaving the scene top at `p` along tiling direction `dir`: scene exitance,
     /// and the orthographic image of that direction if it has one (the exit point is projected
-    /// along the direction onto the reference plane z0, wrapped in repetitive scenes).
+    /// along the direction onto the reference plane z0, wrapped in repetitive scenes; the
+    /// power is spread over the pixels under the emitting element's footprint `out.foot` at
+    /// the merge, see [`super::images`]).
     fn escape(&self, p: DVec3, dir: usize, pw: &[f64], out: &mut ChunkOut) {
         if dir >= self.n_dirs {
             add(&mut out.lost, pw);
@@ -801,19 +816,16 @@ impl Ctx<'_> {
         }
         let spec = self.inp.spec;
         let d = self.omega[dir];
-        let (nx, ny) = (spec.n[0], spec.n[1]);
         let mut x = p.x - (p.z - spec.origin.z) * d.x / d.z - spec.origin.x;
         let mut y = p.y - (p.z - spec.origin.z) * d.y / d.z - spec.origin.y;
         if spec.boundary != BoundaryMode::Isolated {
             x = x.rem_euclid(self.size.0);
             y = y.rem_euclid(self.size.1);
-        }
-        let (i, j) = ((x / spec.cell.x).floor(), (y / spec.cell.y).floor());
-        if i < 0.0 || j < 0.0 || i >= nx as f64 || j >= ny as f64 {
+        } else if self.image_grid.misses((x, y), out.foot) {
             return;
         }
-        out.img_key
-            .push((img, (i as usize + nx * j as usize) as u32));
+        out.img_key.push(img);
+        out.img_pos.push([x, y, out.foot.0, out.foot.1]);
         out.img_val.extend_from_slice(pw);
     }
 
@@ -1676,6 +1688,7 @@ pub fn run(inp: &RadiativeInput) -> RadiativeResult {
         facet_rows,
         hs,
         hs_dir,
+        image_grid: ImageGrid::new(spec, inp.image_oversampling),
     };
     let mut res = RadiativeResult {
         n_channels: w,
@@ -1686,10 +1699,10 @@ pub fn run(inp: &RadiativeInput) -> RadiativeResult {
         images: vec![
             0.0;
             inp.image_of.iter().filter(|&&i| i != u32::MAX).count()
-                * spec.n[0]
-                * spec.n[1]
+                * ctx.image_grid.pixels()
                 * w
         ],
+        image_grid: ctx.image_grid,
         absorbed_turbid: vec![0.0; grid.turbid.len() * w],
         intercepted_turbid: vec![0.0; grid.turbid.len() * w],
         absorbed_facet: vec![0.0; inp.facets.len() * w],
@@ -2024,6 +2037,7 @@ fn merge(
 ) {
     let w = ctx.w;
     let ns = ctx.n_slots;
+    let mut scratch = super::images::SpreadScratch::default();
     for out in outs {
         res.rays += out.rays;
         res.crossings += out.crossings;
@@ -2033,12 +2047,18 @@ fn merge(
             esc[k % w] += v;
         }
         add(&mut res.lost, &out.lost);
-        let npx = ctx.inp.spec.n[0] * ctx.inp.spec.n[1];
-        for (n, &(img, px)) in out.img_key.iter().enumerate() {
-            let base = (img as usize * npx + px as usize) * w;
-            for ch in 0..w {
-                res.images[base + ch] += out.img_val[n * w + ch];
-            }
+        // Image events: power spread over the pixels under the footprint, in event order.
+        let npx = ctx.image_grid.pixels();
+        for (n, &img) in out.img_key.iter().enumerate() {
+            let [x, y, fx, fy] = out.img_pos[n];
+            let v = &out.img_val[n * w..(n + 1) * w];
+            let image = &mut res.images[img as usize * npx * w..(img as usize + 1) * npx * w];
+            ctx.image_grid
+                .spread((x, y), (fx, fy), &mut scratch, |px, share| {
+                    for (r, p) in image[px * w..(px + 1) * w].iter_mut().zip(v) {
+                        *r += p * share;
+                    }
+                });
         }
         if let Some(acc) = &out.tur {
             acc.for_each(|key, v| {
@@ -2391,6 +2411,16 @@ fn emit(
                 // First-order sun rays (what turbid cells, facets and the ground scatter of the
                 // direct beam) get the hotspot correlation through turbid cells on their way up.
                 let hs = first && ctx.inp.emitters.is_empty();
+                // Horizontal size of the emitting element, for the image footprints: a turbid
+                // cell, a facet or ground sub-cell, or (no scattering point) a column / a point.
+                out.foot = if split || (ground && points.is_empty()) {
+                    (spec.cell.x, spec.cell.y)
+                } else if points.is_empty() {
+                    (0.0, 0.0)
+                } else {
+                    let d = ctx.sub as f64;
+                    (spec.cell.x / d, spec.cell.y / d)
+                };
                 let t_kernel = std::time::Instant::now();
                 for j in 0..n_dirs {
                     let v = &outgoing[j * w..(j + 1) * w];

@@ -1,8 +1,10 @@
 //! The Radiative stage's engine: DART flux tracking over the cell grid (see [`engine`]) and
-//! the 3D digital differential analyser it walks the grid with ([`dda`]).
+//! the 3D digital differential analyser it walks the grid with ([`dda`]), and the pixel grid
+//! of its orthographic images ([`images`]).
 
 pub mod dda;
 pub mod engine;
+pub mod images;
 pub mod products;
 
 /// Above this many (facet × direction) pairs, facets use the renormalised cosine fractions
@@ -12,7 +14,9 @@ pub const EXACT_FRACTIONS_LIMIT: usize = 20_000_000;
 /// Memory the Direction/Phase/Radiative stages need, bytes: phase tables (f32, N+1 rows × N
 /// columns per used turbid material and band), exact facet fractions (2N f32 per facet), and
 /// the interception stores (two generations of `entries × slots × channels` f64, plus facet and
-/// ground stores and up to 16 dense chunk accumulators of at most 8 MiB).
+/// ground stores and up to 16 dense chunk accumulators of at most 8 MiB), and the orthographic
+/// images (`image_pixels` = pixels of all images together; three copies: the result and the two
+/// snapshots of the extrapolation).
 #[allow(clippy::too_many_arguments)]
 pub fn memory_estimate(
     n_dirs: usize,
@@ -24,6 +28,7 @@ pub fn memory_estimate(
     facet_refs: usize,
     n_facets: usize,
     n_columns: usize,
+    image_pixels: usize,
 ) -> u64 {
     let w = n_bands * if sky { 2 } else { 1 };
     let tables =
@@ -38,5 +43,6 @@ pub fn memory_estimate(
     let products = 8 * w * (3 * turbid_entries + 3 * n_facets + 3 * n_columns + n_dirs);
     let chunks =
         16 * 8 * ((turbid_entries * slots * w).min(1 << 20) + (turbid_entries * 7).min(1 << 20));
-    (tables + fractions + stores + products + chunks) as u64
+    let images = 3 * 8 * w * image_pixels;
+    (tables + fractions + stores + products + chunks + images) as u64
 }

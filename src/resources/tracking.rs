@@ -26,6 +26,8 @@ pub struct RadiativeSettings {
     pub tables: TableParams,
     /// Store interception per incident direction (exact) instead of per angular sector.
     pub per_direction_stores: bool,
+    /// Oversampling factor η of the orthographic images (pixels of Δx/η × Δy/η).
+    pub image_oversampling: u32,
 }
 
 impl RadiativeSettings {
@@ -45,6 +47,7 @@ impl RadiativeSettings {
             tracking,
             tables,
             per_direction_stores: per_dir,
+            image_oversampling: 1,
         };
         if let Some(r) = scene {
             if let Some(x) = r.max_iterations {
@@ -65,6 +68,7 @@ impl RadiativeSettings {
             if let Some(x) = r.per_direction_stores {
                 s.per_direction_stores = x;
             }
+            s.image_oversampling = r.image_oversampling.max(1);
         }
         s
     }

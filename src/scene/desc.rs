@@ -67,7 +67,7 @@ pub enum Preset {
 }
 
 /// Radiative-stage settings of a scene; every knob overrides the preset's value.
-#[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields, default)]
 pub struct RadiativeDesc {
     /// Preset (default: `Default`); the CLI's `--preset` overrides it.
@@ -84,6 +84,30 @@ pub struct RadiativeDesc {
     pub extrapolate: Option<bool>,
     /// Store intercepted power per incident direction instead of per angular sector.
     pub per_direction_stores: Option<bool>,
+    /// Spatial oversampling factor η of the orthographic images (DART 5 paper §3.2): pixels of
+    /// (Δx/η, Δy/η), i.e. η × η pixels per grid column; integer ≥ 1, default 1. Not touched by
+    /// presets.
+    #[serde(default = "default_image_oversampling")]
+    pub image_oversampling: u32,
+}
+
+impl Default for RadiativeDesc {
+    fn default() -> Self {
+        Self {
+            preset: None,
+            max_iterations: None,
+            albedo_threshold: None,
+            ray_threshold: None,
+            launch_spacing_m: None,
+            extrapolate: None,
+            per_direction_stores: None,
+            image_oversampling: default_image_oversampling(),
+        }
+    }
+}
+
+fn default_image_oversampling() -> u32 {
+    1
 }
 
 /// What happens to rays leaving the scene through a side (DART 5 paper §3, Fig. 4).

@@ -370,6 +370,15 @@ pub fn validate(desc: &SceneDesc, src: &SceneSource) -> Result<(), SceneError> {
         if let Some(x) = r.launch_spacing_m {
             v.positive("radiative.launch_spacing_m", x)?;
         }
+        if r.image_oversampling == 0 || r.image_oversampling > MAX_IMAGE_OVERSAMPLING {
+            return Err(src.invalid(
+                "radiative.image_oversampling",
+                format!(
+                    "must be an integer in 1..={MAX_IMAGE_OVERSAMPLING} (pixels per cell along x and y), got {}",
+                    r.image_oversampling
+                ),
+            ));
+        }
         if r.max_iterations == Some(0) {
             return Err(src.invalid(
                 "radiative.max_iterations",
@@ -404,6 +413,20 @@ pub fn validate(desc: &SceneDesc, src: &SceneSource) -> Result<(), SceneError> {
             "grid.subcells",
             format!("must be in 1..=16, got {}", g.subcells),
         ));
+    }
+    // Orthographic images: columns × η² pixels each.
+    if let Some(r) = &desc.radiative {
+        let columns = (g.size_m.0 / g.cell_m.0).round() * (g.size_m.1 / g.cell_m.1).round();
+        let pixels = columns * (r.image_oversampling as f64).powi(2);
+        if pixels > MAX_IMAGE_PIXELS as f64 {
+            return Err(src.invalid(
+                    "radiative.image_oversampling",
+                    format!(
+                        "{} × {} pixels per grid column make images of {pixels:.3e} pixels (limit {MAX_IMAGE_PIXELS})",
+                        r.image_oversampling, r.image_oversampling
+                    ),
+                ));
+        }
     }
     // Bands.
     if desc.bands.is_empty() {
@@ -876,6 +899,14 @@ pub fn validate(desc: &SceneDesc, src: &SceneSource) -> Result<(), SceneError> {
 
 /// Pulses per instrument above which a scene is refused (memory for waveforms).
 pub const MAX_LIDAR_PULSES: u64 = 10_000_000;
+
+/// Largest image oversampling factor η (`radiative.image_oversampling`): η² pixels per grid
+/// column and per image.
+pub const MAX_IMAGE_OVERSAMPLING: u32 = 64;
+
+/// Largest number of pixels of one orthographic image (columns × η²): 2²⁶, 0.5 GiB per
+/// channel at 8 bytes a pixel.
+pub const MAX_IMAGE_PIXELS: u64 = 1 << 26;
 
 /// Number of pulses a LiDAR description asks for.
 pub fn lidar_pulse_count(l: &crate::scene::desc::LidarDesc) -> u64 {

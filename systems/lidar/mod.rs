@@ -37,7 +37,8 @@ fn passive_radiance(
     let nb = raw.n_bands;
     let w = raw.n_channels;
     let (nx, ny) = (spec.n[0], spec.n[1]);
-    let a_px = spec.cell.x * spec.cell.y;
+    let ig = raw.image_grid;
+    let a_px = ig.pixel_m.0 * ig.pixel_m.1;
     let tiling = dirs.set.tiling();
     if let Some(img) = images
         && !raw.images.is_empty()
@@ -51,7 +52,7 @@ fn passive_radiance(
             && d.omega.dot(view) > 2f64.to_radians().cos()
         {
             let k = img.0[j] as usize;
-            let npx = nx * ny;
+            let npx = ig.pixels();
             let per_band = (0..nb)
                 .map(|b| {
                     (0..npx)
@@ -67,13 +68,15 @@ fn passive_radiance(
                 })
                 .collect();
             return Some(PassiveRadiance {
-                n: (nx, ny),
-                cell: (spec.cell.x, spec.cell.y),
+                n: ig.n,
+                cell: ig.pixel_m,
                 per_band,
                 source: format!(
-                    "the flux-tracking image at view ({:.1}°, {:.1}°), per grid column",
+                    "the flux-tracking image at view ({:.1}°, {:.1}°), {:.3} × {:.3} m pixels",
                     d.zenith_deg(),
-                    d.azimuth_deg()
+                    d.azimuth_deg(),
+                    ig.pixel_m.0,
+                    ig.pixel_m.1
                 ),
             });
         }

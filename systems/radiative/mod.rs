@@ -154,6 +154,7 @@ pub fn track_flux(
         n_sectors: dirs.n_sectors,
         optics: &optics,
         image_of: &image_of,
+        image_oversampling: settings.image_oversampling,
         flat_ground,
         ground_brdf,
         sun: dirs.sun,
