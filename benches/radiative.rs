@@ -2,7 +2,9 @@
 //! NIR, sun zenith 20°, 1 m × 1 m periodic) it runs each preset × direction count × cell size and
 //! prints wall time, cell crossings per second per core, the process peak RSS and the worst BRF
 //! and albedo errors against the DISORT oracle (assets/reference/turbid_canopy_disort.csv); then
-//! the forest scene's timing. `cargo bench --bench radiative` (`-- --quick` for fewer rows;
+//! the forest scene's timing, and the cost of the orthographic images (the forest with 21 exact
+//! views at image oversampling η = 1, 2, 4). `cargo bench --bench radiative` (`-- --quick` for
+//! fewer rows;
 //! `-- --dump FILE` writes every row's albedos and BRFs, full precision, one JSON object per
 //! line, to compare products between two builds).
 //!
@@ -14,9 +16,9 @@
 use lumenscape::radiative::products::RadiativeProducts;
 use lumenscape::resources::scene::RunSettings;
 use lumenscape::scene::SceneSource;
-use lumenscape::scene::desc::{LadDesc, Preset};
+use lumenscape::scene::desc::{LadDesc, Preset, RadiativeDesc};
 use lumenscape::scene::generators::turbid_layer::{TurbidLayerParams, turbid_layer};
-use lumenscape::scene::generators::{BandOptics, forest};
+use lumenscape::scene::generators::{BandOptics, forest, rami_directions};
 use lumenscape::simulation::Simulation;
 use std::time::Instant;
 
@@ -168,6 +170,26 @@ fn main() {
             p.crossings as f64 / p.raw.kernel_seconds / 1e6,
             p.bands.iter().map(|b| b.energy_closure).fold(0.0, f64::max),
             peak_rss_mib()
+        );
+    }
+    // Orthographic images: the forest with nadir and the principal/orthogonal planes every 15°
+    // (21 exact views, 21 images), η = 1, 2, 4 (footprints spread over Δx/η pixels).
+    let mut fi = f.clone();
+    fi.directions = Some(rami_directions(225.0));
+    for eta in [1u32, 2, 4] {
+        fi.radiative = Some(RadiativeDesc {
+            image_oversampling: eta,
+            ..Default::default()
+        });
+        let (wall, p) = run_timed(&fi, Preset::Default);
+        write_dump(format!("forest images η {eta}"), &p);
+        println!(
+            "forest 40 m, 21 images, η {eta} ({} × {} pixels): wall {wall:.2} s, tracking {:.2} s, kernel {:.2} thread-s, images {:.1} MiB",
+            p.raw.image_grid.n.0,
+            p.raw.image_grid.n.1,
+            p.tracking_seconds,
+            p.raw.kernel_seconds,
+            (p.raw.images.len() * 8) as f64 / (1 << 20) as f64
         );
     }
 }
