@@ -4,13 +4,14 @@
 //! returns, photon counting with solar background from the passive radiance, fusion with the
 //! passive image.
 //!
-//! **Turbid cells and the return path.** The photon engine treats turbid cells as a pure turbid
-//! medium: the path back to the receiver is attenuated independently of the path in (two-way
-//! transmittance `e^{−2G u r}` for first order, physics.md §9.6, first limit). Facet leaves
-//! are exactly correlated (the return goes through the same gaps). So a facet tree and the same
-//! tree converted to turbid cells give different first-order canopy returns — the turbid one is
-//! lower in deep canopy by up to `e^{−G u r}`; tests measure it. No Kuusk correction is applied
-//! (consistent with the passive solvers, which have no hotspot yet).
+//! **Turbid cells and the return path.** The first-order return of a turbid material with a
+//! leaf size l > 0 (`leaf_size_m`, DART `dimFoliar`) goes back through the gaps the pulse came
+//! through (Kuusk 1985 correlation, [`crate::radiative::engine::hotspot_terms_path`]): for a
+//! monostatic receiver the return path is then transmitted one way only, `e^{−G u r}` (physics.md
+//! §9.6, second limit), as facet leaves are. With `leaf_size_m: 0` the cells are a pure turbid
+//! medium with independent gaps (two-way `e^{−2G u r}`, first limit). Both limits are tested
+//! against the analytic waveform; multiple-scattering returns are not correlated. The passive
+//! solvers apply the same correlation to first-order sun radiation (the hotspot).
 
 use crate::lidar::photon_counting::{
     Detector, mean_signal_counts, simulate_shot, solar_background_rate,
@@ -257,7 +258,7 @@ pub fn simulate_lidar(
         desc.returns,
         desc.sampler
     )];
-    notes.push("turbid cells: independent gaps on the return path (pure turbid medium, two-way transmittance); facets are exactly correlated".into());
+    notes.push("turbid cells: first-order returns go back through the gaps the pulse came through when the material has leaf_size_m > 0 (Kuusk correlation: one-way transmittance for a monostatic receiver); leaf_size_m 0 = independent gaps (two-way); facets are exactly correlated".into());
     // Fusion: passive radiance at each footprint centre (every band).
     let centre = |pl: &PulseRecord| {
         let c = if pl.axis.z < 0.0 {

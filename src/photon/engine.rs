@@ -580,6 +580,8 @@ struct Ctx<'a> {
     /// [`crate::radiative::engine::hotspot_terms`]) for the peel-off of first-order sun
     /// photons; empty rows when no material has a leaf size.
     hs_view: Vec<Vec<[f64; 2]>>,
+    /// Leaf dimension per turbid material, m (hotspot; all zero: none).
+    hs_leaf: Vec<f64>,
     /// Tiling direction vectors.
     omega: Vec<DVec3>,
     /// Sector containing each view and its solid angle (discrete-mode peel-off).
@@ -653,6 +655,7 @@ impl<'a> Ctx<'a> {
             tur_ids,
             g_view: Vec::new(),
             hs_view: Vec::new(),
+            hs_leaf: Vec::new(),
             omega: tiling.iter().map(|d| d.omega).collect(),
             view_sector: inp.views.iter().map(|v| inp.dirs.find_sector(*v)).collect(),
             receiver: None,
@@ -692,6 +695,7 @@ impl<'a> Ctx<'a> {
                 })
                 .collect();
         }
+        ctx.hs_leaf = leaf;
         ctx
     }
 }
@@ -1289,7 +1293,23 @@ impl Ctx<'_> {
         let g: Vec<f64> = (0..self.tur_ids.len())
             .map(|tm| self.g_of(tm, u.z))
             .collect();
-        self.transmittance(p, u, r, &g, &[], skip, tr);
+        // First-order return: back through the gaps the pulse came through (leaf size > 0).
+        let hs: Vec<[f64; 2]> = if ph.order == 0 && self.hs_leaf.iter().any(|&l| l > 0.0) {
+            (0..self.tur_ids.len())
+                .map(|tm| {
+                    crate::radiative::engine::hotspot_terms_path(
+                        ph.d,
+                        u,
+                        self.g_of(tm, ph.d.z),
+                        g[tm],
+                        self.hs_leaf[tm],
+                    )
+                })
+                .collect()
+        } else {
+            Vec::new()
+        };
+        self.transmittance(p, u, r, &g, &hs, skip, tr);
         if tr.iter().all(|&t| t <= 0.0) {
             return;
         }

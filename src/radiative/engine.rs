@@ -2544,6 +2544,31 @@ pub fn hotspot_terms(
     ]
 }
 
+/// Hotspot terms per unit path length for any geometry (the LiDAR return, physics.md §9.6
+/// "hotspot caveat"): a ray leaving a first-order collision along `d_out` after arriving along
+/// `d_in` (propagation vectors) is at distance s from the reversed incoming ray by
+/// `s |d_out + d_in|`; the gaps stay correlated over a leaf dimension `l` (Kuusk 1985), so the
+/// extinction coefficient along it is `u_f (G_out − b e^{−c s})` with `b = √(G_in G_out)` and
+/// `c = 2|d_out + d_in| / (l (G_in + G_out))` (m⁻¹). Near backscatter in a horizontal layer this
+/// is [`hotspot_terms`] to first order in the angle; exactly at backscatter (a monostatic
+/// LiDAR whose receiver sits at the emitter) `b = G` and `c = 0`: the return crosses no
+/// leaf it has not already passed (one-way transmittance). `[0, 0]` when `l = 0`.
+pub fn hotspot_terms_path(
+    d_in: DVec3,
+    d_out: DVec3,
+    g_in: f64,
+    g_out: f64,
+    leaf_size_m: f64,
+) -> [f64; 2] {
+    if leaf_size_m <= 0.0 || g_in <= 0.0 || g_out <= 0.0 {
+        return [0.0; 2];
+    }
+    [
+        (g_in * g_out).sqrt(),
+        2.0 * (d_out + d_in).length() / (leaf_size_m * (g_in + g_out)),
+    ]
+}
+
 /// `∫_{z0}^{z0+dz} e^{−c z} dz` (m), stable for c → 0 and large c·z (z, dz in m, c in m⁻¹).
 #[inline]
 pub fn hotspot_integral(c: f64, z0: f64, dz: f64) -> f64 {

@@ -171,6 +171,20 @@ fn place_random(
     Ok(out)
 }
 
+/// Leaf dimension (m) of a facet→turbid conversion, for the hotspot (DART `dimFoliar`): the
+/// square root of the mean area per leaf, `√(Σ area / leaves)`. Leaves of a disk list are
+/// `sides` triangles each; mesh leaves count one triangle each. 0 when there is no area.
+pub fn leaf_dimension(tris: &[[DVec3; 3]], leaves: usize) -> f64 {
+    let area: f64 = tris
+        .iter()
+        .map(|t| 0.5 * (t[1] - t[0]).cross(t[2] - t[0]).length())
+        .sum();
+    if leaves == 0 || !(area > 0.0) {
+        return 0.0;
+    }
+    (area / leaves as f64).sqrt()
+}
+
 /// Area-weighted histogram of leaf inclinations (18 bins of 5°) of a set of triangles: the LAD
 /// kept by the facet→turbid conversion (DART 5 paper §2, supportive tools).
 pub fn inclination_histogram(tris: &[[DVec3; 3]]) -> Vec<f64> {
@@ -447,7 +461,7 @@ pub fn spawn_scene(
                             lad: LadDesc::Histogram {
                                 bins: inclination_histogram(&tris),
                             },
-                            leaf_size_m: 0.0,
+                            leaf_size_m: leaf_dimension(&tris, list.leaves.len()),
                             specular: None,
                         },
                     })
@@ -533,7 +547,7 @@ pub fn spawn_scene(
                                 lad: LadDesc::Histogram {
                                     bins: inclination_histogram(&g.triangles),
                                 },
-                                leaf_size_m: 0.0,
+                                leaf_size_m: leaf_dimension(&g.triangles, g.triangles.len()),
                                 specular: None,
                             },
                         })
