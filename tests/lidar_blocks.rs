@@ -1040,7 +1040,8 @@ fn waveform_products_round_trip() {
         (u64::MAX, tiny.clone()),
         (9, Waveform::zeros(1.0, 1.0, 0)),
     ];
-    let files = write_waveforms(&dir, &items).unwrap();
+    let refs: Vec<(u64, &Waveform)> = items.iter().map(|(id, w)| (*id, w)).collect();
+    let files = write_waveforms(&dir, &refs).unwrap();
     let back = read_waveforms(&dir).unwrap();
     assert_eq!(back.len(), 3);
     for ((id, w), (row, r)) in items.iter().zip(&back) {
@@ -1067,7 +1068,7 @@ fn waveform_products_round_trip() {
     // Invalid waveform: error, and the previous product is untouched (no partial rewrite).
     let mut bad = conv.clone();
     bad.total[3] = -1.0;
-    assert!(write_waveforms(&dir, &[(1, bad)]).is_err());
+    assert!(write_waveforms(&dir, &[(1, &bad)]).is_err());
     assert_eq!(read_waveforms(&dir).unwrap().len(), 3);
 
     let svg = waveform_svg(&conv);

@@ -80,9 +80,12 @@ fn run(desc: &SceneDesc, out: Option<&std::path::Path>) -> Vec<LidarRun> {
     sim.resource::<LidarProducts>().0.clone()
 }
 
+/// The two-way path gate `[p0, p1]` of `w`'s bins, for a binner that makes the same bins:
+/// `p1` lies a quarter bin before the last edge so that rounding of the (trimmed) waveform's
+/// `t0_ns` cannot add a bin (the binner rounds the bin count up).
 fn path_range(w: &Waveform) -> (f64, f64) {
     let p0 = w.t0_ns * 1e-9 * C;
-    (p0, p0 + w.n_bins() as f64 * w.dt_ns * 1e-9 * C)
+    (p0, p0 + (w.n_bins() as f64 - 0.25) * w.dt_ns * 1e-9 * C)
 }
 
 #[test]
@@ -308,6 +311,40 @@ fn lidar_products_round_trip_through_the_las_reader() {
     let pc = read_las(&dir.join("photon_counting.las")).unwrap();
     assert_eq!(pc.points.len(), r.counted.len());
     assert!(r.counted.iter().any(|c| c.is_noise) && r.counted.iter().any(|c| !c.is_noise));
+    // Stored waveforms are trimmed to their non-zero bins, but photon counting still covers
+    // the whole range gate: noise detections fall outside the stored window too.
+    let nz = |w: &lumenscape::lidar::waveform::Waveform, i: usize| {
+        w.total[i] != 0.0 || w.first_order[i] != 0.0
+    };
+    let mut outside = 0;
+    for p in &r.pulses {
+        for w in [&p.raw, &p.waveform] {
+            assert!(!w.is_empty(), "pulse {}", p.id);
+            assert!(
+                nz(w, 0) && nz(w, w.n_bins() - 1),
+                "pulse {}: not trimmed",
+                p.id
+            );
+        }
+        let (lo, hi) = (
+            p.waveform.t0_ns,
+            p.waveform.t0_ns + p.waveform.n_bins() as f64 * p.waveform.dt_ns,
+        );
+        outside += r
+            .counted
+            .iter()
+            .filter(|c| c.pulse == p.id && c.is_noise && !(lo..hi).contains(&c.time_ns))
+            .count();
+        assert!(
+            r.counted
+                .iter()
+                .filter(|c| c.pulse == p.id && !c.is_noise)
+                .all(|c| (lo..hi).contains(&c.time_ns)),
+            "pulse {}: signal detection outside the waveform",
+            p.id
+        );
+    }
+    assert!(outside > 0, "no noise outside the returns' window");
     // Waveform index.
     let idx = std::fs::read_to_string(dir.join("waveforms_index.csv")).unwrap();
     assert_eq!(idx.lines().count(), 1 + r.pulses.len());

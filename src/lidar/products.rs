@@ -24,13 +24,9 @@ pub fn write_lidar(dir: &Path, runs: &[LidarRun], band_names: &[String]) -> Resu
         let d = dir.join("lidar").join(&run.desc.name);
         std::fs::create_dir_all(d.join("raw"))
             .map_err(|e| format!("{}: cannot create folder: {e}", d.display()))?;
-        let wf: Vec<_> = run
-            .pulses
-            .iter()
-            .map(|p| (p.id, p.waveform.clone()))
-            .collect();
+        let wf: Vec<_> = run.pulses.iter().map(|p| (p.id, &p.waveform)).collect();
         write_waveforms(&d, &wf).map_err(|e| format!("{}: {e}", d.display()))?;
-        let raw: Vec<_> = run.pulses.iter().map(|p| (p.id, p.raw.clone())).collect();
+        let raw: Vec<_> = run.pulses.iter().map(|p| (p.id, &p.raw)).collect();
         write_waveforms(&d.join("raw"), &raw).map_err(|e| format!("{}: {e}", d.display()))?;
         for p in run.pulses.iter().take(QUICKLOOKS) {
             write_atomic(

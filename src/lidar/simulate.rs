@@ -17,6 +17,7 @@ use crate::lidar::photon_counting::{
     Detector, mean_signal_counts, simulate_shot, solar_background_rate,
 };
 use crate::lidar::pulse::{BeamProfile, FootprintSampler, PulseShape};
+use crate::lidar::waveform::WaveformBinner;
 use crate::photon::engine::{Beam, PhotonInput, Pulse, run_lidar};
 use crate::resources::directions::direction_from_deg;
 use crate::resources::lidar::{CountedPhoton, LidarRun, PulseRecord};
@@ -202,6 +203,20 @@ pub fn simulate_lidar(
     let results = run_lidar(input, &beam, &pulses)?;
     let shape = PulseShape::from_fwhm_ns(desc.pulse_fwhm_ns, 3.0)
         .map_err(|e| format!("lidar `{}`: {e}", desc.name))?;
+    // The full time axis of the convolved waveforms (range gate widened by the pulse kernel):
+    // stored waveforms are trimmed to their non-zero bins, photon counting needs the whole gate.
+    let gate_axis = {
+        let b = WaveformBinner::new(gate.0, gate.1, desc.bin_ns)
+            .map_err(|e| format!("lidar `{}`: {e}", desc.name))?;
+        let w = b.waveform();
+        let k = shape
+            .kernel(desc.bin_ns)
+            .map_err(|e| format!("lidar `{}`: {e}", desc.name))?;
+        (
+            w.t0_ns - k.centre as f64 * w.dt_ns,
+            w.n_bins() + k.weights.len() - 1,
+        )
+    };
     // Convolution and returns per pulse, in parallel (each pulse is independent; the order
     // of the records is the order of the pulses).
     use rayon::prelude::*;
@@ -209,10 +224,11 @@ pub fn simulate_lidar(
         .into_par_iter()
         .zip(pulses.par_iter())
         .map(|(r, pl)| -> Result<PulseRecord, String> {
-            let waveform = r
+            let mut waveform = r
                 .waveform
                 .convolve(&shape, None)
                 .map_err(|e| format!("lidar `{}` pulse {}: {e}", desc.name, r.id))?;
+            waveform.trim();
             let peak = waveform.total.iter().cloned().fold(0.0, f64::max);
             let returns = if peak > 0.0 {
                 // Up to 15 returns (the LAS limit), 60 Levenberg–Marquardt iterations: the fit
@@ -308,24 +324,32 @@ pub fn simulate_lidar(
             )
             .map_err(|e| format!("lidar `{}`: {e}", desc.name))?;
             background_rate_hz.push(rate);
-            let signal = mean_signal_counts(&pl.waveform.total, pc.wavelength_nm, &det)
+            // The mean signal over the whole gate (zero outside the stored bins), so that
+            // background and dark counts and the dead time cover the full range gate.
+            let (t0_gate, n_gate) = gate_axis;
+            let dt = pl.waveform.dt_ns;
+            let mut padded = vec![0.0; n_gate];
+            if !pl.waveform.is_empty() {
+                let off = ((pl.waveform.t0_ns - t0_gate) / dt).round();
+                let off = if off.is_finite() && off >= 0.0 {
+                    off as usize
+                } else {
+                    0
+                };
+                let end = (off + pl.waveform.n_bins()).min(n_gate);
+                padded[off..end].copy_from_slice(&pl.waveform.total[..end - off]);
+            }
+            let signal = mean_signal_counts(&padded, pc.wavelength_nm, &det)
                 .map_err(|e| format!("lidar `{}`: {e}", desc.name))?;
-            let bg_bin = rate * pl.waveform.dt_ns * 1e-9;
+            let bg_bin = rate * dt * 1e-9;
             let mut rng = crate::scene::spawn::stream(
                 input.params.seed,
                 crate::photon::engine::LIDAR_STREAM ^ 0x5043,
                 pl.id,
             );
             for shot in 0..pc.shots {
-                let dets = simulate_shot(
-                    &signal,
-                    bg_bin,
-                    pl.waveform.t0_ns,
-                    pl.waveform.dt_ns,
-                    &det,
-                    &mut rng,
-                )
-                .map_err(|e| format!("lidar `{}`: {e}", desc.name))?;
+                let dets = simulate_shot(&signal, bg_bin, t0_gate, dt, &det, &mut rng)
+                    .map_err(|e| format!("lidar `{}`: {e}", desc.name))?;
                 for d in dets {
                     let range = 0.5 * d.time_ns * 1e-9 * crate::lidar::SPEED_OF_LIGHT_M_PER_S;
                     counted.push(CountedPhoton {

@@ -65,6 +65,30 @@ impl Waveform {
         self.total.is_empty()
     }
 
+    /// Drops the leading and trailing bins where both channels are exactly zero and moves
+    /// `t0_ns` to the first kept bin; returns the number of leading bins dropped (the kept bin
+    /// `i` is bin `i + returned` of the original axis). Energies and the values of the kept
+    /// bins are unchanged (a waveform of zeros becomes empty, `t0_ns` unchanged). Stored
+    /// waveforms of a scan are trimmed so that memory follows the returns' extent, not the
+    /// range gate (a 250 000-pulse urban scan held 1.7 GiB of mostly-zero gate bins).
+    pub fn trim(&mut self) -> usize {
+        let nz = |i: &usize| self.total[*i] != 0.0 || self.first_order[*i] != 0.0;
+        let n = self.n_bins().min(self.first_order.len());
+        let Some(first) = (0..n).find(nz) else {
+            self.total = Vec::new();
+            self.first_order = Vec::new();
+            return 0;
+        };
+        let last = (0..n).rev().find(nz).unwrap_or(first);
+        for v in [&mut self.total, &mut self.first_order] {
+            v.truncate(last + 1);
+            v.drain(..first);
+            v.shrink_to_fit();
+        }
+        self.t0_ns += first as f64 * self.dt_ns;
+        first
+    }
+
     /// Centre time of bin `i` (ns).
     pub fn bin_centre_ns(&self, i: usize) -> f64 {
         self.t0_ns + (i as f64 + 0.5) * self.dt_ns
@@ -558,6 +582,39 @@ pub fn bare_ground_energy_j(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// Trimming keeps every non-zero bin at its time and the energies bit for bit; convolving a
+    /// trimmed waveform gives the trimmed convolution of the full one.
+    #[test]
+    fn trim_keeps_values_times_and_energy() {
+        let mut w = Waveform::zeros(100.0, 0.5, 40);
+        w.total[7] = 1e-13;
+        w.total[12] = 3.0;
+        w.first_order[5] = 2e-300;
+        w.total[30] = 0.25;
+        let full = w.clone();
+        let first = w.trim();
+        assert_eq!((first, w.n_bins(), w.first_order.len()), (5, 26, 26));
+        for i in 0..w.n_bins() {
+            assert_eq!(w.total[i].to_bits(), full.total[i + first].to_bits());
+            assert_eq!(w.first_order[i], full.first_order[i + first]);
+            assert!((w.bin_centre_ns(i) - full.bin_centre_ns(i + first)).abs() < 1e-12);
+        }
+        assert_eq!(w.total_energy_j(), full.total_energy_j());
+        assert_eq!(w.first_order_energy_j(), full.first_order_energy_j());
+        assert_eq!(w.trim(), 0);
+        let shape = crate::lidar::pulse::PulseShape::from_fwhm_ns(2.0, 3.0).unwrap();
+        let mut a = full.convolve(&shape, None).unwrap();
+        let off = a.trim();
+        let b = w.convolve(&shape, None).unwrap();
+        assert_eq!(a.n_bins(), b.n_bins());
+        assert!((a.t0_ns - b.t0_ns).abs() < 1e-12 && off > 0);
+        assert_eq!(a.total, b.total);
+        assert_eq!(a.first_order, b.first_order);
+        let mut z = Waveform::zeros(3.0, 1.0, 9);
+        assert_eq!(z.trim(), 0);
+        assert!(z.is_empty() && z.first_order.is_empty() && z.t0_ns == 3.0);
+    }
 
     #[test]
     fn binner_rules() {

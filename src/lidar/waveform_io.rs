@@ -58,7 +58,7 @@ pub struct WaveformIndexRow {
 /// validated first (finite, non-negative); nothing is written if one is invalid.
 pub fn write_waveforms(
     dir: &Path,
-    waveforms: &[(u64, Waveform)],
+    waveforms: &[(u64, &Waveform)],
 ) -> Result<WaveformFiles, LidarError> {
     for (id, w) in waveforms {
         w.validate()

@@ -2161,7 +2161,9 @@ pub struct Beam {
 pub struct PulseResult {
     /// Pulse ID.
     pub id: u64,
-    /// Received energy per bin (total and first order), before pulse-shape convolution, J.
+    /// Received energy per bin (total and first order), before pulse-shape convolution, J;
+    /// trimmed to the bins between the first and the last non-zero one
+    /// ([`crate::lidar::waveform::Waveform::trim`]: `t0_ns` is that of the first kept bin).
     pub waveform: crate::lidar::waveform::Waveform,
     /// Received energy outside the gate, J.
     pub out_of_gate_j: f64,
@@ -2297,9 +2299,12 @@ fn run_pulse(base: &Ctx, beam: &Beam, pl: &Pulse) -> PulseResult {
     }
     let binner = out.wave.take().expect("binner");
     let l = binner.losses();
+    // Only the bins between the first and last return are kept (memory of long scans).
+    let mut waveform = binner.waveform();
+    waveform.trim();
     PulseResult {
         id: pl.id,
-        waveform: binner.waveform(),
+        waveform,
         out_of_gate_j: l.before_j + l.after_j,
         missed_j: missed,
     }

@@ -20,9 +20,12 @@ pub struct PulseRecord {
     pub emitter: DVec3,
     /// Beam axis (unit propagation direction).
     pub axis: DVec3,
-    /// Received energy per bin before the pulse shape (total and first order), J.
+    /// Received energy per bin before the pulse shape (total and first order), J. Trimmed to
+    /// the bins from the first to the last non-zero one ([`Waveform::trim`]): `t0_ns` differs
+    /// from pulse to pulse and an all-zero waveform is empty.
     pub raw: Waveform,
-    /// Received waveform convolved with the emitted pulse (total and first order), J per bin.
+    /// Received waveform convolved with the emitted pulse (total and first order), J per bin;
+    /// trimmed like `raw`.
     pub waveform: Waveform,
     /// Received energy outside the range gate, J.
     pub out_of_gate_j: f64,
