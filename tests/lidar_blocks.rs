@@ -1035,7 +1035,7 @@ fn waveform_products_round_trip() {
         *v *= 1e-4; // ~1e-13 J bins
     }
     tiny.first_order.iter_mut().for_each(|v| *v *= 0.5);
-    let items = vec![
+    let items = [
         (7u64, conv.clone()),
         (u64::MAX, tiny.clone()),
         (9, Waveform::zeros(1.0, 1.0, 0)),
