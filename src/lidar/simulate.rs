@@ -224,11 +224,13 @@ pub fn simulate_lidar(
         .into_par_iter()
         .zip(pulses.par_iter())
         .map(|(r, pl)| -> Result<PulseRecord, String> {
+            // Returns are detected on the whole gate (the decomposition's fit sees the zero
+            // bins around the returns); the stored waveform is trimmed.
             let mut waveform = r
                 .waveform
                 .convolve(&shape, None)
-                .map_err(|e| format!("lidar `{}` pulse {}: {e}", desc.name, r.id))?;
-            waveform.trim();
+                .map_err(|e| format!("lidar `{}` pulse {}: {e}", desc.name, r.id))?
+                .padded_to(gate_axis.0, gate_axis.1);
             let peak = waveform.total.iter().cloned().fold(0.0, f64::max);
             let returns = if peak > 0.0 {
                 // Up to 15 returns (the LAS limit), 60 Levenberg–Marquardt iterations: the fit
@@ -247,6 +249,7 @@ pub fn simulate_lidar(
             } else {
                 Vec::new()
             };
+            waveform.trim();
             Ok(PulseRecord {
                 id: r.id,
                 emitter: pl.emitter,
@@ -328,18 +331,8 @@ pub fn simulate_lidar(
             // background and dark counts and the dead time cover the full range gate.
             let (t0_gate, n_gate) = gate_axis;
             let dt = pl.waveform.dt_ns;
-            let mut padded = vec![0.0; n_gate];
-            if !pl.waveform.is_empty() {
-                let off = ((pl.waveform.t0_ns - t0_gate) / dt).round();
-                let off = if off.is_finite() && off >= 0.0 {
-                    off as usize
-                } else {
-                    0
-                };
-                let end = (off + pl.waveform.n_bins()).min(n_gate);
-                padded[off..end].copy_from_slice(&pl.waveform.total[..end - off]);
-            }
-            let signal = mean_signal_counts(&padded, pc.wavelength_nm, &det)
+            let padded = pl.waveform.padded_to(t0_gate, n_gate);
+            let signal = mean_signal_counts(&padded.total, pc.wavelength_nm, &det)
                 .map_err(|e| format!("lidar `{}`: {e}", desc.name))?;
             let bg_bin = rate * dt * 1e-9;
             let mut rng = crate::scene::spawn::stream(

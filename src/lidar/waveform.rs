@@ -89,6 +89,28 @@ impl Waveform {
         first
     }
 
+    /// The inverse of [`Waveform::trim`]: this waveform placed on the axis of `n_bins` bins
+    /// starting at `t0_ns` (same `dt_ns`; `t0_ns` must lie a whole number of bins before
+    /// this one's), zero elsewhere; bins falling outside the axis are dropped.
+    pub fn padded_to(&self, t0_ns: f64, n_bins: usize) -> Waveform {
+        let mut out = Waveform::zeros(t0_ns, self.dt_ns, n_bins);
+        if self.is_empty() {
+            return out;
+        }
+        let off = ((self.t0_ns - t0_ns) / self.dt_ns).round();
+        let off = if off.is_finite() && off > 0.0 {
+            off as usize
+        } else {
+            0
+        };
+        let end = (off + self.n_bins()).min(n_bins);
+        if end > off {
+            out.total[off..end].copy_from_slice(&self.total[..end - off]);
+            out.first_order[off..end].copy_from_slice(&self.first_order[..end - off]);
+        }
+        out
+    }
+
     /// Centre time of bin `i` (ns).
     pub fn bin_centre_ns(&self, i: usize) -> f64 {
         self.t0_ns + (i as f64 + 0.5) * self.dt_ns
@@ -611,6 +633,8 @@ mod tests {
         assert!((a.t0_ns - b.t0_ns).abs() < 1e-12 && off > 0);
         assert_eq!(a.total, b.total);
         assert_eq!(a.first_order, b.first_order);
+        let back = w.padded_to(full.t0_ns, full.n_bins());
+        assert_eq!(back, full);
         let mut z = Waveform::zeros(3.0, 1.0, 9);
         assert_eq!(z.trim(), 0);
         assert!(z.is_empty() && z.first_order.is_empty() && z.t0_ns == 3.0);
