@@ -1,5 +1,12 @@
 //! LiDAR speed (harness = false): `cargo bench --bench lidar` (`-- --quick`: fewer pulses).
 //!
+//! Options (after `--`): `--quick`; `--pulses N` (pulses of every forest row and of the urban
+//! scan, rounded up to a square grid); `--row NAME` (run one row only: `continuous-gauss`,
+//! `discrete-gauss`, `discrete-peak`, `continuous-peak` or `urban`; repeatable);
+//! `--digest` (print an FNV-1a hash of every product of each row — raw and convolved
+//! waveforms, gate losses, returns — to prove bit-identity across code changes); `--dump FILE`
+//! (write those products as text, one pulse per line, rows one after another).
+//!
 //! 1. ALS on the 40 m forest (24 trees, 1 m cells): pulses per second per core at 1000
 //!    photons per pulse, multiple scattering (orders ≤ 100), nadir, 0.3 m footprints, for the
 //!    continuous and discrete (Ray-Carlo) samplers and both returns methods, with the mean
@@ -11,7 +18,7 @@
 
 use lumenscape::lidar::returns::ReturnsMethod;
 use lumenscape::photon::engine::SamplerKind;
-use lumenscape::resources::lidar::LidarProducts;
+use lumenscape::resources::lidar::{LidarProducts, LidarRun};
 use lumenscape::resources::scene::{RunSettings, Solver};
 use lumenscape::scene::SceneSource;
 use lumenscape::scene::desc::{LidarDesc, LidarPlatform, LidarSampler, PulsePattern, SceneDesc};
@@ -49,7 +56,95 @@ fn lidar(pulses: PulsePattern, photons: u32) -> LidarDesc {
     }
 }
 
-fn run(mut d: SceneDesc, l: LidarDesc) -> Outcome {
+/// Command-line options (see the module doc).
+#[derive(Default)]
+struct Options {
+    quick: bool,
+    pulses: Option<usize>,
+    rows: Vec<String>,
+    digest: bool,
+    dump: Option<std::fs::File>,
+}
+
+impl Options {
+    fn parse() -> Self {
+        let mut o = Options::default();
+        let mut args = std::env::args().skip(1);
+        while let Some(a) = args.next() {
+            match a.as_str() {
+                "--quick" => o.quick = true,
+                "--digest" => o.digest = true,
+                "--pulses" => {
+                    o.pulses = Some(
+                        args.next()
+                            .and_then(|v| v.parse().ok())
+                            .expect("--pulses N (a positive integer)"),
+                    )
+                }
+                "--row" => o.rows.push(args.next().expect("--row NAME")),
+                "--dump" => {
+                    let f = args.next().expect("--dump FILE");
+                    o.dump = Some(std::fs::File::create(&f).expect("--dump: cannot create file"));
+                }
+                _ => {} // `--bench` and the like, passed by cargo
+            }
+        }
+        o
+    }
+
+    fn wants(&self, row: &str) -> bool {
+        self.rows.is_empty() || self.rows.iter().any(|r| r == row)
+    }
+}
+
+/// FNV-1a (64 bit) over the products of one run, and the optional text dump.
+fn digest(r: &LidarRun, name: &str, dump: Option<&mut std::fs::File>) -> u64 {
+    use std::io::Write;
+    let mut h: u64 = 0xcbf2_9ce4_8422_2325;
+    let mut eat = |x: u64| {
+        for b in x.to_le_bytes() {
+            h ^= b as u64;
+            h = h.wrapping_mul(0x0000_0100_0000_01b3);
+        }
+    };
+    let mut text = String::new();
+    for p in &r.pulses {
+        eat(p.id);
+        text += &format!("{name} pulse {}", p.id);
+        for w in [&p.raw, &p.waveform] {
+            eat(w.t0_ns.to_bits());
+            eat(w.total.len() as u64);
+            w.total.iter().for_each(|v| eat(v.to_bits()));
+            w.first_order.iter().for_each(|v| eat(v.to_bits()));
+            text += &format!(
+                " | t0 {:e} n {} E {:e} E1 {:e}",
+                w.t0_ns,
+                w.total.len(),
+                w.total.iter().sum::<f64>(),
+                w.first_order.iter().sum::<f64>()
+            );
+        }
+        eat(p.out_of_gate_j.to_bits());
+        eat(p.missed_j.to_bits());
+        text += &format!(" | gate {:e} missed {:e} |", p.out_of_gate_j, p.missed_j);
+        for x in &p.returns {
+            for v in [x.time_ns, x.amplitude_j_per_bin, x.width_ns, x.energy_j] {
+                eat(v.to_bits());
+            }
+            text += &format!(
+                " ({:.6e} {:.6e} {:.6e} {:.6e})",
+                x.time_ns, x.amplitude_j_per_bin, x.width_ns, x.energy_j
+            );
+        }
+        text.push('\n');
+    }
+    if let Some(f) = dump {
+        f.write_all(text.as_bytes()).expect("--dump: write failed");
+    }
+    h
+}
+
+fn run(mut d: SceneDesc, l: LidarDesc, name: &str, opt: &mut Options) -> Outcome {
     d.lidars = Some(vec![l]);
     let mut sim = Simulation::from_desc(
         &d,
@@ -65,6 +160,12 @@ fn run(mut d: SceneDesc, l: LidarDesc) -> Outcome {
     .unwrap();
     sim.run(None).unwrap();
     let r = &sim.resource::<LidarProducts>().0[0];
+    if opt.digest || opt.dump.is_some() {
+        let h = digest(r, name, opt.dump.as_mut());
+        if opt.digest {
+            println!("digest {name}: {h:016x}");
+        }
+    }
     let n = r.pulses.len().max(1) as f64;
     let energy = r
         .pulses
@@ -91,14 +192,15 @@ struct Outcome {
 }
 
 fn main() {
-    let quick = std::env::args().any(|a| a == "--quick");
+    let mut opt = Options::parse();
+    let quick = opt.quick;
     let threads = rayon::current_num_threads() as f64;
     let f = forest::forest(&forest::ForestParams {
         size_m: 40.0,
         ..Default::default()
     });
-    let n = if quick { 200 } else { 2000 };
-    let side = (n as f64).sqrt().ceil() as u32;
+    let n = opt.pulses.unwrap_or(if quick { 200 } else { 2000 });
+    let side = ((n as f64).sqrt().ceil() as u32).max(2);
     println!(
         "ALS forest 40 m, 1000 photons/pulse, multiple scattering (100 orders), {threads} threads"
     );
@@ -113,15 +215,31 @@ fn main() {
         "mean_E_J",
         "returns"
     );
-    for (sampler, method) in [
+    for (name, sampler, method) in [
         (
+            "continuous-gauss",
             LidarSampler::Continuous,
             ReturnsMethod::GaussianDecomposition,
         ),
-        (LidarSampler::Discrete, ReturnsMethod::GaussianDecomposition),
-        (LidarSampler::Discrete, ReturnsMethod::PeakDetection),
-        (LidarSampler::Continuous, ReturnsMethod::PeakDetection),
+        (
+            "discrete-gauss",
+            LidarSampler::Discrete,
+            ReturnsMethod::GaussianDecomposition,
+        ),
+        (
+            "discrete-peak",
+            LidarSampler::Discrete,
+            ReturnsMethod::PeakDetection,
+        ),
+        (
+            "continuous-peak",
+            LidarSampler::Continuous,
+            ReturnsMethod::PeakDetection,
+        ),
     ] {
+        if !opt.wants(name) {
+            continue;
+        }
         let mut l = lidar(
             PulsePattern::Scan {
                 start: (1.0, 1.0),
@@ -134,7 +252,7 @@ fn main() {
         );
         l.sampler = sampler;
         l.returns = method;
-        let o = run(f.clone(), l);
+        let o = run(f.clone(), l, name, &mut opt);
         println!(
             "{:>10} {:>22} {:>7} {:>8.2} {:>13.0} {:>15.2e} {:>13.4e} {:>9.2}",
             format!("{sampler:?}"),
@@ -148,8 +266,15 @@ fn main() {
         );
     }
     println!("peak RSS {:.0} MiB", peak_rss_mib());
+    if !opt.wants("urban") {
+        return;
+    }
     let u = urban::urban(&urban::UrbanParams::default());
-    let m = if quick { 100 } else { 500 };
+    let m = match opt.pulses {
+        Some(p) => ((p as f64).sqrt().ceil() as u32).max(2),
+        None if quick => 100,
+        None => 500,
+    };
     let mut l = lidar(
         PulsePattern::Scan {
             start: (0.0, 0.0),
@@ -161,7 +286,7 @@ fn main() {
         100,
     );
     l.returns = ReturnsMethod::PeakDetection;
-    let o = run(u, l);
+    let o = run(u, l, "urban", &mut opt);
     let (secs, pulses) = (o.seconds, o.pulses);
     println!(
         "urban scan, {pulses} pulses × 100 photons, peak-detection returns: {secs:.1} s, {:.0} pulses/s/core, peak RSS {:.0} MiB",
