@@ -39,6 +39,7 @@ use crate::photon::sampling::{
     AliasTable, BoxTable, BrdfSampler, LeafSampler, Uniform01, sample_cosine_hemisphere,
     sample_fluid_phase,
 };
+use crate::photon::small::Small;
 use crate::physics::brdf::Brdf;
 use crate::physics::lad::{GTable, VolscattKernel};
 use crate::physics::phase::FluidPhase;
@@ -606,6 +607,12 @@ pub struct Receiver {
     pub aperture_m2: f64,
 }
 
+/// Per-band values of one photon (inline up to 4 bands: no allocation per event).
+type Bands = Small<f64, 4>;
+
+/// Per-turbid-material scratch (inline up to 8 materials).
+type PerMaterial<T> = Small<T, 8>;
+
 /// Photon state.
 struct Photon {
     p: DVec3,
@@ -616,7 +623,8 @@ struct Photon {
     shift: DVec3,
     /// Discrete direction index (tiling index, or n_dirs for the sun) in discrete mode.
     di: usize,
-    w: Vec<f64>,
+    /// Weight per band (inline up to 4 bands).
+    w: Bands,
     w0: f64,
     /// Channel offset (0: sun, nb: sky).
     off: usize,
@@ -1081,14 +1089,14 @@ impl Ctx<'_> {
         let nb = self.nb;
         let receiver = self.receiver;
         let k_pts = self.inp.params.fluid_peel_points.max(1);
-        let mut tau: Vec<f64> = vec![0.0; nb];
+        let mut tau = Bands::from_elem(0.0, nb);
         let mut p = ph.p;
         let mut skip = ph.skip_facet;
         let mut crossings = 0u32;
         let mut travelled = 0.0;
         let mut shift = ph.shift;
         let d_in = ph.d;
-        let mut fac = vec![0.0; nb];
+        let mut fac = Bands::from_elem(0.0, nb);
         'restart: loop {
             let Some(mut dda) = Dda::new(spec, p, ph.d) else {
                 return;
@@ -1290,24 +1298,20 @@ impl Ctx<'_> {
         if !f(usize::MAX, u, scratch) {
             return;
         }
-        let g: Vec<f64> = (0..self.tur_ids.len())
-            .map(|tm| self.g_of(tm, u.z))
-            .collect();
+        let g: PerMaterial<f64> = Small::from_fn(self.tur_ids.len(), |tm| self.g_of(tm, u.z));
         // First-order return: back through the gaps the pulse came through (leaf size > 0).
-        let hs: Vec<[f64; 2]> = if ph.order == 0 && self.hs_leaf.iter().any(|&l| l > 0.0) {
-            (0..self.tur_ids.len())
-                .map(|tm| {
-                    crate::radiative::engine::hotspot_terms_path(
-                        ph.d,
-                        u,
-                        self.g_of(tm, ph.d.z),
-                        g[tm],
-                        self.hs_leaf[tm],
-                    )
-                })
-                .collect()
+        let hs: PerMaterial<[f64; 2]> = if ph.order == 0 && self.hs_leaf.iter().any(|&l| l > 0.0) {
+            Small::from_fn(self.tur_ids.len(), |tm| {
+                crate::radiative::engine::hotspot_terms_path(
+                    ph.d,
+                    u,
+                    self.g_of(tm, ph.d.z),
+                    g[tm],
+                    self.hs_leaf[tm],
+                )
+            })
         } else {
-            Vec::new()
+            Small::from_elem([0.0; 2], 0)
         };
         self.transmittance(p, u, r, &g, &hs, skip, tr);
         if tr.iter().all(|&t| t <= 0.0) {
@@ -1543,7 +1547,7 @@ fn run_batch(ctx: &Ctx, batch: u64, n: u64, source: &[f64]) -> BatchOut {
         path: 0.0,
         shift: DVec3::ZERO,
         di: 0,
-        w: vec![0.0; nb],
+        w: Bands::from_elem(0.0, nb),
         w0: 0.0,
         off: 0,
         order: 0,
@@ -1757,7 +1761,7 @@ fn trace_photon(
                 }
                 let d_in = ph.d;
                 let g_in = g_cur[tm].max(1e-12);
-                let w_before: Vec<f64> = ph.w.clone();
+                let w_before = ph.w.clone();
                 match drows {
                     Some(rows) if discrete => {
                         let row = ph.di.min(rows.samplers.len() - 1);
@@ -1870,9 +1874,9 @@ fn trace_photon(
                 let mut passed_through = false;
                 match &inp.optics[fa.material as usize] {
                     PhotonOptics::Lambert { r, t, t_dir } => {
-                        let mut pd = vec![0.0f64; nb];
-                        let mut pr = vec![0.0f64; nb];
-                        let mut pt = vec![0.0f64; nb];
+                        let mut pd = Bands::from_elem(0.0, nb);
+                        let mut pr = Bands::from_elem(0.0, nb);
+                        let mut pt = Bands::from_elem(0.0, nb);
                         let nbx = nb;
                         for b in 0..nbx {
                             let through = if t_dir[b] > 0.0 {
@@ -2279,7 +2283,7 @@ fn run_pulse(base: &Ctx, beam: &Beam, pl: &Pulse) -> PulseResult {
             } else {
                 0
             },
-            w: vec![w0],
+            w: Bands::from_elem(w0, 1),
             w0,
             off: 0,
             order: 0,

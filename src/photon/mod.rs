@@ -6,7 +6,9 @@
 //!   phase functions).
 //! * [`engine`]: the photon tracker (free paths, events, peel-off, roulette, seeded batches).
 //! * [`products`]: the Radiative stage's products with standard errors.
+//! * [`small`]: inline short arrays (no allocation per scattering event).
 
 pub mod engine;
 pub mod products;
 pub mod sampling;
+pub mod small;
