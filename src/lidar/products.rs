@@ -126,6 +126,12 @@ pub fn write_lidar(dir: &Path, runs: &[LidarRun], band_names: &[String]) -> Resu
             "seconds": run.seconds,
             "pulses_per_second_per_core": run.pulses.len() as f64 / (run.seconds.max(1e-9) * threads),
             "notes": run.notes,
+            "docs": {
+                "received_j": "energy received inside the range gate (raw waveform), J",
+                "first_order_j": "first-order part of received_j, J",
+                "out_of_gate_j": "energy received outside the range gate, J: exact before the gate; after the gate a lower bound, since photons whose path so far plus their distance to the receiver exceeds the gate end can never be recorded inside it and are stopped",
+                "missed_j": "emitted energy that missed the scene (isolated scenes), J",
+            },
             "background_rate_hz": run.background_rate_hz,
             "photon_counting_detections": run.counted.len(),
             "photon_counting_noise": run.counted.iter().filter(|c| c.is_noise).count(),

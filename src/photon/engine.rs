@@ -589,8 +589,8 @@ struct Ctx<'a> {
     view_sector: Vec<usize>,
     /// LiDAR receiver (receiver mode: peel-off toward it instead of the views).
     receiver: Option<Receiver>,
-    /// Receiver mode: photons whose path exceeds this can no longer reach the range gate and
-    /// are dropped (booked as lost), m.
+    /// Receiver mode: the end of the range gate (path length, m); photons that can no longer
+    /// be recorded before it are dropped (booked as lost, see [`Ctx::beyond_gate`]).
     max_path: f64,
 }
 
@@ -709,6 +709,21 @@ impl<'a> Ctx<'a> {
 }
 
 impl Ctx<'_> {
+    /// Range-gate culling (receiver mode): a photon at unwrapped position m = p + shift after
+    /// a path L can only be recorded at a path L' + |R − m'| ≥ L + |R − m| (triangle
+    /// inequality: L' ≥ L + |m' − m| for any later event m', and |R − m'| ≥ |R − m| − |m' − m|),
+    /// so once `L + |R − m|` exceeds the gate end none of its peel-offs can land inside the gate
+    /// and it is stopped. What it would have recorded after the gate is not counted, so the
+    /// after-gate part of `out_of_gate_j` is a lower bound. Without a receiver: `L > max_path`
+    /// (never, max_path = ∞).
+    #[inline]
+    fn beyond_gate(&self, ph: &Photon) -> bool {
+        match &self.receiver {
+            Some(rx) => ph.path + (rx.position - (ph.p + ph.shift)).length() > self.max_path,
+            None => ph.path > self.max_path,
+        }
+    }
+
     #[inline]
     fn g_of(&self, tm: usize, mu: f64) -> f64 {
         match &self.inp.optics[self.tur_ids[tm] as usize] {
@@ -2026,7 +2041,7 @@ fn trace_photon(
             }
         }
         ph.order += 1;
-        if ph.path > ctx.max_path {
+        if ctx.beyond_gate(ph) {
             for b in 0..nb {
                 out.lost[off + b] += ph.w[b];
             }
@@ -2169,7 +2184,9 @@ pub struct PulseResult {
     /// trimmed to the bins between the first and the last non-zero one
     /// ([`crate::lidar::waveform::Waveform::trim`]: `t0_ns` is that of the first kept bin).
     pub waveform: crate::lidar::waveform::Waveform,
-    /// Received energy outside the gate, J.
+    /// Received energy outside the gate, J: exact before the gate; after the gate a lower bound
+    /// (photons that can no longer be recorded inside the gate are stopped, see
+    /// `Ctx::beyond_gate`, and what they would have sent after the gate is not counted).
     pub out_of_gate_j: f64,
     /// Emitted energy that missed the scene (isolated scenes), J.
     pub missed_j: f64,

@@ -27,7 +27,8 @@ pub struct PulseRecord {
     /// Received waveform convolved with the emitted pulse (total and first order), J per bin;
     /// trimmed like `raw`.
     pub waveform: Waveform,
-    /// Received energy outside the range gate, J.
+    /// Received energy outside the range gate, J: exact before the gate, a lower bound after it
+    /// (photons that can no longer be recorded inside the gate are stopped early).
     pub out_of_gate_j: f64,
     /// Emitted energy that missed the scene (isolated scenes), J.
     pub missed_j: f64,
