@@ -6,7 +6,9 @@
 //! views at image oversampling η = 1, 2, 4). `cargo bench --bench radiative` (`-- --quick` for
 //! fewer rows;
 //! `-- --dump FILE` writes every row's albedos and BRFs, full precision, one JSON object per
-//! line, to compare products between two builds).
+//! line, to compare products between two builds; `-- --row NAME` runs only the row so named,
+//! e.g. `--row "Default 100 0.2"`, `--row "forest Default"` or `--row "forest images η 2"`, so
+//! that `valgrind --tool=callgrind` can count the instructions of one row).
 //!
 //! Throughput columns: `Mcross/s/core` is cell crossings / (wall time of the engine run ×
 //! threads), i.e. including emission, merging and extrapolation; `kernel` is cell crossings /
@@ -75,6 +77,12 @@ fn main() {
             writeln!(f, "{line}").expect("dump write");
         }
     };
+    let only = args
+        .iter()
+        .position(|a| a == "--row")
+        .and_then(|i| args.get(i + 1))
+        .cloned();
+    let wanted = |name: &str| only.as_deref().is_none_or(|o| o == name);
     let threads = rayon::current_num_threads();
     let oracle = std::fs::read_to_string(concat!(
         env!("CARGO_MANIFEST_DIR"),
@@ -109,6 +117,15 @@ fn main() {
     for preset in presets {
         for dirs in [100usize, 400] {
             for cell in [0.5, 0.2] {
+                let n = if preset == Preset::Reference {
+                    dirs.max(400)
+                } else {
+                    dirs
+                };
+                let name = format!("{preset:?} {n} {cell}");
+                if !wanted(&name) {
+                    continue;
+                }
                 let mut d = turbid_layer(&TurbidLayerParams {
                     lai: 3.0,
                     lad: LadDesc::Spherical,
@@ -133,12 +150,7 @@ fn main() {
                 }
                 let rate = p.crossings as f64 / p.tracking_seconds / threads as f64 / 1e6;
                 let kernel = p.crossings as f64 / p.raw.kernel_seconds / 1e6;
-                let n = if preset == Preset::Reference {
-                    dirs.max(400)
-                } else {
-                    dirs
-                };
-                write_dump(format!("{preset:?} {n} {cell}"), &p);
+                write_dump(name, &p);
                 println!(
                     "{:>9} {:>5} {:>6} {:>9.3} {:>6} {:>14.2} {:>7.2} {:>8.1}MiB {:>11.3} {:>11.3}",
                     format!("{preset:?}"),
@@ -161,6 +173,9 @@ fn main() {
         ..Default::default()
     });
     for preset in [Preset::Preview, Preset::Default] {
+        if !wanted(&format!("forest {preset:?}")) {
+            continue;
+        }
         let (wall, p) = run_timed(&f, preset);
         write_dump(format!("forest {preset:?}"), &p);
         println!(
@@ -177,6 +192,9 @@ fn main() {
     let mut fi = f.clone();
     fi.directions = Some(rami_directions(225.0));
     for eta in [1u32, 2, 4] {
+        if !wanted(&format!("forest images η {eta}")) {
+            continue;
+        }
         fi.radiative = Some(RadiativeDesc {
             image_oversampling: eta,
             ..Default::default()

@@ -42,7 +42,8 @@
 //!   and chunk results are merged in chunk order, so products are bit-identical on any number
 //!   of threads.
 
-use super::dda::{Dda, Exit};
+use super::dda::{Dda, Exit, floor_i64};
+use super::fastmath::{HalfBarycentres, attenuation};
 use super::images::ImageGrid;
 use crate::resources::directions::DirectionSet;
 use crate::resources::facets::{Facet, FacetKind};
@@ -781,8 +782,8 @@ impl Ctx<'_> {
         let lo = spec.origin + DVec3::new(ijk[0] as f64, ijk[1] as f64, ijk[2] as f64) * spec.cell;
         let mut idx = 0;
         for a in (0..axes).rev() {
-            let s = (((p[a] - lo[a]) / spec.cell[a] * d).floor() as i64)
-                .clamp(0, self.sub as i64 - 1) as u32;
+            let s =
+                floor_i64((p[a] - lo[a]) / spec.cell[a] * d).clamp(0, self.sub as i64 - 1) as u32;
             idx = idx * self.sub + s;
         }
         idx
@@ -913,6 +914,10 @@ impl Ctx<'_> {
         };
         // Distance travelled from the ray's origin to the current restart point, m.
         let mut s_base = 0.0;
+        let hb = HalfBarycentres::get();
+        // Repetitive boundary without altitude offset: re-entries move the DDA in place.
+        let wrap_in_place =
+            spec.boundary != BoundaryMode::Isolated && spec.topography_offset == (0.0, 0.0);
         out.rays += 1;
         let mut n_cross = 0u64;
         let mut crossings = 0u32;
@@ -980,11 +985,11 @@ impl Ctx<'_> {
                     }
                     if k > 0.0 {
                         let x = k * ell;
-                        let frac = -(-x).exp_m1(); // 1 − e^{−kℓ}
-                        let tr = 1.0 - frac;
+                        // (1 − e^{−kℓ}, e^{−kℓ})
+                        let (frac, tr) = attenuation(x);
                         // Interception points: barycentres of the two halves of the intercepted
                         // energy.
-                        let (s1, s2) = half_barycentres_fast(k, ell);
+                        let (s1, s2) = hb.eval(x, ell);
                         let p1 = dda.point(t0 + s1);
                         let p2 = dda.point(t0 + s2);
                         let wsum = psum * frac;
@@ -1055,13 +1060,11 @@ impl Ctx<'_> {
                     Exit::Bottom => {
                         let hp = dda.point(dda.t);
                         if self.inp.flat_ground.is_some() {
-                            let i = ((hp.x - spec.origin.x) / spec.cell.x)
-                                .floor()
-                                .clamp(0.0, (spec.n[0] - 1) as f64)
+                            let i = floor_i64((hp.x - spec.origin.x) / spec.cell.x)
+                                .clamp(0, spec.n[0] as i64 - 1)
                                 as usize;
-                            let j = ((hp.y - spec.origin.y) / spec.cell.y)
-                                .floor()
-                                .clamp(0.0, (spec.n[1] - 1) as f64)
+                            let j = floor_i64((hp.y - spec.origin.y) / spec.cell.y)
+                                .clamp(0, spec.n[1] as i64 - 1)
                                 as usize;
                             let sub = self.sub_index(hp, [i, j, 0], 2);
                             out.gnd_key.push(((i + spec.n[0] * j) as u32, slot, sub));
@@ -1076,6 +1079,16 @@ impl Ctx<'_> {
                         if spec.boundary == BoundaryMode::Isolated {
                             add(&mut out.lost, pw);
                             break 'restart;
+                        }
+                        if wrap_in_place {
+                            crossings += dda.wrap_sides();
+                            if crossings > self.inp.params.max_crossings {
+                                add(&mut out.lost, pw);
+                                break 'restart;
+                            }
+                            // The facet skipped at the start is in another tile now.
+                            skip_facet = None;
+                            continue;
                         }
                         crossings += 1;
                         if crossings > self.inp.params.max_crossings {
@@ -1224,39 +1237,11 @@ pub fn half_barycentres(k: f64, ell: f64) -> (f64, f64) {
     half_barycentres_with(k, ell, (-x).exp(), -(-x).exp_m1())
 }
 
-/// Tabulated [`half_barycentres`] (the tracker's hot path: no logarithm per crossing). The
-/// relative positions s/ℓ depend only on x = kℓ; they are tabulated on 4096 log-spaced x in
-/// [1e-4, 60] and interpolated linearly in ln x (error < 1e-6 of ℓ, test below); the series
-/// below 1e-4 and the dense limit `(1 ∓ ln 2)/k` above 60 are exact to double precision.
+/// Tabulated [`half_barycentres`] (the tracker's hot path: no logarithm per crossing), see
+/// [`HalfBarycentres::eval`] (within 1e-8 ℓ of the closed form).
 #[inline]
 pub fn half_barycentres_fast(k: f64, ell: f64) -> (f64, f64) {
-    const N: usize = 4096;
-    const X0: f64 = 1e-4;
-    const X1: f64 = 60.0;
-    static TABLE: std::sync::OnceLock<Vec<(f64, f64)>> = std::sync::OnceLock::new();
-    let x = k * ell;
-    if x < X0 {
-        return (ell * (0.25 - x / 12.0), ell * (0.75 - x / 12.0));
-    }
-    if x >= X1 {
-        let l2 = std::f64::consts::LN_2;
-        return ((1.0 - l2) / k, (1.0 + l2) / k);
-    }
-    let table = TABLE.get_or_init(|| {
-        (0..N)
-            .map(|i| {
-                let xi = X0 * (X1 / X0).powf(i as f64 / (N - 1) as f64);
-                let (a, b) = half_barycentres(xi, 1.0);
-                (a, b)
-            })
-            .collect()
-    });
-    let u = (x / X0).ln() / (X1 / X0).ln() * (N - 1) as f64;
-    let i = (u as usize).min(N - 2);
-    let t = u - i as f64;
-    let (a0, b0) = table[i];
-    let (a1, b1) = table[i + 1];
-    (ell * (a0 + t * (a1 - a0)), ell * (b0 + t * (b1 - b0)))
+    HalfBarycentres::get().eval(k * ell, ell)
 }
 
 /// [`half_barycentres`] given `e = e^{−kℓ}` and `f = 1 − e` (computed once by the tracker).
@@ -1270,7 +1255,8 @@ pub fn half_barycentres_with(k: f64, ell: f64, e: f64, f: f64) -> (f64, f64) {
         return (ell * (0.25 - x / 12.0), ell * (0.75 - x / 12.0));
     }
     let h = 0.5 * (1.0 + e);
-    let s_half = -h.ln() / k;
+    // ln h = ln(1 − f/2) without the rounding of h (kℓ → 0: s½ ≈ ℓ/2 to full precision).
+    let s_half = -(-0.5 * f).ln_1p() / k;
     let den = 0.5 * f;
     let inv_k = 1.0 / k;
     (
@@ -2574,9 +2560,9 @@ pub fn hotspot_terms_path(
 pub fn hotspot_integral(c: f64, z0: f64, dz: f64) -> f64 {
     let x = c * dz;
     if x < 1e-9 {
-        (-c * z0).exp() * dz * (1.0 - 0.5 * x)
+        super::fastmath::exp(-c * z0) * dz * (1.0 - 0.5 * x)
     } else {
-        (-c * z0).exp() * (-(-x).exp_m1()) / c
+        super::fastmath::exp(-c * z0) * attenuation(x).0 / c
     }
 }
 

@@ -4,6 +4,7 @@
 
 pub mod dda;
 pub mod engine;
+pub mod fastmath;
 pub mod images;
 pub mod products;
 
