@@ -550,6 +550,16 @@ struct BatchOut {
     wave: Option<crate::lidar::waveform::WaveformBinner>,
 }
 
+/// How a transmittance ray leaves the grid box.
+enum ExitTo {
+    /// Through the top (or out of an isolated scene toward the receiver): done.
+    Receiver,
+    /// Through the bottom, or lost: zero transmittance.
+    Blocked,
+    /// Through a repetitive side: continues from this re-entry point.
+    Wrapped(DVec3),
+}
+
 /// Where a flight ends.
 enum Hit {
     /// Volume collision in cell `c` at point `p`.
@@ -589,6 +599,10 @@ struct Ctx<'a> {
     view_sector: Vec<usize>,
     /// LiDAR receiver (receiver mode: peel-off toward it instead of the views).
     receiver: Option<Receiver>,
+    /// Per cell: nothing to interact with (no facet, no turbid entry with a density, no
+    /// fluid). Walks cross such cells without looking at their contents (same results bit for
+    /// bit: an empty cell adds nothing to optical depths and draws no random numbers).
+    empty: std::sync::Arc<[bool]>,
     /// Receiver mode: the end of the range gate (path length, m); photons that can no longer
     /// be recorded before it are dropped (booked as lost, see [`Ctx::beyond_gate`]).
     max_path: f64,
@@ -668,7 +682,19 @@ impl<'a> Ctx<'a> {
             view_sector: inp.views.iter().map(|v| inp.dirs.find_sector(*v)).collect(),
             receiver: None,
             max_path: f64::INFINITY,
+            empty: std::sync::Arc::from(Vec::new()),
         };
+        let grid = inp.grid;
+        ctx.empty = (0..grid.facet_start.len().saturating_sub(1))
+            .map(|c| {
+                grid.facet_start[c] == grid.facet_start[c + 1]
+                    && grid
+                        .turbid_of(c)
+                        .iter()
+                        .all(|e| ctx.tur_mat[e.material as usize] == u32::MAX || e.density == 0.0)
+                    && ctx.fluid_of(c).is_none()
+            })
+            .collect();
         ctx.g_view = inp
             .views
             .iter()
@@ -834,6 +860,15 @@ impl Ctx<'_> {
             loop {
                 out.crossings += 1;
                 let c = dda.index();
+                if self.empty[c] {
+                    match dda.advance() {
+                        Exit::Inside => continue,
+                        exit => match self.fly_exit(exit, &dda, ph, &mut crossings) {
+                            Some(hit) => return hit,
+                            None => continue 'restart,
+                        },
+                    }
+                }
                 let t0 = dda.t;
                 let mut t1 = dda.t_exit();
                 let fhit = if self.inp.grid.facet_start[c] < self.inp.grid.facet_start[c + 1] {
@@ -897,49 +932,59 @@ impl Ctx<'_> {
                 }
                 match dda.advance() {
                     Exit::Inside => {}
-                    Exit::Top => {
+                    exit => match self.fly_exit(exit, &dda, ph, &mut crossings) {
+                        Some(hit) => return hit,
+                        None => continue 'restart,
+                    },
+                }
+            }
+        }
+    }
+
+    /// A flight leaves the grid box through `exit` (not `Exit::Inside`) at `dda.t`: the hit it
+    /// ends with, or `None` after wrapping through a repetitive side (the photon then restarts
+    /// from its new position).
+    #[inline]
+    fn fly_exit(&self, exit: Exit, dda: &Dda, ph: &mut Photon, crossings: &mut u32) -> Option<Hit> {
+        let spec = self.inp.spec;
+        match exit {
+            Exit::Inside => None,
+            Exit::Top => {
+                ph.path += dda.t;
+                ph.p = dda.point(dda.t);
+                Some(Hit::Escape)
+            }
+            Exit::Bottom => {
+                ph.path += dda.t;
+                let p = dda.point(dda.t);
+                Some(if self.inp.flat_ground.is_some() {
+                    Hit::Ground { p }
+                } else {
+                    Hit::Lost
+                })
+            }
+            Exit::Side(axis, s) => {
+                if spec.boundary == BoundaryMode::Isolated {
+                    return Some(Hit::Lost);
+                }
+                *crossings += 1;
+                if *crossings > self.inp.params.max_crossings {
+                    return Some(Hit::Lost);
+                }
+                let e = dda.point(dda.t);
+                if ph.path + dda.t > self.max_path {
+                    return Some(Hit::Lost);
+                }
+                match self.wrap(e, axis, s) {
+                    Some(q) => {
                         ph.path += dda.t;
-                        ph.p = dda.point(dda.t);
-                        return Hit::Escape;
+                        // Unwrapped position = wrapped + shift (LiDAR geometry).
+                        ph.shift += e - q;
+                        ph.p = q;
+                        ph.skip_facet = None;
+                        None
                     }
-                    Exit::Bottom => {
-                        ph.path += dda.t;
-                        let p = dda.point(dda.t);
-                        return if self.inp.flat_ground.is_some() {
-                            Hit::Ground { p }
-                        } else {
-                            Hit::Lost
-                        };
-                    }
-                    Exit::Side(axis, s) => {
-                        if spec.boundary == BoundaryMode::Isolated {
-                            return Hit::Lost;
-                        }
-                        crossings += 1;
-                        if crossings > self.inp.params.max_crossings {
-                            return Hit::Lost;
-                        }
-                        let e = dda.point(dda.t);
-                        if ph.path + dda.t > self.max_path {
-                            return Hit::Lost;
-                        }
-                        match self.wrap(e, axis, s) {
-                            Some(q) => {
-                                ph.path += dda.t;
-                                // Unwrapped position = wrapped + shift (LiDAR geometry).
-                                ph.shift += e - q;
-                                ph.p = q;
-                                ph.skip_facet = None;
-                                continue 'restart;
-                            }
-                            None => {
-                                if ph.d.z > 0.0 {
-                                    return Hit::Escape;
-                                }
-                                return Hit::Lost;
-                            }
-                        }
-                    }
+                    None => Some(if ph.d.z > 0.0 { Hit::Escape } else { Hit::Lost }),
                 }
             }
         }
@@ -962,7 +1007,6 @@ impl Ctx<'_> {
         t_out: &mut [f64],
     ) {
         let spec = self.inp.spec;
-        let receiver = self.receiver.is_some();
         let mut travelled = 0.0;
         t_out.iter_mut().for_each(|t| *t = 1.0);
         let mut tau_v = 0.0; // band-independent optical depth (vegetation)
@@ -980,6 +1024,27 @@ impl Ctx<'_> {
                 let mut t1 = dda.t_exit();
                 // Receiver inside the grid (terrestrial LiDAR): stop at its distance.
                 let reached = travelled + t1 >= max_dist;
+                if self.empty[c] {
+                    if reached {
+                        break 'restart;
+                    }
+                    match dda.advance() {
+                        Exit::Inside => continue,
+                        exit => match self.transmittance_exit(exit, &dda, &mut crossings) {
+                            ExitTo::Receiver => break 'restart,
+                            ExitTo::Blocked => {
+                                t_out.iter_mut().for_each(|t| *t = 0.0);
+                                return;
+                            }
+                            ExitTo::Wrapped(q) => {
+                                travelled += dda.t;
+                                p = q;
+                                skip = None;
+                                continue 'restart;
+                            }
+                        },
+                    }
+                }
                 if reached {
                     t1 = (max_dist - travelled).max(t0);
                 }
@@ -1046,39 +1111,51 @@ impl Ctx<'_> {
                 }
                 match dda.advance() {
                     Exit::Inside => {}
-                    Exit::Top => break 'restart,
-                    Exit::Bottom => {
-                        t_out.iter_mut().for_each(|t| *t = 0.0);
-                        return;
-                    }
-                    Exit::Side(axis, s) => {
-                        crossings += 1;
-                        if spec.boundary == BoundaryMode::Isolated && receiver {
-                            // Outside an isolated scene there is nothing: the return reaches
-                            // the receiver.
-                            break 'restart;
-                        }
-                        if spec.boundary == BoundaryMode::Isolated
-                            || crossings > self.inp.params.max_crossings
-                        {
+                    exit => match self.transmittance_exit(exit, &dda, &mut crossings) {
+                        ExitTo::Receiver => break 'restart,
+                        ExitTo::Blocked => {
                             t_out.iter_mut().for_each(|t| *t = 0.0);
                             return;
                         }
-                        travelled += dda.t;
-                        match self.wrap(dda.point(dda.t), axis, s) {
-                            Some(q) => {
-                                p = q;
-                                skip = None;
-                                continue 'restart;
-                            }
-                            None => break 'restart,
+                        ExitTo::Wrapped(q) => {
+                            travelled += dda.t;
+                            p = q;
+                            skip = None;
+                            continue 'restart;
                         }
-                    }
+                    },
                 }
             }
         }
         let tv = (-tau_v).exp();
         t_out.iter_mut().for_each(|t| *t *= tv);
+    }
+
+    /// A transmittance ray leaves the grid box through `exit` (not `Exit::Inside`) at `dda.t`.
+    #[inline]
+    fn transmittance_exit(&self, exit: Exit, dda: &Dda, crossings: &mut u32) -> ExitTo {
+        let spec = self.inp.spec;
+        match exit {
+            Exit::Inside | Exit::Top => ExitTo::Receiver,
+            Exit::Bottom => ExitTo::Blocked,
+            Exit::Side(axis, s) => {
+                *crossings += 1;
+                if spec.boundary == BoundaryMode::Isolated && self.receiver.is_some() {
+                    // Outside an isolated scene there is nothing: the return reaches the
+                    // receiver.
+                    return ExitTo::Receiver;
+                }
+                if spec.boundary == BoundaryMode::Isolated
+                    || *crossings > self.inp.params.max_crossings
+                {
+                    return ExitTo::Blocked;
+                }
+                match self.wrap(dda.point(dda.t), axis, s) {
+                    Some(q) => ExitTo::Wrapped(q),
+                    None => ExitTo::Receiver,
+                }
+            }
+        }
     }
 
     /// Forced (expected-value) peel-off along the whole coming flight (Ray-Carlo K points per
@@ -1118,141 +1195,143 @@ impl Ctx<'_> {
             };
             loop {
                 let c = dda.index();
-                let t0 = dda.t;
-                let mut t1 = dda.t_exit();
-                let fhit = if self.inp.grid.facet_start[c] < self.inp.grid.facet_start[c + 1] {
-                    self.facet_hit(c, dda.point(0.0), ph.d, t0, t1, skip)
-                } else {
-                    None
-                };
-                if let Some((_, th)) = fhit {
-                    t1 = th.max(t0);
-                }
-                let ell = t1 - t0;
-                let kv = self.k_veg(c, g_cur);
-                let fl = self.fluid_of(c);
-                let sig = |b: usize| fl.map_or(0.0, |f| f.sigma_e[b]);
-                // Emits one forced point: `fac` holds the per-band weight factors.
-                let emit = |at: DVec3,
-                            u: f64,
-                            fac: &[f64],
-                            phase: &mut dyn FnMut(DVec3, &mut [f64]) -> bool,
-                            out: &mut BatchOut,
-                            scratch: &mut [f64],
-                            tr: &mut [f64]| {
-                    let mut g = |_: usize, ov: DVec3, s: &mut [f64]| {
-                        if !phase(ov, s) {
-                            return false;
-                        }
-                        for b in 0..nb {
-                            s[b] *= fac[b];
-                        }
-                        true
+                if !self.empty[c] {
+                    let t0 = dda.t;
+                    let mut t1 = dda.t_exit();
+                    let fhit = if self.inp.grid.facet_start[c] < self.inp.grid.facet_start[c + 1] {
+                        self.facet_hit(c, dda.point(0.0), ph.d, t0, t1, skip)
+                    } else {
+                        None
                     };
-                    match &receiver {
-                        Some(rx) => self.peel_receiver(
-                            rx,
-                            ph,
-                            (at, shift, ph.path + travelled + t0 + u),
-                            None,
-                            out,
-                            scratch,
-                            tr,
-                            &mut g,
-                        ),
-                        None => self.peel(ph, at, None, false, out, scratch, tr, &mut g),
+                    if let Some((_, th)) = fhit {
+                        t1 = th.max(t0);
                     }
-                };
-                if ell > 0.0 {
-                    if let Some(f) = fl {
-                        let km = kv + f.sigma_e.iter().cloned().fold(0.0, f64::max);
-                        let norm = -(-km * ell).exp_m1(); // 1 − e^{−k_m ℓ}
-                        if km > 0.0 && norm > 0.0 {
-                            for _ in 0..k_pts {
-                                let u = -(1.0 - rng.next_f64() * norm).ln() / km;
-                                let q = km * (-km * u).exp() / norm;
-                                for (b, x) in fac.iter_mut().enumerate() {
-                                    *x = (-tau[b]).exp()
-                                        * f.sigma_e[b]
-                                        * (-(kv + f.sigma_e[b]) * u).exp()
-                                        / (q * k_pts as f64);
-                                }
-                                let mut phase = |ov: DVec3, s: &mut [f64]| {
-                                    let pv = f.phase.eval_dirs(d_in, ov) / (4.0 * PI);
-                                    for b in 0..nb {
-                                        s[b] = f.ssa[b] * pv;
+                    let ell = t1 - t0;
+                    let kv = self.k_veg(c, g_cur);
+                    let fl = self.fluid_of(c);
+                    let sig = |b: usize| fl.map_or(0.0, |f| f.sigma_e[b]);
+                    // Emits one forced point: `fac` holds the per-band weight factors.
+                    let emit = |at: DVec3,
+                                u: f64,
+                                fac: &[f64],
+                                phase: &mut dyn FnMut(DVec3, &mut [f64]) -> bool,
+                                out: &mut BatchOut,
+                                scratch: &mut [f64],
+                                tr: &mut [f64]| {
+                        let mut g = |_: usize, ov: DVec3, s: &mut [f64]| {
+                            if !phase(ov, s) {
+                                return false;
+                            }
+                            for b in 0..nb {
+                                s[b] *= fac[b];
+                            }
+                            true
+                        };
+                        match &receiver {
+                            Some(rx) => self.peel_receiver(
+                                rx,
+                                ph,
+                                (at, shift, ph.path + travelled + t0 + u),
+                                None,
+                                out,
+                                scratch,
+                                tr,
+                                &mut g,
+                            ),
+                            None => self.peel(ph, at, None, false, out, scratch, tr, &mut g),
+                        }
+                    };
+                    if ell > 0.0 {
+                        if let Some(f) = fl {
+                            let km = kv + f.sigma_e.iter().cloned().fold(0.0, f64::max);
+                            let norm = -(-km * ell).exp_m1(); // 1 − e^{−k_m ℓ}
+                            if km > 0.0 && norm > 0.0 {
+                                for _ in 0..k_pts {
+                                    let u = -(1.0 - rng.next_f64() * norm).ln() / km;
+                                    let q = km * (-km * u).exp() / norm;
+                                    for (b, x) in fac.iter_mut().enumerate() {
+                                        *x = (-tau[b]).exp()
+                                            * f.sigma_e[b]
+                                            * (-(kv + f.sigma_e[b]) * u).exp()
+                                            / (q * k_pts as f64);
                                     }
-                                    true
+                                    let mut phase = |ov: DVec3, s: &mut [f64]| {
+                                        let pv = f.phase.eval_dirs(d_in, ov) / (4.0 * PI);
+                                        for b in 0..nb {
+                                            s[b] = f.ssa[b] * pv;
+                                        }
+                                        true
+                                    };
+                                    emit(dda.point(t0 + u), u, &fac, &mut phase, out, scratch, tr);
+                                }
+                            }
+                        }
+                        if receiver.is_some() && kv > 0.0 {
+                            let norm = -(-kv * ell).exp_m1();
+                            for _ in 0..k_pts {
+                                let u = -(1.0 - rng.next_f64() * norm).ln() / kv;
+                                // Density kv e^{−kv u}/norm; per-band weight e^{−τ_b − σ_b u}·norm/K.
+                                for (b, x) in fac.iter_mut().enumerate() {
+                                    *x = (-tau[b] - sig(b) * u).exp() * norm / k_pts as f64;
+                                }
+                                // Material in proportion to its extinction.
+                                let mut r = rng.next_f64() * kv;
+                                let mut mid = None;
+                                for e in self.inp.grid.turbid_of(c) {
+                                    let tm = self.tur_mat[e.material as usize];
+                                    if tm == u32::MAX {
+                                        continue;
+                                    }
+                                    let k = g_cur[tm as usize] * e.density as f64;
+                                    mid = Some((e.material as usize, tm as usize));
+                                    if r < k {
+                                        break;
+                                    }
+                                    r -= k;
+                                }
+                                let Some((mid, tm)) = mid else { continue };
+                                let PhotonOptics::Turbid {
+                                    sampler,
+                                    kernel,
+                                    rho,
+                                    tau: tl,
+                                    ..
+                                } = &self.inp.optics[mid]
+                                else {
+                                    continue;
+                                };
+                                let g_in = g_cur[tm].max(1e-12);
+                                let closed = kernel.is_closed_form();
+                                let n = if closed {
+                                    DVec3::Z
+                                } else {
+                                    sampler.sample_normal(d_in, rng)
+                                };
+                                let mut phase = |ov: DVec3, s: &mut [f64]| {
+                                    if closed {
+                                        let (gr, gt) = kernel.gamma_components(d_in, ov);
+                                        for b in 0..nb {
+                                            s[b] = (rho[b] * gr + tl[b] * gt) / (PI * g_in);
+                                        }
+                                    } else {
+                                        let cz = ov.dot(n);
+                                        let fl = if cz > 0.0 { rho } else { tl };
+                                        for b in 0..nb {
+                                            s[b] = fl[b] * cz.abs() / PI;
+                                        }
+                                    }
+                                    s.iter().any(|&x| x > 0.0)
                                 };
                                 emit(dda.point(t0 + u), u, &fac, &mut phase, out, scratch, tr);
                             }
                         }
-                    }
-                    if receiver.is_some() && kv > 0.0 {
-                        let norm = -(-kv * ell).exp_m1();
-                        for _ in 0..k_pts {
-                            let u = -(1.0 - rng.next_f64() * norm).ln() / kv;
-                            // Density kv e^{−kv u}/norm; per-band weight e^{−τ_b − σ_b u}·norm/K.
-                            for (b, x) in fac.iter_mut().enumerate() {
-                                *x = (-tau[b] - sig(b) * u).exp() * norm / k_pts as f64;
-                            }
-                            // Material in proportion to its extinction.
-                            let mut r = rng.next_f64() * kv;
-                            let mut mid = None;
-                            for e in self.inp.grid.turbid_of(c) {
-                                let tm = self.tur_mat[e.material as usize];
-                                if tm == u32::MAX {
-                                    continue;
-                                }
-                                let k = g_cur[tm as usize] * e.density as f64;
-                                mid = Some((e.material as usize, tm as usize));
-                                if r < k {
-                                    break;
-                                }
-                                r -= k;
-                            }
-                            let Some((mid, tm)) = mid else { continue };
-                            let PhotonOptics::Turbid {
-                                sampler,
-                                kernel,
-                                rho,
-                                tau: tl,
-                                ..
-                            } = &self.inp.optics[mid]
-                            else {
-                                continue;
-                            };
-                            let g_in = g_cur[tm].max(1e-12);
-                            let closed = kernel.is_closed_form();
-                            let n = if closed {
-                                DVec3::Z
-                            } else {
-                                sampler.sample_normal(d_in, rng)
-                            };
-                            let mut phase = |ov: DVec3, s: &mut [f64]| {
-                                if closed {
-                                    let (gr, gt) = kernel.gamma_components(d_in, ov);
-                                    for b in 0..nb {
-                                        s[b] = (rho[b] * gr + tl[b] * gt) / (PI * g_in);
-                                    }
-                                } else {
-                                    let cz = ov.dot(n);
-                                    let fl = if cz > 0.0 { rho } else { tl };
-                                    for b in 0..nb {
-                                        s[b] = fl[b] * cz.abs() / PI;
-                                    }
-                                }
-                                s.iter().any(|&x| x > 0.0)
-                            };
-                            emit(dda.point(t0 + u), u, &fac, &mut phase, out, scratch, tr);
+                        for (b, t) in tau.iter_mut().enumerate() {
+                            *t += (kv + sig(b)) * ell;
                         }
                     }
-                    for (b, t) in tau.iter_mut().enumerate() {
-                        *t += (kv + sig(b)) * ell;
+                    if fhit.is_some() || tau.iter().cloned().fold(f64::INFINITY, f64::min) > 30.0 {
+                        return;
                     }
-                }
-                if fhit.is_some() || tau.iter().cloned().fold(f64::INFINITY, f64::min) > 30.0 {
-                    return;
                 }
                 match dda.advance() {
                     Exit::Inside => {}
