@@ -644,6 +644,12 @@ struct Photon {
     off: usize,
     order: u32,
     skip_facet: Option<u32>,
+    /// Receiver mode: still on the straight flight from the emitter (order 0, no facet passed
+    /// through), so the return path to the (monostatic) receiver is this flight reversed.
+    direct: bool,
+    /// Receiver mode: transmittance back to the receiver of the current event, when the
+    /// forced walk of the first flight already computed it (see [`Ctx::forced_peel`]).
+    ret: Option<Bands>,
 }
 
 impl<'a> Ctx<'a> {
@@ -840,6 +846,33 @@ impl Ctx<'_> {
             }
         }
         hit
+    }
+
+    /// True if the segment `[t0, t1]` of the ray from `o` along `d` in cell `c` crosses a
+    /// one-sided facet from behind (not a hit for this ray, but one for the reversed ray).
+    fn facet_behind(&self, c: usize, o: DVec3, d: DVec3, t0: f64, t1: f64) -> bool {
+        self.inp.grid.facets_of(c).iter().any(|&f| {
+            let fa = &self.inp.facets[f as usize];
+            !fa.two_sided
+                && (fa.v[1] - fa.v[0]).cross(fa.v[2] - fa.v[0]).dot(d) >= 0.0
+                && intersect(&fa.v, o, d).is_some_and(|t| t >= t0 - 1e-12 && t <= t1 + 1e-12)
+        })
+    }
+
+    /// Extinction of the return path of a first-order LiDAR photon in cell `c` (m⁻¹): turbid
+    /// materials without a leaf size only (see [`Ctx::forced_peel`]); `g_cur` holds G of the
+    /// flight, equal to G of the reversed direction.
+    #[inline]
+    fn k_return(&self, c: usize, g_cur: &[f64]) -> f64 {
+        let mut k = 0.0;
+        for e in self.inp.grid.turbid_of(c) {
+            let tm = self.tur_mat[e.material as usize];
+            // hs_leaf is finite and >= 0 (validated scene input): no leaf size means 0.
+            if tm != u32::MAX && self.hs_leaf[tm as usize] <= 0.0 {
+                k += g_cur[tm as usize] * e.density as f64;
+            }
+        }
+        k
     }
 
     /// Flies the photon to its next event; handles null collisions and boundary wrapping.
@@ -1168,6 +1201,18 @@ impl Ctx<'_> {
     /// intensity `Γ/(πG)` (spherical closed form, else the one-leaf estimate with a sampled
     /// normal). The walk stops at the first facet, the ground, the top, an isolated side or when
     /// min_b τ_b > 30 (e^{−30} ≈ 1e-13).
+    ///
+    /// Receiver mode on the straight flight from the emitter (`ph.direct`): the receiver sits at
+    /// the emitter (monostatic), so the return path of a forced point is the flight walked so
+    /// far, reversed: its transmittance comes from the optical depth already accumulated
+    /// instead of a separate ray (same cells, G(−Ω) = G(Ω); turbid materials with a leaf size
+    /// add nothing on the way back, the exact-backscatter limit of
+    /// [`crate::radiative::engine::hotspot_terms_path`]; equal to the ray's value to rounding).
+    /// A cell where the flight crosses a one-sided facet from behind (which the return ray
+    /// would hit) falls back to the ray. Returns, in that mode, the return transmittance at
+    /// the end of the walk when it ends on a facet (`Some(f)`) or the bottom (`None`), for the
+    /// collision peel-off of the flight's surface hit.
+    #[allow(clippy::too_many_arguments)]
     fn forced_peel(
         &self,
         ph: &Photon,
@@ -1176,7 +1221,7 @@ impl Ctx<'_> {
         out: &mut BatchOut,
         scratch: &mut [f64],
         tr: &mut [f64],
-    ) {
+    ) -> Option<(Option<u32>, Bands)> {
         let spec = self.inp.spec;
         let nb = self.nb;
         let receiver = self.receiver;
@@ -1189,10 +1234,12 @@ impl Ctx<'_> {
         let mut shift = ph.shift;
         let d_in = ph.d;
         let mut fac = Bands::from_elem(0.0, nb);
+        // Return optical depth per band from the walk's start (the emitter side), and whether it
+        // is used (see above).
+        let mut tau_ret = Bands::from_elem(0.0, nb);
+        let mut exact = receiver.is_some() && ph.order == 0 && ph.direct;
         'restart: loop {
-            let Some(mut dda) = Dda::new(spec, p, ph.d) else {
-                return;
-            };
+            let mut dda = Dda::new(spec, p, ph.d)?;
             loop {
                 let c = dda.index();
                 if !self.empty[c] {
@@ -1206,8 +1253,17 @@ impl Ctx<'_> {
                     if let Some((_, th)) = fhit {
                         t1 = th.max(t0);
                     }
+                    if exact
+                        && self.inp.grid.facet_start[c] < self.inp.grid.facet_start[c + 1]
+                        && self.facet_behind(c, dda.point(0.0), ph.d, t0, t1)
+                    {
+                        exact = false;
+                    }
                     let ell = t1 - t0;
                     let kv = self.k_veg(c, g_cur);
+                    // Return extinction: turbid materials without a leaf size (with one, the return
+                    // goes back through the same gaps).
+                    let kr = if exact { self.k_return(c, g_cur) } else { 0.0 };
                     let fl = self.fluid_of(c);
                     let sig = |b: usize| fl.map_or(0.0, |f| f.sigma_e[b]);
                     // Emits one forced point: `fac` holds the per-band weight factors.
@@ -1218,6 +1274,12 @@ impl Ctx<'_> {
                                 out: &mut BatchOut,
                                 scratch: &mut [f64],
                                 tr: &mut [f64]| {
+                        let mut t_ret = Bands::from_elem(0.0, nb);
+                        if exact {
+                            for (b, t) in t_ret.iter_mut().enumerate() {
+                                *t = return_transmittance(tau_ret[b] + (kr + sig(b)) * u);
+                            }
+                        }
                         let mut g = |_: usize, ov: DVec3, s: &mut [f64]| {
                             if !phase(ov, s) {
                                 return false;
@@ -1233,6 +1295,7 @@ impl Ctx<'_> {
                                 ph,
                                 (at, shift, ph.path + travelled + t0 + u),
                                 None,
+                                exact.then_some(&t_ret[..]),
                                 out,
                                 scratch,
                                 tr,
@@ -1328,21 +1391,30 @@ impl Ctx<'_> {
                         for (b, t) in tau.iter_mut().enumerate() {
                             *t += (kv + sig(b)) * ell;
                         }
+                        if exact {
+                            for (b, t) in tau_ret.iter_mut().enumerate() {
+                                *t += (kr + sig(b)) * ell;
+                            }
+                        }
                     }
-                    if fhit.is_some() || tau.iter().cloned().fold(f64::INFINITY, f64::min) > 30.0 {
-                        return;
+                    if let Some((f, _)) = fhit {
+                        return exact.then_some((Some(f), tau_ret));
+                    }
+                    if tau.iter().cloned().fold(f64::INFINITY, f64::min) > 30.0 {
+                        return None;
                     }
                 }
                 match dda.advance() {
                     Exit::Inside => {}
-                    Exit::Top | Exit::Bottom => return,
+                    Exit::Top => return None,
+                    Exit::Bottom => return exact.then_some((None, tau_ret)),
                     Exit::Side(axis, s) => {
                         crossings += 1;
                         if spec.boundary == BoundaryMode::Isolated
                             || crossings > self.inp.params.max_crossings
                             || ph.path + travelled > self.max_path
                         {
-                            return;
+                            return None;
                         }
                         let e = dda.point(dda.t);
                         match self.wrap(e, axis, s) {
@@ -1353,7 +1425,7 @@ impl Ctx<'_> {
                                 skip = None;
                                 continue 'restart;
                             }
-                            None => return,
+                            None => return None,
                         }
                     }
                 }
@@ -1373,6 +1445,7 @@ impl Ctx<'_> {
         ph: &Photon,
         (p, shift, path): (DVec3, DVec3, f64),
         skip: Option<u32>,
+        known: Option<&[f64]>,
         out: &mut BatchOut,
         scratch: &mut [f64],
         tr: &mut [f64],
@@ -1392,6 +1465,32 @@ impl Ctx<'_> {
         if !f(usize::MAX, u, scratch) {
             return;
         }
+        if let Some(t) = known {
+            tr.copy_from_slice(t);
+        } else {
+            self.transmittance_to_receiver(ph, p, u, r, skip, tr);
+        }
+        if tr.iter().all(|&t| t <= 0.0) {
+            return;
+        }
+        let solid = rx.aperture_m2 * cos_rx / (r * r);
+        let e = ph.w[0] * scratch[0] * tr[0] * solid;
+        if let Some(wave) = out.wave.as_mut() {
+            wave.add(path + r, e, ph.order + 1);
+        }
+    }
+
+    /// Transmittance from `p` along `u` over the distance `r` to the receiver, with the
+    /// first-order gap correlation (leaf size > 0) of a photon that has not scattered yet.
+    fn transmittance_to_receiver(
+        &self,
+        ph: &Photon,
+        p: DVec3,
+        u: DVec3,
+        r: f64,
+        skip: Option<u32>,
+        tr: &mut [f64],
+    ) {
         let g: PerMaterial<f64> = Small::from_fn(self.tur_ids.len(), |tm| self.g_of(tm, u.z));
         // First-order return: back through the gaps the pulse came through (leaf size > 0).
         let hs: PerMaterial<[f64; 2]> = if ph.order == 0 && self.hs_leaf.iter().any(|&l| l > 0.0) {
@@ -1408,14 +1507,6 @@ impl Ctx<'_> {
             Small::from_elem([0.0; 2], 0)
         };
         self.transmittance(p, u, r, &g, &hs, skip, tr);
-        if tr.iter().all(|&t| t <= 0.0) {
-            return;
-        }
-        let solid = rx.aperture_m2 * cos_rx / (r * r);
-        let e = ph.w[0] * scratch[0] * tr[0] * solid;
-        if let Some(wave) = out.wave.as_mut() {
-            wave.add(path + r, e, ph.order + 1);
-        }
     }
 
     /// Adds `w_b · f_b · T_b(view)` to the peel tally of every view, where `f(v, out)` fills the
@@ -1433,7 +1524,17 @@ impl Ctx<'_> {
         mut f: impl FnMut(usize, DVec3, &mut [f64]) -> bool,
     ) {
         if let Some(rx) = &self.receiver {
-            self.peel_receiver(rx, ph, (p, ph.shift, ph.path), skip, out, scratch, tr, f);
+            self.peel_receiver(
+                rx,
+                ph,
+                (p, ph.shift, ph.path),
+                skip,
+                ph.ret.as_deref(),
+                out,
+                scratch,
+                tr,
+                f,
+            );
             return;
         }
         for v in 0..self.inp.views.len() {
@@ -1463,6 +1564,13 @@ impl Ctx<'_> {
             }
         }
     }
+}
+
+/// Transmittance `e^{−τ}` of a return optical depth τ, zero beyond τ = 69.1 (e^{−69.1} < 1e-30,
+/// the cut of [`Ctx::transmittance`]).
+#[inline]
+fn return_transmittance(tau: f64) -> f64 {
+    if tau > 69.1 { 0.0 } else { (-tau).exp() }
 }
 
 /// Marks a fluid collision in `Hit::Volume::c`.
@@ -1646,6 +1754,8 @@ fn run_batch(ctx: &Ctx, batch: u64, n: u64, source: &[f64]) -> BatchOut {
         off: 0,
         order: 0,
         skip_facet: None,
+        direct: false,
+        ret: None,
     };
     let n_dirs = ctx.omega.len();
     let discrete = inp.params.sampler.is_discrete();
@@ -1750,12 +1860,26 @@ fn trace_photon(
         let forced_fluid = inp.fluid.is_some() && inp.params.fluid_peel_points > 0;
         // Receiver mode: first flight only (a smooth first-order waveform); later orders use
         // the collision estimator (one receiver trace per event instead of one per crossing).
-        if (ctx.receiver.is_some() && ph.order == 0)
+        ph.ret = None;
+        let walk_end = if (ctx.receiver.is_some() && ph.order == 0)
             || (ctx.receiver.is_none() && forced_fluid && !inp.views.is_empty())
         {
-            ctx.forced_peel(ph, g_cur, rng, out, scratch, tr);
-        }
+            ctx.forced_peel(ph, g_cur, rng, out, scratch, tr)
+        } else {
+            None
+        };
         let hit = ctx.fly(ph, g_cur, rng, out);
+        // First flight ending on the surface its forced walk ended on: the collision peel-off
+        // reuses the walk's return transmittance (see `Ctx::forced_peel`).
+        ph.ret = match (&hit, walk_end) {
+            (Hit::Facet { f, .. }, Some((Some(g), tau))) if *f == g => {
+                Some(Small::from_fn(tau.len(), |b| return_transmittance(tau[b])))
+            }
+            (Hit::Ground { .. }, Some((None, tau))) => {
+                Some(Small::from_fn(tau.len(), |b| return_transmittance(tau[b])))
+            }
+            _ => None,
+        };
         match hit {
             Hit::Escape => {
                 let j = if discrete && ph.di < n_dirs {
@@ -2059,7 +2183,9 @@ fn trace_photon(
                 ph.skip_facet = Some(f);
                 if passed_through {
                     // Direct transmission is not a scattering event: same order, same flight
-                    // direction (continue without the roulette/order bookkeeping).
+                    // direction (continue without the roulette/order bookkeeping); the return
+                    // path now crosses this facet too.
+                    ph.direct = false;
                     continue;
                 }
             }
@@ -2384,6 +2510,8 @@ fn run_pulse(base: &Ctx, beam: &Beam, pl: &Pulse) -> PulseResult {
             off: 0,
             order: 0,
             skip_facet: None,
+            direct: true,
+            ret: None,
         };
         // Discrete mode: the pulse keeps its exact direction (its first scattering uses the
         // rows of the sector that contains it); later orders follow the discrete directions.
