@@ -550,6 +550,16 @@ struct BatchOut {
     wave: Option<crate::lidar::waveform::WaveformBinner>,
 }
 
+/// How a transmittance ray leaves the grid box.
+enum ExitTo {
+    /// Through the top (or out of an isolated scene toward the receiver): done.
+    Receiver,
+    /// Through the bottom, or lost: zero transmittance.
+    Blocked,
+    /// Through a repetitive side: continues from this re-entry point.
+    Wrapped(DVec3),
+}
+
 /// Where a flight ends.
 enum Hit {
     /// Volume collision in cell `c` at point `p`.
@@ -589,6 +599,10 @@ struct Ctx<'a> {
     view_sector: Vec<usize>,
     /// LiDAR receiver (receiver mode: peel-off toward it instead of the views).
     receiver: Option<Receiver>,
+    /// Per cell: nothing to interact with (no facet, no turbid entry with a density, no
+    /// fluid). Walks cross such cells without looking at their contents (same results bit for
+    /// bit: an empty cell adds nothing to optical depths and draws no random numbers).
+    empty: std::sync::Arc<[bool]>,
     /// Receiver mode: the end of the range gate (path length, m); photons that can no longer
     /// be recorded before it are dropped (booked as lost, see [`Ctx::beyond_gate`]).
     max_path: f64,
@@ -630,6 +644,12 @@ struct Photon {
     off: usize,
     order: u32,
     skip_facet: Option<u32>,
+    /// Receiver mode: still on the straight flight from the emitter (order 0, no facet passed
+    /// through), so the return path to the (monostatic) receiver is this flight reversed.
+    direct: bool,
+    /// Receiver mode: transmittance back to the receiver of the current event, when the
+    /// forced walk of the first flight already computed it (see [`Ctx::forced_peel`]).
+    ret: Option<Bands>,
 }
 
 impl<'a> Ctx<'a> {
@@ -668,7 +688,19 @@ impl<'a> Ctx<'a> {
             view_sector: inp.views.iter().map(|v| inp.dirs.find_sector(*v)).collect(),
             receiver: None,
             max_path: f64::INFINITY,
+            empty: std::sync::Arc::from(Vec::new()),
         };
+        let grid = inp.grid;
+        ctx.empty = (0..grid.facet_start.len().saturating_sub(1))
+            .map(|c| {
+                grid.facet_start[c] == grid.facet_start[c + 1]
+                    && grid
+                        .turbid_of(c)
+                        .iter()
+                        .all(|e| ctx.tur_mat[e.material as usize] == u32::MAX || e.density == 0.0)
+                    && ctx.fluid_of(c).is_none()
+            })
+            .collect();
         ctx.g_view = inp
             .views
             .iter()
@@ -816,6 +848,33 @@ impl Ctx<'_> {
         hit
     }
 
+    /// True if the segment `[t0, t1]` of the ray from `o` along `d` in cell `c` crosses a
+    /// one-sided facet from behind (not a hit for this ray, but one for the reversed ray).
+    fn facet_behind(&self, c: usize, o: DVec3, d: DVec3, t0: f64, t1: f64) -> bool {
+        self.inp.grid.facets_of(c).iter().any(|&f| {
+            let fa = &self.inp.facets[f as usize];
+            !fa.two_sided
+                && (fa.v[1] - fa.v[0]).cross(fa.v[2] - fa.v[0]).dot(d) >= 0.0
+                && intersect(&fa.v, o, d).is_some_and(|t| t >= t0 - 1e-12 && t <= t1 + 1e-12)
+        })
+    }
+
+    /// Extinction of the return path of a first-order LiDAR photon in cell `c` (m⁻¹): turbid
+    /// materials without a leaf size only (see [`Ctx::forced_peel`]); `g_cur` holds G of the
+    /// flight, equal to G of the reversed direction.
+    #[inline]
+    fn k_return(&self, c: usize, g_cur: &[f64]) -> f64 {
+        let mut k = 0.0;
+        for e in self.inp.grid.turbid_of(c) {
+            let tm = self.tur_mat[e.material as usize];
+            // hs_leaf is finite and >= 0 (validated scene input): no leaf size means 0.
+            if tm != u32::MAX && self.hs_leaf[tm as usize] <= 0.0 {
+                k += g_cur[tm as usize] * e.density as f64;
+            }
+        }
+        k
+    }
+
     /// Flies the photon to its next event; handles null collisions and boundary wrapping.
     fn fly(
         &self,
@@ -834,6 +893,15 @@ impl Ctx<'_> {
             loop {
                 out.crossings += 1;
                 let c = dda.index();
+                if self.empty[c] {
+                    match dda.advance() {
+                        Exit::Inside => continue,
+                        exit => match self.fly_exit(exit, &dda, ph, &mut crossings) {
+                            Some(hit) => return hit,
+                            None => continue 'restart,
+                        },
+                    }
+                }
                 let t0 = dda.t;
                 let mut t1 = dda.t_exit();
                 let fhit = if self.inp.grid.facet_start[c] < self.inp.grid.facet_start[c + 1] {
@@ -897,49 +965,59 @@ impl Ctx<'_> {
                 }
                 match dda.advance() {
                     Exit::Inside => {}
-                    Exit::Top => {
+                    exit => match self.fly_exit(exit, &dda, ph, &mut crossings) {
+                        Some(hit) => return hit,
+                        None => continue 'restart,
+                    },
+                }
+            }
+        }
+    }
+
+    /// A flight leaves the grid box through `exit` (not `Exit::Inside`) at `dda.t`: the hit it
+    /// ends with, or `None` after wrapping through a repetitive side (the photon then restarts
+    /// from its new position).
+    #[inline]
+    fn fly_exit(&self, exit: Exit, dda: &Dda, ph: &mut Photon, crossings: &mut u32) -> Option<Hit> {
+        let spec = self.inp.spec;
+        match exit {
+            Exit::Inside => None,
+            Exit::Top => {
+                ph.path += dda.t;
+                ph.p = dda.point(dda.t);
+                Some(Hit::Escape)
+            }
+            Exit::Bottom => {
+                ph.path += dda.t;
+                let p = dda.point(dda.t);
+                Some(if self.inp.flat_ground.is_some() {
+                    Hit::Ground { p }
+                } else {
+                    Hit::Lost
+                })
+            }
+            Exit::Side(axis, s) => {
+                if spec.boundary == BoundaryMode::Isolated {
+                    return Some(Hit::Lost);
+                }
+                *crossings += 1;
+                if *crossings > self.inp.params.max_crossings {
+                    return Some(Hit::Lost);
+                }
+                let e = dda.point(dda.t);
+                if ph.path + dda.t > self.max_path {
+                    return Some(Hit::Lost);
+                }
+                match self.wrap(e, axis, s) {
+                    Some(q) => {
                         ph.path += dda.t;
-                        ph.p = dda.point(dda.t);
-                        return Hit::Escape;
+                        // Unwrapped position = wrapped + shift (LiDAR geometry).
+                        ph.shift += e - q;
+                        ph.p = q;
+                        ph.skip_facet = None;
+                        None
                     }
-                    Exit::Bottom => {
-                        ph.path += dda.t;
-                        let p = dda.point(dda.t);
-                        return if self.inp.flat_ground.is_some() {
-                            Hit::Ground { p }
-                        } else {
-                            Hit::Lost
-                        };
-                    }
-                    Exit::Side(axis, s) => {
-                        if spec.boundary == BoundaryMode::Isolated {
-                            return Hit::Lost;
-                        }
-                        crossings += 1;
-                        if crossings > self.inp.params.max_crossings {
-                            return Hit::Lost;
-                        }
-                        let e = dda.point(dda.t);
-                        if ph.path + dda.t > self.max_path {
-                            return Hit::Lost;
-                        }
-                        match self.wrap(e, axis, s) {
-                            Some(q) => {
-                                ph.path += dda.t;
-                                // Unwrapped position = wrapped + shift (LiDAR geometry).
-                                ph.shift += e - q;
-                                ph.p = q;
-                                ph.skip_facet = None;
-                                continue 'restart;
-                            }
-                            None => {
-                                if ph.d.z > 0.0 {
-                                    return Hit::Escape;
-                                }
-                                return Hit::Lost;
-                            }
-                        }
-                    }
+                    None => Some(if ph.d.z > 0.0 { Hit::Escape } else { Hit::Lost }),
                 }
             }
         }
@@ -962,7 +1040,6 @@ impl Ctx<'_> {
         t_out: &mut [f64],
     ) {
         let spec = self.inp.spec;
-        let receiver = self.receiver.is_some();
         let mut travelled = 0.0;
         t_out.iter_mut().for_each(|t| *t = 1.0);
         let mut tau_v = 0.0; // band-independent optical depth (vegetation)
@@ -980,6 +1057,27 @@ impl Ctx<'_> {
                 let mut t1 = dda.t_exit();
                 // Receiver inside the grid (terrestrial LiDAR): stop at its distance.
                 let reached = travelled + t1 >= max_dist;
+                if self.empty[c] {
+                    if reached {
+                        break 'restart;
+                    }
+                    match dda.advance() {
+                        Exit::Inside => continue,
+                        exit => match self.transmittance_exit(exit, &dda, &mut crossings) {
+                            ExitTo::Receiver => break 'restart,
+                            ExitTo::Blocked => {
+                                t_out.iter_mut().for_each(|t| *t = 0.0);
+                                return;
+                            }
+                            ExitTo::Wrapped(q) => {
+                                travelled += dda.t;
+                                p = q;
+                                skip = None;
+                                continue 'restart;
+                            }
+                        },
+                    }
+                }
                 if reached {
                     t1 = (max_dist - travelled).max(t0);
                 }
@@ -1046,39 +1144,51 @@ impl Ctx<'_> {
                 }
                 match dda.advance() {
                     Exit::Inside => {}
-                    Exit::Top => break 'restart,
-                    Exit::Bottom => {
-                        t_out.iter_mut().for_each(|t| *t = 0.0);
-                        return;
-                    }
-                    Exit::Side(axis, s) => {
-                        crossings += 1;
-                        if spec.boundary == BoundaryMode::Isolated && receiver {
-                            // Outside an isolated scene there is nothing: the return reaches
-                            // the receiver.
-                            break 'restart;
-                        }
-                        if spec.boundary == BoundaryMode::Isolated
-                            || crossings > self.inp.params.max_crossings
-                        {
+                    exit => match self.transmittance_exit(exit, &dda, &mut crossings) {
+                        ExitTo::Receiver => break 'restart,
+                        ExitTo::Blocked => {
                             t_out.iter_mut().for_each(|t| *t = 0.0);
                             return;
                         }
-                        travelled += dda.t;
-                        match self.wrap(dda.point(dda.t), axis, s) {
-                            Some(q) => {
-                                p = q;
-                                skip = None;
-                                continue 'restart;
-                            }
-                            None => break 'restart,
+                        ExitTo::Wrapped(q) => {
+                            travelled += dda.t;
+                            p = q;
+                            skip = None;
+                            continue 'restart;
                         }
-                    }
+                    },
                 }
             }
         }
         let tv = (-tau_v).exp();
         t_out.iter_mut().for_each(|t| *t *= tv);
+    }
+
+    /// A transmittance ray leaves the grid box through `exit` (not `Exit::Inside`) at `dda.t`.
+    #[inline]
+    fn transmittance_exit(&self, exit: Exit, dda: &Dda, crossings: &mut u32) -> ExitTo {
+        let spec = self.inp.spec;
+        match exit {
+            Exit::Inside | Exit::Top => ExitTo::Receiver,
+            Exit::Bottom => ExitTo::Blocked,
+            Exit::Side(axis, s) => {
+                *crossings += 1;
+                if spec.boundary == BoundaryMode::Isolated && self.receiver.is_some() {
+                    // Outside an isolated scene there is nothing: the return reaches the
+                    // receiver.
+                    return ExitTo::Receiver;
+                }
+                if spec.boundary == BoundaryMode::Isolated
+                    || *crossings > self.inp.params.max_crossings
+                {
+                    return ExitTo::Blocked;
+                }
+                match self.wrap(dda.point(dda.t), axis, s) {
+                    Some(q) => ExitTo::Wrapped(q),
+                    None => ExitTo::Receiver,
+                }
+            }
+        }
     }
 
     /// Forced (expected-value) peel-off along the whole coming flight (Ray-Carlo K points per
@@ -1091,6 +1201,18 @@ impl Ctx<'_> {
     /// intensity `Γ/(πG)` (spherical closed form, else the one-leaf estimate with a sampled
     /// normal). The walk stops at the first facet, the ground, the top, an isolated side or when
     /// min_b τ_b > 30 (e^{−30} ≈ 1e-13).
+    ///
+    /// Receiver mode on the straight flight from the emitter (`ph.direct`): the receiver sits at
+    /// the emitter (monostatic), so the return path of a forced point is the flight walked so
+    /// far, reversed: its transmittance comes from the optical depth already accumulated
+    /// instead of a separate ray (same cells, G(−Ω) = G(Ω); turbid materials with a leaf size
+    /// add nothing on the way back, the exact-backscatter limit of
+    /// [`crate::radiative::engine::hotspot_terms_path`]; equal to the ray's value to rounding).
+    /// A cell where the flight crosses a one-sided facet from behind (which the return ray
+    /// would hit) falls back to the ray. Returns, in that mode, the return transmittance at
+    /// the end of the walk when it ends on a facet (`Some(f)`) or the bottom (`None`), for the
+    /// collision peel-off of the flight's surface hit.
+    #[allow(clippy::too_many_arguments)]
     fn forced_peel(
         &self,
         ph: &Photon,
@@ -1099,7 +1221,7 @@ impl Ctx<'_> {
         out: &mut BatchOut,
         scratch: &mut [f64],
         tr: &mut [f64],
-    ) {
+    ) -> Option<(Option<u32>, Bands)> {
         let spec = self.inp.spec;
         let nb = self.nb;
         let receiver = self.receiver;
@@ -1112,158 +1234,187 @@ impl Ctx<'_> {
         let mut shift = ph.shift;
         let d_in = ph.d;
         let mut fac = Bands::from_elem(0.0, nb);
+        // Return optical depth per band from the walk's start (the emitter side), and whether it
+        // is used (see above).
+        let mut tau_ret = Bands::from_elem(0.0, nb);
+        let mut exact = receiver.is_some() && ph.order == 0 && ph.direct;
         'restart: loop {
-            let Some(mut dda) = Dda::new(spec, p, ph.d) else {
-                return;
-            };
+            let mut dda = Dda::new(spec, p, ph.d)?;
             loop {
                 let c = dda.index();
-                let t0 = dda.t;
-                let mut t1 = dda.t_exit();
-                let fhit = if self.inp.grid.facet_start[c] < self.inp.grid.facet_start[c + 1] {
-                    self.facet_hit(c, dda.point(0.0), ph.d, t0, t1, skip)
-                } else {
-                    None
-                };
-                if let Some((_, th)) = fhit {
-                    t1 = th.max(t0);
-                }
-                let ell = t1 - t0;
-                let kv = self.k_veg(c, g_cur);
-                let fl = self.fluid_of(c);
-                let sig = |b: usize| fl.map_or(0.0, |f| f.sigma_e[b]);
-                // Emits one forced point: `fac` holds the per-band weight factors.
-                let emit = |at: DVec3,
-                            u: f64,
-                            fac: &[f64],
-                            phase: &mut dyn FnMut(DVec3, &mut [f64]) -> bool,
-                            out: &mut BatchOut,
-                            scratch: &mut [f64],
-                            tr: &mut [f64]| {
-                    let mut g = |_: usize, ov: DVec3, s: &mut [f64]| {
-                        if !phase(ov, s) {
-                            return false;
-                        }
-                        for b in 0..nb {
-                            s[b] *= fac[b];
-                        }
-                        true
+                if !self.empty[c] {
+                    let t0 = dda.t;
+                    let mut t1 = dda.t_exit();
+                    let fhit = if self.inp.grid.facet_start[c] < self.inp.grid.facet_start[c + 1] {
+                        self.facet_hit(c, dda.point(0.0), ph.d, t0, t1, skip)
+                    } else {
+                        None
                     };
-                    match &receiver {
-                        Some(rx) => self.peel_receiver(
-                            rx,
-                            ph,
-                            (at, shift, ph.path + travelled + t0 + u),
-                            None,
-                            out,
-                            scratch,
-                            tr,
-                            &mut g,
-                        ),
-                        None => self.peel(ph, at, None, false, out, scratch, tr, &mut g),
+                    if let Some((_, th)) = fhit {
+                        t1 = th.max(t0);
                     }
-                };
-                if ell > 0.0 {
-                    if let Some(f) = fl {
-                        let km = kv + f.sigma_e.iter().cloned().fold(0.0, f64::max);
-                        let norm = -(-km * ell).exp_m1(); // 1 − e^{−k_m ℓ}
-                        if km > 0.0 && norm > 0.0 {
-                            for _ in 0..k_pts {
-                                let u = -(1.0 - rng.next_f64() * norm).ln() / km;
-                                let q = km * (-km * u).exp() / norm;
-                                for (b, x) in fac.iter_mut().enumerate() {
-                                    *x = (-tau[b]).exp()
-                                        * f.sigma_e[b]
-                                        * (-(kv + f.sigma_e[b]) * u).exp()
-                                        / (q * k_pts as f64);
-                                }
-                                let mut phase = |ov: DVec3, s: &mut [f64]| {
-                                    let pv = f.phase.eval_dirs(d_in, ov) / (4.0 * PI);
-                                    for b in 0..nb {
-                                        s[b] = f.ssa[b] * pv;
+                    if exact
+                        && self.inp.grid.facet_start[c] < self.inp.grid.facet_start[c + 1]
+                        && self.facet_behind(c, dda.point(0.0), ph.d, t0, t1)
+                    {
+                        exact = false;
+                    }
+                    let ell = t1 - t0;
+                    let kv = self.k_veg(c, g_cur);
+                    // Return extinction: turbid materials without a leaf size (with one, the return
+                    // goes back through the same gaps).
+                    let kr = if exact { self.k_return(c, g_cur) } else { 0.0 };
+                    let fl = self.fluid_of(c);
+                    let sig = |b: usize| fl.map_or(0.0, |f| f.sigma_e[b]);
+                    // Emits one forced point: `fac` holds the per-band weight factors.
+                    let emit = |at: DVec3,
+                                u: f64,
+                                fac: &[f64],
+                                phase: &mut dyn FnMut(DVec3, &mut [f64]) -> bool,
+                                out: &mut BatchOut,
+                                scratch: &mut [f64],
+                                tr: &mut [f64]| {
+                        let mut t_ret = Bands::from_elem(0.0, nb);
+                        if exact {
+                            for (b, t) in t_ret.iter_mut().enumerate() {
+                                *t = return_transmittance(tau_ret[b] + (kr + sig(b)) * u);
+                            }
+                        }
+                        let mut g = |_: usize, ov: DVec3, s: &mut [f64]| {
+                            if !phase(ov, s) {
+                                return false;
+                            }
+                            for b in 0..nb {
+                                s[b] *= fac[b];
+                            }
+                            true
+                        };
+                        match &receiver {
+                            Some(rx) => self.peel_receiver(
+                                rx,
+                                ph,
+                                (at, shift, ph.path + travelled + t0 + u),
+                                None,
+                                exact.then_some(&t_ret[..]),
+                                out,
+                                scratch,
+                                tr,
+                                &mut g,
+                            ),
+                            None => self.peel(ph, at, None, false, out, scratch, tr, &mut g),
+                        }
+                    };
+                    if ell > 0.0 {
+                        if let Some(f) = fl {
+                            let km = kv + f.sigma_e.iter().cloned().fold(0.0, f64::max);
+                            let norm = -(-km * ell).exp_m1(); // 1 − e^{−k_m ℓ}
+                            if km > 0.0 && norm > 0.0 {
+                                for _ in 0..k_pts {
+                                    let u = -(1.0 - rng.next_f64() * norm).ln() / km;
+                                    let q = km * (-km * u).exp() / norm;
+                                    for (b, x) in fac.iter_mut().enumerate() {
+                                        *x = (-tau[b]).exp()
+                                            * f.sigma_e[b]
+                                            * (-(kv + f.sigma_e[b]) * u).exp()
+                                            / (q * k_pts as f64);
                                     }
-                                    true
+                                    let mut phase = |ov: DVec3, s: &mut [f64]| {
+                                        let pv = f.phase.eval_dirs(d_in, ov) / (4.0 * PI);
+                                        for b in 0..nb {
+                                            s[b] = f.ssa[b] * pv;
+                                        }
+                                        true
+                                    };
+                                    emit(dda.point(t0 + u), u, &fac, &mut phase, out, scratch, tr);
+                                }
+                            }
+                        }
+                        if receiver.is_some() && kv > 0.0 {
+                            let norm = -(-kv * ell).exp_m1();
+                            for _ in 0..k_pts {
+                                let u = -(1.0 - rng.next_f64() * norm).ln() / kv;
+                                // Density kv e^{−kv u}/norm; per-band weight e^{−τ_b − σ_b u}·norm/K.
+                                for (b, x) in fac.iter_mut().enumerate() {
+                                    *x = (-tau[b] - sig(b) * u).exp() * norm / k_pts as f64;
+                                }
+                                // Material in proportion to its extinction.
+                                let mut r = rng.next_f64() * kv;
+                                let mut mid = None;
+                                for e in self.inp.grid.turbid_of(c) {
+                                    let tm = self.tur_mat[e.material as usize];
+                                    if tm == u32::MAX {
+                                        continue;
+                                    }
+                                    let k = g_cur[tm as usize] * e.density as f64;
+                                    mid = Some((e.material as usize, tm as usize));
+                                    if r < k {
+                                        break;
+                                    }
+                                    r -= k;
+                                }
+                                let Some((mid, tm)) = mid else { continue };
+                                let PhotonOptics::Turbid {
+                                    sampler,
+                                    kernel,
+                                    rho,
+                                    tau: tl,
+                                    ..
+                                } = &self.inp.optics[mid]
+                                else {
+                                    continue;
+                                };
+                                let g_in = g_cur[tm].max(1e-12);
+                                let closed = kernel.is_closed_form();
+                                let n = if closed {
+                                    DVec3::Z
+                                } else {
+                                    sampler.sample_normal(d_in, rng)
+                                };
+                                let mut phase = |ov: DVec3, s: &mut [f64]| {
+                                    if closed {
+                                        let (gr, gt) = kernel.gamma_components(d_in, ov);
+                                        for b in 0..nb {
+                                            s[b] = (rho[b] * gr + tl[b] * gt) / (PI * g_in);
+                                        }
+                                    } else {
+                                        let cz = ov.dot(n);
+                                        let fl = if cz > 0.0 { rho } else { tl };
+                                        for b in 0..nb {
+                                            s[b] = fl[b] * cz.abs() / PI;
+                                        }
+                                    }
+                                    s.iter().any(|&x| x > 0.0)
                                 };
                                 emit(dda.point(t0 + u), u, &fac, &mut phase, out, scratch, tr);
                             }
                         }
-                    }
-                    if receiver.is_some() && kv > 0.0 {
-                        let norm = -(-kv * ell).exp_m1();
-                        for _ in 0..k_pts {
-                            let u = -(1.0 - rng.next_f64() * norm).ln() / kv;
-                            // Density kv e^{−kv u}/norm; per-band weight e^{−τ_b − σ_b u}·norm/K.
-                            for (b, x) in fac.iter_mut().enumerate() {
-                                *x = (-tau[b] - sig(b) * u).exp() * norm / k_pts as f64;
+                        for (b, t) in tau.iter_mut().enumerate() {
+                            *t += (kv + sig(b)) * ell;
+                        }
+                        if exact {
+                            for (b, t) in tau_ret.iter_mut().enumerate() {
+                                *t += (kr + sig(b)) * ell;
                             }
-                            // Material in proportion to its extinction.
-                            let mut r = rng.next_f64() * kv;
-                            let mut mid = None;
-                            for e in self.inp.grid.turbid_of(c) {
-                                let tm = self.tur_mat[e.material as usize];
-                                if tm == u32::MAX {
-                                    continue;
-                                }
-                                let k = g_cur[tm as usize] * e.density as f64;
-                                mid = Some((e.material as usize, tm as usize));
-                                if r < k {
-                                    break;
-                                }
-                                r -= k;
-                            }
-                            let Some((mid, tm)) = mid else { continue };
-                            let PhotonOptics::Turbid {
-                                sampler,
-                                kernel,
-                                rho,
-                                tau: tl,
-                                ..
-                            } = &self.inp.optics[mid]
-                            else {
-                                continue;
-                            };
-                            let g_in = g_cur[tm].max(1e-12);
-                            let closed = kernel.is_closed_form();
-                            let n = if closed {
-                                DVec3::Z
-                            } else {
-                                sampler.sample_normal(d_in, rng)
-                            };
-                            let mut phase = |ov: DVec3, s: &mut [f64]| {
-                                if closed {
-                                    let (gr, gt) = kernel.gamma_components(d_in, ov);
-                                    for b in 0..nb {
-                                        s[b] = (rho[b] * gr + tl[b] * gt) / (PI * g_in);
-                                    }
-                                } else {
-                                    let cz = ov.dot(n);
-                                    let fl = if cz > 0.0 { rho } else { tl };
-                                    for b in 0..nb {
-                                        s[b] = fl[b] * cz.abs() / PI;
-                                    }
-                                }
-                                s.iter().any(|&x| x > 0.0)
-                            };
-                            emit(dda.point(t0 + u), u, &fac, &mut phase, out, scratch, tr);
                         }
                     }
-                    for (b, t) in tau.iter_mut().enumerate() {
-                        *t += (kv + sig(b)) * ell;
+                    if let Some((f, _)) = fhit {
+                        return exact.then_some((Some(f), tau_ret));
                     }
-                }
-                if fhit.is_some() || tau.iter().cloned().fold(f64::INFINITY, f64::min) > 30.0 {
-                    return;
+                    if tau.iter().cloned().fold(f64::INFINITY, f64::min) > 30.0 {
+                        return None;
+                    }
                 }
                 match dda.advance() {
                     Exit::Inside => {}
-                    Exit::Top | Exit::Bottom => return,
+                    Exit::Top => return None,
+                    Exit::Bottom => return exact.then_some((None, tau_ret)),
                     Exit::Side(axis, s) => {
                         crossings += 1;
                         if spec.boundary == BoundaryMode::Isolated
                             || crossings > self.inp.params.max_crossings
                             || ph.path + travelled > self.max_path
                         {
-                            return;
+                            return None;
                         }
                         let e = dda.point(dda.t);
                         match self.wrap(e, axis, s) {
@@ -1274,7 +1425,7 @@ impl Ctx<'_> {
                                 skip = None;
                                 continue 'restart;
                             }
-                            None => return,
+                            None => return None,
                         }
                     }
                 }
@@ -1294,6 +1445,7 @@ impl Ctx<'_> {
         ph: &Photon,
         (p, shift, path): (DVec3, DVec3, f64),
         skip: Option<u32>,
+        known: Option<&[f64]>,
         out: &mut BatchOut,
         scratch: &mut [f64],
         tr: &mut [f64],
@@ -1313,6 +1465,32 @@ impl Ctx<'_> {
         if !f(usize::MAX, u, scratch) {
             return;
         }
+        if let Some(t) = known {
+            tr.copy_from_slice(t);
+        } else {
+            self.transmittance_to_receiver(ph, p, u, r, skip, tr);
+        }
+        if tr.iter().all(|&t| t <= 0.0) {
+            return;
+        }
+        let solid = rx.aperture_m2 * cos_rx / (r * r);
+        let e = ph.w[0] * scratch[0] * tr[0] * solid;
+        if let Some(wave) = out.wave.as_mut() {
+            wave.add(path + r, e, ph.order + 1);
+        }
+    }
+
+    /// Transmittance from `p` along `u` over the distance `r` to the receiver, with the
+    /// first-order gap correlation (leaf size > 0) of a photon that has not scattered yet.
+    fn transmittance_to_receiver(
+        &self,
+        ph: &Photon,
+        p: DVec3,
+        u: DVec3,
+        r: f64,
+        skip: Option<u32>,
+        tr: &mut [f64],
+    ) {
         let g: PerMaterial<f64> = Small::from_fn(self.tur_ids.len(), |tm| self.g_of(tm, u.z));
         // First-order return: back through the gaps the pulse came through (leaf size > 0).
         let hs: PerMaterial<[f64; 2]> = if ph.order == 0 && self.hs_leaf.iter().any(|&l| l > 0.0) {
@@ -1329,14 +1507,6 @@ impl Ctx<'_> {
             Small::from_elem([0.0; 2], 0)
         };
         self.transmittance(p, u, r, &g, &hs, skip, tr);
-        if tr.iter().all(|&t| t <= 0.0) {
-            return;
-        }
-        let solid = rx.aperture_m2 * cos_rx / (r * r);
-        let e = ph.w[0] * scratch[0] * tr[0] * solid;
-        if let Some(wave) = out.wave.as_mut() {
-            wave.add(path + r, e, ph.order + 1);
-        }
     }
 
     /// Adds `w_b · f_b · T_b(view)` to the peel tally of every view, where `f(v, out)` fills the
@@ -1354,7 +1524,17 @@ impl Ctx<'_> {
         mut f: impl FnMut(usize, DVec3, &mut [f64]) -> bool,
     ) {
         if let Some(rx) = &self.receiver {
-            self.peel_receiver(rx, ph, (p, ph.shift, ph.path), skip, out, scratch, tr, f);
+            self.peel_receiver(
+                rx,
+                ph,
+                (p, ph.shift, ph.path),
+                skip,
+                ph.ret.as_deref(),
+                out,
+                scratch,
+                tr,
+                f,
+            );
             return;
         }
         for v in 0..self.inp.views.len() {
@@ -1384,6 +1564,13 @@ impl Ctx<'_> {
             }
         }
     }
+}
+
+/// Transmittance `e^{−τ}` of a return optical depth τ, zero beyond τ = 69.1 (e^{−69.1} < 1e-30,
+/// the cut of [`Ctx::transmittance`]).
+#[inline]
+fn return_transmittance(tau: f64) -> f64 {
+    if tau > 69.1 { 0.0 } else { (-tau).exp() }
 }
 
 /// Marks a fluid collision in `Hit::Volume::c`.
@@ -1567,6 +1754,8 @@ fn run_batch(ctx: &Ctx, batch: u64, n: u64, source: &[f64]) -> BatchOut {
         off: 0,
         order: 0,
         skip_facet: None,
+        direct: false,
+        ret: None,
     };
     let n_dirs = ctx.omega.len();
     let discrete = inp.params.sampler.is_discrete();
@@ -1671,12 +1860,26 @@ fn trace_photon(
         let forced_fluid = inp.fluid.is_some() && inp.params.fluid_peel_points > 0;
         // Receiver mode: first flight only (a smooth first-order waveform); later orders use
         // the collision estimator (one receiver trace per event instead of one per crossing).
-        if (ctx.receiver.is_some() && ph.order == 0)
+        ph.ret = None;
+        let walk_end = if (ctx.receiver.is_some() && ph.order == 0)
             || (ctx.receiver.is_none() && forced_fluid && !inp.views.is_empty())
         {
-            ctx.forced_peel(ph, g_cur, rng, out, scratch, tr);
-        }
+            ctx.forced_peel(ph, g_cur, rng, out, scratch, tr)
+        } else {
+            None
+        };
         let hit = ctx.fly(ph, g_cur, rng, out);
+        // First flight ending on the surface its forced walk ended on: the collision peel-off
+        // reuses the walk's return transmittance (see `Ctx::forced_peel`).
+        ph.ret = match (&hit, walk_end) {
+            (Hit::Facet { f, .. }, Some((Some(g), tau))) if *f == g => {
+                Some(Small::from_fn(tau.len(), |b| return_transmittance(tau[b])))
+            }
+            (Hit::Ground { .. }, Some((None, tau))) => {
+                Some(Small::from_fn(tau.len(), |b| return_transmittance(tau[b])))
+            }
+            _ => None,
+        };
         match hit {
             Hit::Escape => {
                 let j = if discrete && ph.di < n_dirs {
@@ -1980,7 +2183,9 @@ fn trace_photon(
                 ph.skip_facet = Some(f);
                 if passed_through {
                     // Direct transmission is not a scattering event: same order, same flight
-                    // direction (continue without the roulette/order bookkeeping).
+                    // direction (continue without the roulette/order bookkeeping); the return
+                    // path now crosses this facet too.
+                    ph.direct = false;
                     continue;
                 }
             }
@@ -2305,6 +2510,8 @@ fn run_pulse(base: &Ctx, beam: &Beam, pl: &Pulse) -> PulseResult {
             off: 0,
             order: 0,
             skip_facet: None,
+            direct: true,
+            ret: None,
         };
         // Discrete mode: the pulse keeps its exact direction (its first scattering uses the
         // rows of the sector that contains it); later orders follow the discrete directions.
