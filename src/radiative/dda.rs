@@ -126,7 +126,10 @@ impl Dda {
     /// Distance at which the ray leaves the current cell.
     #[inline]
     pub fn t_exit(&self) -> f64 {
-        self.t_max[0].min(self.t_max[1]).min(self.t_max[2])
+        // A plain comparison (one `minsd`) rather than `f64::min`'s NaN handling: t_max is
+        // never NaN (an axis with d = 0 never steps and keeps +∞).
+        let m = |a: f64, b: f64| if b < a { b } else { a };
+        m(m(self.t_max[0], self.t_max[1]), self.t_max[2])
     }
 
     /// Point at distance t.

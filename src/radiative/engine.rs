@@ -466,97 +466,166 @@ const N_CHUNKS: usize = 16;
 /// Largest dense per-chunk accumulator, in f64 values (8 MiB); larger grids use hash maps.
 const DENSE_LIMIT: usize = 1 << 20;
 
-/// Per-chunk accumulator of fixed-width records keyed by an index (dense array when small,
-/// hash map otherwise). Accumulation inside a chunk is sequential, so results do not depend on
-/// scheduling.
-enum KeyAcc {
-    Dense {
-        width: usize,
-        data: Vec<f64>,
-        touched: Vec<u32>,
-        flag: Vec<bool>,
-    },
-    Sparse {
-        width: usize,
-        index: std::collections::HashMap<u32, usize>,
-        keys: Vec<u32>,
-        data: Vec<f64>,
-    },
+/// Per-chunk hash-map accumulator of fixed-width records keyed by an index (the turbid
+/// accumulators of large grids, see [`TurAcc`]). Accumulation inside a chunk is sequential, so
+/// results do not depend on scheduling.
+struct KeyAcc {
+    width: usize,
+    index: std::collections::HashMap<u32, usize>,
+    keys: Vec<u32>,
+    data: Vec<f64>,
 }
 
 impl KeyAcc {
-    fn new(n_keys: usize, width: usize) -> Self {
-        if n_keys * width <= DENSE_LIMIT {
-            KeyAcc::Dense {
-                width,
-                data: vec![0.0; n_keys * width],
-                touched: Vec::new(),
-                flag: vec![false; n_keys],
-            }
-        } else {
-            KeyAcc::Sparse {
-                width,
-                index: Default::default(),
-                keys: Vec::new(),
-                data: Vec::new(),
-            }
+    fn new(width: usize) -> Self {
+        KeyAcc {
+            width,
+            index: Default::default(),
+            keys: Vec::new(),
+            data: Vec::new(),
         }
     }
 
     #[inline(always)]
     fn get(&mut self, key: u32) -> &mut [f64] {
-        match self {
-            KeyAcc::Dense {
-                width,
-                data,
-                touched,
-                flag,
-            } => {
-                if !flag[key as usize] {
-                    flag[key as usize] = true;
-                    touched.push(key);
-                }
-                let s = key as usize * *width;
-                &mut data[s..s + *width]
-            }
-            KeyAcc::Sparse {
-                width,
-                index,
-                keys,
-                data,
-            } => {
-                let w = *width;
-                let off = *index.entry(key).or_insert_with(|| {
-                    keys.push(key);
-                    data.extend(std::iter::repeat_n(0.0, w));
-                    data.len() - w
-                });
-                &mut data[off..off + w]
-            }
-        }
+        let w = self.width;
+        let (keys, data) = (&mut self.keys, &mut self.data);
+        let off = *self.index.entry(key).or_insert_with(|| {
+            keys.push(key);
+            data.extend(std::iter::repeat_n(0.0, w));
+            data.len() - w
+        });
+        &mut self.data[off..off + w]
     }
 
     /// Visits every record that was touched, in first-touch order.
     fn for_each(&self, mut f: impl FnMut(u32, &[f64])) {
+        for (i, &k) in self.keys.iter().enumerate() {
+            f(k, &self.data[i * self.width..(i + 1) * self.width]);
+        }
+    }
+}
+
+/// Per-chunk turbid accumulators: intercepted power per (entry, incidence slot) and the
+/// weighted interception points per entry (Σw·p_first (3), Σw·p_second (3), Σw), written once
+/// per cell crossing. Dense (small grids, the common case): flat arrays with one first-touch
+/// flag per entry, checked once per crossing for both records (every power record of an entry
+/// comes with a points record); records are visited per touched entry, slots ascending, skipping
+/// all-zero slots. Sparse (large grids): [`KeyAcc`] hash maps.
+enum TurAcc {
+    Dense {
+        ns: usize,
+        w: usize,
+        tur: Vec<f64>,
+        pts: Vec<f64>,
+        flag: Vec<bool>,
+        touched: Vec<u32>,
+    },
+    Sparse {
+        ns: usize,
+        tur: KeyAcc,
+        pts: KeyAcc,
+    },
+}
+
+impl TurAcc {
+    fn new(n_entries: usize, ns: usize, w: usize) -> Self {
+        if n_entries * ns * w <= DENSE_LIMIT && n_entries * 7 <= DENSE_LIMIT {
+            TurAcc::Dense {
+                ns,
+                w,
+                tur: vec![0.0; n_entries * ns * w],
+                pts: vec![0.0; n_entries * 7],
+                flag: vec![false; n_entries],
+                touched: Vec::new(),
+            }
+        } else {
+            TurAcc::Sparse {
+                ns,
+                tur: KeyAcc::new(w),
+                pts: KeyAcc::new(7),
+            }
+        }
+    }
+
+    /// One interception by entry `e` from slot `slot`: `pw[ch] · f1 · f2` W per channel, and
+    /// the two interception points with weight `wt`.
+    #[allow(clippy::too_many_arguments)]
+    #[inline(always)]
+    fn add(
+        &mut self,
+        e: u32,
+        slot: u32,
+        pw: &[f64],
+        f1: f64,
+        f2: f64,
+        p1: DVec3,
+        p2: DVec3,
+        wt: f64,
+    ) {
         match self {
-            KeyAcc::Dense {
-                width,
-                data,
+            TurAcc::Dense {
+                ns,
+                w,
+                tur,
+                pts,
+                flag,
+                touched,
+            } => {
+                let e = e as usize;
+                if !flag[e] {
+                    flag[e] = true;
+                    touched.push(e as u32);
+                }
+                let s = (e * *ns + slot as usize) * *w;
+                for (r, v) in tur[s..s + *w].iter_mut().zip(pw) {
+                    *r += v * f1 * f2;
+                }
+                add_points(&mut pts[e * 7..e * 7 + 7], p1, p2, wt);
+            }
+            TurAcc::Sparse { ns, tur, pts } => {
+                let rec = tur.get(e * *ns as u32 + slot);
+                for (r, v) in rec.iter_mut().zip(pw) {
+                    *r += v * f1 * f2;
+                }
+                add_points(pts.get(e), p1, p2, wt);
+            }
+        }
+    }
+
+    /// Visits the power records: (`entry × ns + slot`, W per channel).
+    fn for_each_tur(&self, mut f: impl FnMut(u32, &[f64])) {
+        match self {
+            TurAcc::Dense {
+                ns,
+                w,
+                tur,
                 touched,
                 ..
             } => {
-                for &k in touched {
-                    let s = k as usize * *width;
-                    f(k, &data[s..s + *width]);
+                for &e in touched {
+                    for slot in 0..*ns {
+                        let key = e as usize * *ns + slot;
+                        let v = &tur[key * *w..(key + 1) * *w];
+                        if v.iter().any(|&x| x != 0.0) {
+                            f(key as u32, v);
+                        }
+                    }
                 }
             }
-            KeyAcc::Sparse {
-                width, keys, data, ..
-            } => {
-                for (i, &k) in keys.iter().enumerate() {
-                    f(k, &data[i * *width..(i + 1) * *width]);
+            TurAcc::Sparse { tur, .. } => tur.for_each(f),
+        }
+    }
+
+    /// Visits the points records: (entry, 7 values).
+    fn for_each_pts(&self, mut f: impl FnMut(u32, &[f64])) {
+        match self {
+            TurAcc::Dense { pts, touched, .. } => {
+                for &e in touched {
+                    f(e, &pts[e as usize * 7..e as usize * 7 + 7]);
                 }
             }
+            TurAcc::Sparse { pts, .. } => pts.for_each(f),
         }
     }
 }
@@ -569,10 +638,9 @@ fn chunk_len(n: usize) -> usize {
 /// Per-chunk results, merged in chunk order.
 #[derive(Default)]
 struct ChunkOut {
-    /// Turbid interceptions keyed by `entry × slots + slot` (W values).
-    tur: Option<KeyAcc>,
-    /// Turbid interception points keyed by entry: Σw·p_first (3), Σw·p_second (3), Σw.
-    tur_pts: Option<KeyAcc>,
+    /// Turbid interceptions and interception points (boxed: taken out for each ray's duration
+    /// by moving a pointer).
+    tur: Option<Box<TurAcc>>,
     /// Facet events: (facet-ref index, facet id, from_front, sub-cell, slot); values: W
     /// intercepted + hit(3) + weight.
     fac_key: Vec<(u32, u32, bool, u32, u32)>,
@@ -738,6 +806,21 @@ struct Ctx<'a> {
     hs_dir: Vec<bool>,
     /// Pixel grid of the orthographic images.
     image_grid: ImageGrid,
+    /// The scene fits [`Ctx::trace_simple`]: no facets, at most one tracked turbid entry per
+    /// cell, no topography offset (hotspot rays always take [`Ctx::trace_w`]).
+    simple: bool,
+    /// Per cell, for [`Ctx::trace_simple`]: its turbid entry (density 0: none).
+    scells: Vec<SimpleCell>,
+}
+
+/// A cell as [`Ctx::trace_simple`] reads it (16 bytes): leaf area volume density u_f
+/// (m² m⁻³, 0 for a cell without tracked turbid entry), turbid material slot (column of the
+/// G rows) and entry index (into `CellGrid::turbid`).
+#[derive(Debug, Clone, Copy, Default)]
+struct SimpleCell {
+    density: f64,
+    tm: u32,
+    idx: u32,
 }
 
 impl Ctx<'_> {
@@ -830,6 +913,154 @@ impl Ctx<'_> {
         out.img_val.extend_from_slice(pw);
     }
 
+    /// A ray leaving the grid through the bottom at `hp` with powers `pw` (sum `psum`) from
+    /// slot `slot`: intercepted by the flat ground (one event per column and sub-column), or
+    /// lost when the scene has none.
+    fn bottom(&self, hp: DVec3, slot: u32, pw: &[f64], psum: f64, out: &mut ChunkOut) {
+        let spec = self.inp.spec;
+        if self.inp.flat_ground.is_some() {
+            let i = floor_i64((hp.x - spec.origin.x) / spec.cell.x).clamp(0, spec.n[0] as i64 - 1)
+                as usize;
+            let j = floor_i64((hp.y - spec.origin.y) / spec.cell.y).clamp(0, spec.n[1] as i64 - 1)
+                as usize;
+            let sub = self.sub_index(hp, [i, j, 0], 2);
+            out.gnd_key.push(((i + spec.n[0] * j) as u32, slot, sub));
+            out.gnd_val.extend_from_slice(pw);
+            out.gnd_val.extend_from_slice(&[hp.x, hp.y, hp.z, psum]);
+        } else {
+            add(&mut out.lost, pw);
+        }
+    }
+
+    /// Lean tracker for the common case (see [`Ctx::simple`]): turbid cells with at most one
+    /// tracked entry, no facets, no hotspot, flat top and bottom, repetitive boundaries without
+    /// an altitude offset or isolated ones. Same physics and bookkeeping as [`Ctx::trace_w`]
+    /// (one exact attenuation `e^{−kℓ}` per crossing, the two DART interception points, the
+    /// ray dropped below the power threshold), with one 16-byte cell record per crossing
+    /// (`k = G_m(Ω) u_m` from the ray's G row), the periodic re-entries done in place
+    /// ([`Dda::wrap_sides`]), no facet, hotspot or restart logic, and the dense accumulator's
+    /// slices borrowed once per ray.
+    fn trace_simple<const W: usize>(
+        &self,
+        p: DVec3,
+        dir: usize,
+        pw: &mut [f64],
+        tur: &mut TurAcc,
+        out: &mut ChunkOut,
+    ) {
+        let w = if W == 0 { self.w } else { W };
+        let slot = self.slot_of(dir) as u32;
+        match tur {
+            TurAcc::Dense {
+                ns,
+                tur,
+                pts,
+                flag,
+                touched,
+                ..
+            } => {
+                let ns = *ns;
+                self.walk_simple::<W>(p, dir, pw, out, |e, pw, frac, p1, p2, wt| {
+                    let e = e as usize;
+                    if !flag[e] {
+                        flag[e] = true;
+                        touched.push(e as u32);
+                    }
+                    let s = (e * ns + slot as usize) * w;
+                    for (r, v) in tur[s..s + w].iter_mut().zip(pw) {
+                        *r += v * frac * 1.0;
+                    }
+                    add_points(&mut pts[e * 7..e * 7 + 7], p1, p2, wt);
+                });
+            }
+            sparse => self.walk_simple::<W>(p, dir, pw, out, |e, pw, frac, p1, p2, wt| {
+                sparse.add(e, slot, pw, frac, 1.0, p1, p2, wt)
+            }),
+        }
+    }
+
+    /// The walk of [`Ctx::trace_simple`]; `sink(entry, pw, 1 − e^{−kℓ}, p1, p2, weight)` books
+    /// each interception.
+    #[inline(always)]
+    fn walk_simple<const W: usize>(
+        &self,
+        p: DVec3,
+        dir: usize,
+        pw: &mut [f64],
+        out: &mut ChunkOut,
+        mut sink: impl FnMut(u32, &[f64], f64, DVec3, DVec3, f64),
+    ) {
+        let w = if W == 0 { self.w } else { W };
+        let pw = &mut pw[..w];
+        let spec = self.inp.spec;
+        let d = self.omega[dir];
+        let slot = self.slot_of(dir) as u32;
+        let n_tm = self.n_tm;
+        let gd = &self.g_dir[dir * n_tm..(dir + 1) * n_tm];
+        let hb = HalfBarycentres::get();
+        let isolated = spec.boundary == BoundaryMode::Isolated;
+        let max_crossings = self.inp.params.max_crossings;
+        let min_ray = self.min_ray;
+        let scells = &self.scells[..];
+        out.rays += 1;
+        let Some(mut dda) = Dda::new(spec, p, d) else {
+            add(&mut out.lost, pw);
+            return;
+        };
+        let mut n_cross = 0u64;
+        let mut wraps = 0u32;
+        let mut psum: f64 = pw.iter().sum();
+        loop {
+            n_cross += 1;
+            let sc = scells[dda.index()];
+            let t0 = dda.t;
+            let t1 = dda.t_exit();
+            if sc.density > 0.0 && t1 > t0 {
+                let ell = t1 - t0;
+                let k = gd[sc.tm as usize] * sc.density;
+                if k > 0.0 {
+                    let x = k * ell;
+                    let (frac, tr) = attenuation(x);
+                    let (s1, s2) = hb.eval(x, ell);
+                    let p1 = dda.point(t0 + s1);
+                    let p2 = dda.point(t0 + s2);
+                    sink(sc.idx, pw, frac, p1, p2, psum * frac);
+                    for v in pw.iter_mut() {
+                        *v *= tr;
+                    }
+                    psum = pw.iter().sum();
+                    if psum < min_ray {
+                        add(&mut out.lost, pw);
+                        break;
+                    }
+                }
+            }
+            match dda.advance() {
+                Exit::Inside => {}
+                Exit::Top => {
+                    self.escape(dda.point(dda.t), dir, pw, out);
+                    break;
+                }
+                Exit::Bottom => {
+                    self.bottom(dda.point(dda.t), slot, pw, psum, out);
+                    break;
+                }
+                Exit::Side(..) => {
+                    if isolated {
+                        add(&mut out.lost, pw);
+                        break;
+                    }
+                    wraps += dda.wrap_sides();
+                    if wraps > max_crossings {
+                        add(&mut out.lost, pw);
+                        break;
+                    }
+                }
+            }
+        }
+        out.crossings += n_cross;
+    }
+
     /// Traces one ray; `pw` holds the channel powers and is consumed.
     fn trace(
         &self,
@@ -868,15 +1099,18 @@ impl Ctx<'_> {
         out: &mut ChunkOut,
     ) {
         let mut tur = out.tur.take().expect("accumulator");
-        let mut pts = out.tur_pts.take().expect("accumulator");
-        match self.w {
-            1 => self.trace_w::<1, HS>(p, dir, skip_facet, pw, &mut tur, &mut pts, out),
-            2 => self.trace_w::<2, HS>(p, dir, skip_facet, pw, &mut tur, &mut pts, out),
-            4 => self.trace_w::<4, HS>(p, dir, skip_facet, pw, &mut tur, &mut pts, out),
-            _ => self.trace_w::<0, HS>(p, dir, skip_facet, pw, &mut tur, &mut pts, out),
+        let simple = !HS && self.simple;
+        match (self.w, simple) {
+            (1, true) => self.trace_simple::<1>(p, dir, pw, &mut tur, out),
+            (2, true) => self.trace_simple::<2>(p, dir, pw, &mut tur, out),
+            (4, true) => self.trace_simple::<4>(p, dir, pw, &mut tur, out),
+            (_, true) => self.trace_simple::<0>(p, dir, pw, &mut tur, out),
+            (1, false) => self.trace_w::<1, HS>(p, dir, skip_facet, pw, &mut tur, out),
+            (2, false) => self.trace_w::<2, HS>(p, dir, skip_facet, pw, &mut tur, out),
+            (4, false) => self.trace_w::<4, HS>(p, dir, skip_facet, pw, &mut tur, out),
+            _ => self.trace_w::<0, HS>(p, dir, skip_facet, pw, &mut tur, out),
         }
         out.tur = Some(tur);
-        out.tur_pts = Some(pts);
     }
 
     /// [`Ctx::trace`] for `W` channels (`W = 0`: any count, read from `self.w`); `HS`: with the
@@ -893,8 +1127,7 @@ impl Ctx<'_> {
         dir: usize,
         mut skip_facet: Option<u32>,
         pw: &mut [f64],
-        tur: &mut KeyAcc,
-        pts: &mut KeyAcc,
+        tur: &mut TurAcc,
         out: &mut ChunkOut,
     ) {
         let w = if W == 0 { self.w } else { W };
@@ -903,7 +1136,6 @@ impl Ctx<'_> {
         let grid = self.inp.grid;
         let d = self.omega[dir];
         let slot = self.slot_of(dir) as u32;
-        let n_slots = self.n_slots as u32;
         let n_tm = self.n_tm;
         // G of every turbid material along this direction.
         let gd = &self.g_dir[dir * n_tm..(dir + 1) * n_tm];
@@ -995,19 +1227,11 @@ impl Ctx<'_> {
                         let wsum = psum * frac;
                         if let [e] = ents {
                             // One material: share = k/k = 1 exactly.
-                            let rec = &mut tur.get(e.idx * n_slots + slot)[..w];
-                            for (r, v) in rec.iter_mut().zip(pw.iter()) {
-                                *r += v * frac;
-                            }
-                            add_points(pts.get(e.idx), p1, p2, wsum);
+                            tur.add(e.idx, slot, pw, frac, 1.0, p1, p2, wsum);
                         } else {
                             for e in ents {
                                 let share = k_of(e) / k;
-                                let rec = &mut tur.get(e.idx * n_slots + slot)[..w];
-                                for (r, v) in rec.iter_mut().zip(pw.iter()) {
-                                    *r += v * frac * share;
-                                }
-                                add_points(pts.get(e.idx), p1, p2, wsum * share);
+                                tur.add(e.idx, slot, pw, frac, share, p1, p2, wsum * share);
                             }
                         }
                         for v in pw.iter_mut() {
@@ -1058,21 +1282,7 @@ impl Ctx<'_> {
                         break 'restart;
                     }
                     Exit::Bottom => {
-                        let hp = dda.point(dda.t);
-                        if self.inp.flat_ground.is_some() {
-                            let i = floor_i64((hp.x - spec.origin.x) / spec.cell.x)
-                                .clamp(0, spec.n[0] as i64 - 1)
-                                as usize;
-                            let j = floor_i64((hp.y - spec.origin.y) / spec.cell.y)
-                                .clamp(0, spec.n[1] as i64 - 1)
-                                as usize;
-                            let sub = self.sub_index(hp, [i, j, 0], 2);
-                            out.gnd_key.push(((i + spec.n[0] * j) as u32, slot, sub));
-                            out.gnd_val.extend_from_slice(pw);
-                            out.gnd_val.extend_from_slice(&[hp.x, hp.y, hp.z, psum]);
-                        } else {
-                            add(&mut out.lost, pw);
-                        }
+                        self.bottom(dda.point(dda.t), slot, pw, psum, out);
                         break 'restart;
                     }
                     Exit::Side(axis, s) => {
@@ -1181,7 +1391,7 @@ impl Ctx<'_> {
     }
 }
 
-/// Adds one interception's weighted points to a `tur_pts` record: Σw·p_first (3),
+/// Adds one interception's weighted points to a points record: Σw·p_first (3),
 /// Σw·p_second (3), Σw.
 #[inline(always)]
 fn add_points(pr: &mut [f64], p1: DVec3, p2: DVec3, wt: f64) {
@@ -1651,6 +1861,26 @@ pub fn run(inp: &RadiativeInput) -> RadiativeResult {
     let hs_dir: Vec<bool> = (0..n_dirs)
         .map(|j| (0..n_tm).any(|tm| hs[j * n_tm + tm][0] > 0.0))
         .collect();
+    // The lean tracker's cells, when the scene fits it.
+    let simple = cells
+        .iter()
+        .all(|c| c.fac_lo == c.fac_hi && c.ent_hi - c.ent_lo <= 1)
+        && spec.topography_offset == (0.0, 0.0);
+    let scells: Vec<SimpleCell> = if simple {
+        cells
+            .iter()
+            .map(|c| match ents.get(c.ent_lo as usize) {
+                Some(e) if c.ent_hi > c.ent_lo => SimpleCell {
+                    density: e.density,
+                    tm: e.tm,
+                    idx: e.idx,
+                },
+                _ => SimpleCell::default(),
+            })
+            .collect()
+    } else {
+        Vec::new()
+    };
     let ctx = Ctx {
         inp,
         w,
@@ -1675,6 +1905,8 @@ pub fn run(inp: &RadiativeInput) -> RadiativeResult {
         hs,
         hs_dir,
         image_grid: ImageGrid::new(spec, inp.image_oversampling),
+        simple,
+        scells,
     };
     let mut res = RadiativeResult {
         n_channels: w,
@@ -1887,8 +2119,7 @@ fn new_out(ctx: &Ctx) -> ChunkOut {
     ChunkOut {
         escaped: vec![0.0; ctx.n_dirs * ctx.w],
         lost: vec![0.0; ctx.w],
-        tur: Some(KeyAcc::new(ne * ctx.n_slots, ctx.w)),
-        tur_pts: Some(KeyAcc::new(ne, 7)),
+        tur: Some(Box::new(TurAcc::new(ne, ctx.n_slots, ctx.w))),
         ..Default::default()
     }
 }
@@ -2047,7 +2278,7 @@ fn merge(
                 });
         }
         if let Some(acc) = &out.tur {
-            acc.for_each(|key, v| {
+            acc.for_each_tur(|key, v| {
                 let e = key as usize / ns;
                 let base = key as usize * w;
                 for ch in 0..w {
@@ -2056,9 +2287,9 @@ fn merge(
                 }
             });
         }
-        if let Some(acc) = &out.tur_pts {
+        if let Some(acc) = &out.tur {
             // Barycentres of the first and second halves of the intercepted energy.
-            acc.for_each(|e, v| {
+            acc.for_each_pts(|e, v| {
                 let pts = &mut st.tur_pts[e as usize];
                 for a in 0..3 {
                     pts[a] += v[a];
