@@ -1467,6 +1467,18 @@ impl Ctx<'_> {
         }
         if let Some(t) = known {
             tr.copy_from_slice(t);
+            // Debug builds (the tests) check the reuse against the shadow ray it replaces.
+            #[cfg(debug_assertions)]
+            {
+                let mut ray = Bands::from_elem(0.0, tr.len());
+                self.transmittance_to_receiver(ph, p, u, r, skip, &mut ray);
+                for (a, b) in ray.iter().zip(t) {
+                    debug_assert!(
+                        (a - b).abs() <= 1e-9 * a.max(*b) + 1e-25,
+                        "first-flight return transmittance {b:e} vs shadow ray {a:e}"
+                    );
+                }
+            }
         } else {
             self.transmittance_to_receiver(ph, p, u, r, skip, tr);
         }
