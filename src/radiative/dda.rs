@@ -132,6 +132,12 @@ impl Dda {
         m(m(self.t_max[0], self.t_max[1]), self.t_max[2])
     }
 
+    /// The point at distance 0 (moved by one period at each [`Dda::wrap_sides`]).
+    #[inline]
+    pub fn origin(&self) -> DVec3 {
+        self.origin
+    }
+
     /// Point at distance t.
     #[inline]
     pub fn point(&self, t: f64) -> DVec3 {

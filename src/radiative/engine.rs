@@ -1010,6 +1010,8 @@ impl Ctx<'_> {
         let mut n_cross = 0u64;
         let mut wraps = 0u32;
         let mut psum: f64 = pw.iter().sum();
+        // The traversal's origin, kept in a local (changes only at a wrap).
+        let mut o = dda.origin();
         loop {
             n_cross += 1;
             let sc = scells[dda.index()];
@@ -1022,8 +1024,8 @@ impl Ctx<'_> {
                     let x = k * ell;
                     let (frac, tr) = attenuation(x);
                     let (s1, s2) = hb.eval(x, ell);
-                    let p1 = dda.point(t0 + s1);
-                    let p2 = dda.point(t0 + s2);
+                    let p1 = o + d * (t0 + s1);
+                    let p2 = o + d * (t0 + s2);
                     sink(sc.idx, pw, frac, p1, p2, psum * frac);
                     for v in pw.iter_mut() {
                         *v *= tr;
@@ -1051,6 +1053,7 @@ impl Ctx<'_> {
                         break;
                     }
                     wraps += dda.wrap_sides();
+                    o = dda.origin();
                     if wraps > max_crossings {
                         add(&mut out.lost, pw);
                         break;

@@ -156,6 +156,12 @@ pub fn exp(x: f64) -> f64 {
     if !(x > -708.0 && x < 709.0) {
         return x.exp();
     }
+    exp_normal(x)
+}
+
+/// [`exp`] for x ∈ (−708, 709) (normal results), without the range check.
+#[inline(always)]
+fn exp_normal(x: f64) -> f64 {
     let z = x * INV_LN2_N;
     let shifted = z + SHIFT;
     let kf = shifted - SHIFT;
@@ -173,7 +179,8 @@ pub fn exp(x: f64) -> f64 {
 /// transmitted fractions). For x < 1/32 the intercepted fraction is the Taylor series of
 /// `1 − e^{−x}` to x⁷ (relative truncation < 1e-15, and no cancellation) and the transmitted
 /// one is `1 − frac`; above, `e^{−x}` by [`exp`] and `frac = 1 − e^{−x}` (exact
-/// subtraction for e^{−x} ≥ 1/2, relative error < 2e-14 below). The two always sum to 1 within
+/// subtraction for e^{−x} ≥ 1/2, relative error < 2e-14 below; `f64::exp` from x = 708, where
+/// e^{−x} is subnormal). The two always sum to 1 within
 /// one rounding, so the tracked energy closes per crossing.
 #[inline(always)]
 pub fn attenuation(x: f64) -> (f64, f64) {
@@ -185,8 +192,11 @@ pub fn attenuation(x: f64) -> (f64, f64) {
                         - x * (1.0 / 24.0
                             - x * (1.0 / 120.0 - x * (1.0 / 720.0 - x * (1.0 / 5040.0)))))));
         (f, 1.0 - f)
+    } else if x < 708.0 {
+        let e = exp_normal(-x);
+        (1.0 - e, e)
     } else {
-        let e = exp(-x);
+        let e = (-x).exp();
         (1.0 - e, e)
     }
 }
@@ -196,6 +206,8 @@ const HB_BITS: u32 = 5;
 /// Tabulated range of x = kℓ: [2⁻¹⁴, 2⁶).
 const HB_X0: f64 = 1.0 / 16384.0;
 const HB_X1: f64 = 64.0;
+/// Number of bins: 20 octaves × 2^HB_BITS.
+const HB_N: usize = 20 << HB_BITS;
 
 /// Cubic pieces of the relative interception points `s₁/ℓ`, `s₂/ℓ` of
 /// [`super::engine::half_barycentres`] as functions of x = kℓ, one per bin of x: the bins are
@@ -205,7 +217,7 @@ const HB_X1: f64 = 64.0;
 /// bin's start.
 pub struct HalfBarycentres {
     /// Per bin: s₁/ℓ coefficients (c0..c3), then s₂/ℓ's.
-    bins: Vec<[f64; 8]>,
+    bins: Box<[[f64; 8]; HB_N]>,
 }
 
 impl HalfBarycentres {
@@ -218,7 +230,7 @@ impl HalfBarycentres {
     fn build() -> Self {
         let first = HB_X0.to_bits() >> (52 - HB_BITS);
         let last = HB_X1.to_bits() >> (52 - HB_BITS);
-        let bins = (first..last)
+        let bins: Vec<[f64; 8]> = (first..last)
             .map(|b| {
                 let x_lo = f64::from_bits(b << (52 - HB_BITS));
                 let x_hi = f64::from_bits((b + 1) << (52 - HB_BITS));
@@ -237,7 +249,12 @@ impl HalfBarycentres {
                 out
             })
             .collect();
-        Self { bins }
+        Self {
+            bins: bins
+                .into_boxed_slice()
+                .try_into()
+                .expect("20 octaves of bins"),
+        }
     }
 
     /// Distances from the segment entry (m) of the barycentres of the first and second halves
@@ -257,6 +274,7 @@ impl HalfBarycentres {
         }
         let bits = x.to_bits();
         let first = HB_X0.to_bits() >> (52 - HB_BITS);
+        // x ∈ [2⁻¹⁴, 2⁶): the index is below HB_N (the bound check is against a constant).
         let c = &self.bins[((bits >> (52 - HB_BITS)) - first) as usize];
         let t = x - f64::from_bits(bits & !((1u64 << (52 - HB_BITS)) - 1));
         (
