@@ -909,36 +909,57 @@ impl<'a> Fitter<'a> {
         self.jtr.resize(np, 0.0);
         self.first.clear();
         self.first.extend((0..np).map(|p| p - p % 3));
+        // Each dot product accumulates bin by bin from −0.0 as `Iterator::sum` does, so the
+        // fused loops below (one pass over the bins for the 3 or 9 products of a block) give
+        // the same bits as separate sums.
         for j in 0..comps.len() {
             let (lo, hi, off) = ev.spans[j];
-            let cols = [
-                &ev.d_e[off..off + (hi - lo)],
-                &ev.d_mu[off..off + (hi - lo)],
-                &ev.d_s[off..off + (hi - lo)],
-            ];
-            for (p, col) in cols.iter().enumerate() {
-                self.jtr[3 * j + p] = col
-                    .iter()
-                    .zip(&self.y[lo..hi])
-                    .zip(&ev.model[lo..hi])
-                    .map(|((d, y), m)| d * (y - m))
-                    .sum();
+            let len = hi - lo;
+            let (e1, m1, s1) = (
+                &ev.d_e[off..off + len],
+                &ev.d_mu[off..off + len],
+                &ev.d_s[off..off + len],
+            );
+            let (yj, mj) = (&self.y[lo..hi], &ev.model[lo..hi]);
+            let mut r3 = [-0.0f64; 3];
+            for k in 0..len {
+                let res = yj[k] - mj[k];
+                r3[0] += e1[k] * res;
+                r3[1] += m1[k] * res;
+                r3[2] += s1[k] * res;
             }
+            self.jtr[3 * j..3 * j + 3].copy_from_slice(&r3);
             for l in j..comps.len() {
                 let (lo2, hi2, off2) = ev.spans[l];
                 let (a, b) = (lo.max(lo2), hi.min(hi2));
                 if a >= b {
                     continue;
                 }
-                let cols2 = [
-                    &ev.d_e[off2 + a - lo2..off2 + b - lo2],
-                    &ev.d_mu[off2 + a - lo2..off2 + b - lo2],
-                    &ev.d_s[off2 + a - lo2..off2 + b - lo2],
-                ];
-                for (p, col) in cols.iter().enumerate() {
-                    let u = &col[a - lo..b - lo];
-                    for (q, v) in cols2.iter().enumerate() {
-                        let s: f64 = u.iter().zip(v.iter()).map(|(x, z)| x * z).sum();
+                let n = b - a;
+                let (u0, u1, u2) = (
+                    &e1[a - lo..b - lo],
+                    &m1[a - lo..b - lo],
+                    &s1[a - lo..b - lo],
+                );
+                let o2 = off2 + a - lo2;
+                let (v0, v1, v2) = (
+                    &ev.d_e[o2..o2 + n],
+                    &ev.d_mu[o2..o2 + n],
+                    &ev.d_s[o2..o2 + n],
+                );
+                let mut acc = [-0.0f64; 9];
+                for k in 0..n {
+                    let u = [u0[k], u1[k], u2[k]];
+                    let v = [v0[k], v1[k], v2[k]];
+                    for p in 0..3 {
+                        for q in 0..3 {
+                            acc[3 * p + q] += u[p] * v[q];
+                        }
+                    }
+                }
+                for p in 0..3 {
+                    for q in 0..3 {
+                        let s = acc[3 * p + q];
                         let (r, c) = (3 * j + p, 3 * l + q);
                         self.jtj[r * np + c] = s;
                         self.jtj[c * np + r] = s;
