@@ -154,7 +154,13 @@ impl Dda {
     /// Moves to the next cell; reports how the current one was left.
     #[inline]
     pub fn advance(&mut self) -> Exit {
-        let te = self.t_exit();
+        self.advance_at(self.t_exit())
+    }
+
+    /// [`Dda::advance`] given `te = self.t_exit()` (already computed by the caller).
+    #[inline(always)]
+    pub fn advance_at(&mut self, te: f64) -> Exit {
+        debug_assert_eq!(te, self.t_exit());
         self.t = te;
         // Step every axis whose boundary is reached at te (ties: edges and vertices).
         let mut exit = Exit::Inside;

@@ -1037,7 +1037,7 @@ impl Ctx<'_> {
                     }
                 }
             }
-            match dda.advance() {
+            match dda.advance_at(t1) {
                 Exit::Inside => {}
                 Exit::Top => {
                     self.escape(dda.point(dda.t), dir, pw, out);
