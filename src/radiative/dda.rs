@@ -8,9 +8,10 @@
 //! instead of visiting a zero-length segment), accumulated error (boundaries are recomputed from
 //! integer indices, not accumulated).
 //!
-//! Speed (the flux-tracking kernel runs one [`Dda::advance`] per cell crossing): the boundary
-//! distances multiply by a precomputed `1/d` instead of dividing (Amanatides & Woo's `tDelta`
-//! idea, with the boundary still recomputed from the integer index), `floor` is an integer
+//! Speed (the flux-tracking kernel runs one [`Dda::advance`] per cell crossing): the plane at
+//! which the ray leaves cell i along an axis is `b_base + i · size` (`b_base` set per ray,
+//! recomputed from the integer index, not accumulated), its distance multiplies by a
+//! precomputed `1/d` instead of dividing (Amanatides & Woo's `tDelta` idea), `floor` is an integer
 //! truncation with a correction ([`floor_i64`], no libm call), and a repetitive-boundary
 //! re-entry moves the traversal state in place ([`Dda::wrap_sides`]) instead of building a new
 //! one.
@@ -52,7 +53,6 @@ pub struct Dda {
     dir: DVec3,
     /// `1/dir` per axis (±∞ for a zero component; only read for axes that step).
     inv: DVec3,
-    lo: DVec3,
     size: DVec3,
     n: [i64; 3],
     /// Linear index of `cell` (kept up to date by [`Dda::advance`] while inside the grid).
@@ -61,6 +61,9 @@ pub struct Dda {
     dlin: [i64; 3],
     /// Linear-index stride of each axis.
     stride: [i64; 3],
+    /// Per axis, `lo + [step > 0] · size`: the ray leaves the cell of index i at the plane
+    /// `b_base + i · size` (the same expression for every axis, so ties at vertices stay exact).
+    b_base: [f64; 3],
 }
 
 impl Dda {
@@ -96,6 +99,8 @@ impl Dda {
             t_max[a] = t_max[a].max(0.0);
         }
         let stride = [1, n[0], n[0] * n[1]];
+        let b_base: [f64; 3] =
+            std::array::from_fn(|a| lo[a] + (step[a] > 0) as i64 as f64 * size[a]);
         Some(Self {
             cell,
             step,
@@ -104,7 +109,6 @@ impl Dda {
             origin: p,
             dir: d,
             inv,
-            lo,
             size,
             n,
             lin: cell[0] + n[0] * (cell[1] + n[1] * cell[2]),
@@ -114,6 +118,7 @@ impl Dda {
                 step[2] * stride[2],
             ],
             stride,
+            b_base,
         })
     }
 
@@ -147,8 +152,7 @@ impl Dda {
     /// Distance at which the ray leaves the cell whose index along `a` is `idx`.
     #[inline(always)]
     fn boundary_t(&self, a: usize, idx: i64) -> f64 {
-        let b = self.lo[a] + (idx + (self.step[a] > 0) as i64) as f64 * self.size[a];
-        (b - self.origin[a]) * self.inv[a]
+        (self.b_base[a] + idx as f64 * self.size[a] - self.origin[a]) * self.inv[a]
     }
 
     /// Moves to the next cell; reports how the current one was left.
