@@ -83,6 +83,7 @@ impl Simulation {
         let mut world = World::new();
         world.insert_resource(settings);
         world.init_resource::<StageErrors>();
+        world.init_resource::<crate::systems::photon::LadOpticsCache>();
         spawn_scene(&mut world, desc, src)?;
         let mut sim = Self { world };
         sim.add_schedules();

@@ -19,7 +19,7 @@ use crate::resources::materials::Materials;
 use crate::resources::scene::{SceneInfo, StageErrors, TerrainRes};
 use crate::resources::tracking::{Directions, OpticsTables};
 use crate::scene::desc::LidarSampler;
-use crate::systems::photon::{build_photon_optics, used_turbid};
+use crate::systems::photon::{LadOpticsCache, build_photon_optics, used_turbid};
 use crate::systems::radiative::ImageDirections;
 use bevy_ecs::prelude::*;
 
@@ -130,6 +130,7 @@ pub fn run_lidars(
     plots: Query<&TurbidPlot>,
     meshes: Query<&ImportedMesh>,
     mut errors: ResMut<StageErrors>,
+    mut cache: ResMut<LadOpticsCache>,
     mut commands: Commands,
 ) {
     let nb = info.bands.len();
@@ -174,7 +175,7 @@ pub fn run_lidars(
             LidarSampler::Continuous => (1, SamplerKind::Continuous),
         };
         if built[slot].is_none() {
-            match build_photon_optics(&mats, &used, tables.as_deref(), kind, nb) {
+            match build_photon_optics(&mats, &used, tables.as_deref(), kind, nb, &mut cache) {
                 Ok(o) => built[slot] = Some(o),
                 Err(e) => {
                     errors.0.push(format!("lidar `{}`: {e}", l.name));

@@ -19,13 +19,49 @@ use crate::resources::grid::{CellGrid, GridSpec};
 use crate::resources::materials::{MaterialKind, Materials};
 use crate::resources::scene::{RunSettings, SceneInfo, Solver, StageErrors, TerrainRes};
 use crate::resources::tracking::{Directions, OpticsTables};
+use crate::scene::desc::LadDesc;
 use bevy_ecs::prelude::*;
+use std::sync::Arc;
 
 /// Inclination bins of the Γ kernel used for peel-off values of non-spherical LADs (the
 /// spherical LAD uses its closed form); the binning error is O(n⁻²) (physics.md §3.3).
 pub const PEEL_LAD_BINS: usize = 180;
 /// Intervals of the G(μ) table (interpolation error ≈ 1e-8 for the classical LADs).
 pub const G_TABLE_INTERVALS: usize = 4096;
+
+/// The LAD-derived part of a turbid material's photon optics (leaf-normal sampler, Γ kernel,
+/// G table), by far the costly part of [`build_photon_optics`]: the G table alone is
+/// [`G_TABLE_INTERVALS`]` + 1` tanh–sinh quadratures (≈320 M instructions for a non-spherical
+/// LAD). Built once per LAD and run, and shared by the passive Monte Carlo solver and every
+/// LiDAR instrument of the Photon stage (keyed by the LAD itself, so materials with the same
+/// LAD share one entry). Inserted empty by [`crate::simulation::Simulation`].
+#[derive(Default, Resource)]
+pub struct LadOpticsCache(Vec<(LadDesc, Arc<LadOptics>)>);
+
+/// One entry of [`LadOpticsCache`].
+#[derive(Debug)]
+pub struct LadOptics {
+    sampler: LeafSampler,
+    kernel: VolscattKernel,
+    g: GTable,
+}
+
+impl LadOpticsCache {
+    /// The optics of `lad`, built on first use.
+    fn get(&mut self, lad: &LadDesc) -> Result<Arc<LadOptics>, String> {
+        if let Some((_, o)) = self.0.iter().find(|(l, _)| l == lad) {
+            return Ok(o.clone());
+        }
+        let d = LeafAngleDistribution::new(lad).map_err(|e| e.to_string())?;
+        let o = Arc::new(LadOptics {
+            sampler: LeafSampler::new(&d).map_err(|e| e.to_string())?,
+            kernel: VolscattKernel::new(&d, PEEL_LAD_BINS, false),
+            g: GTable::new(&d, G_TABLE_INTERVALS),
+        });
+        self.0.push((lad.clone(), o.clone()));
+        Ok(o)
+    }
+}
 
 /// Photon · reads the Maket grid, directions, materials and illumination · writes
 /// RadiativeProducts.
@@ -45,6 +81,7 @@ pub fn track_photons(
     plots: Query<&TurbidPlot>,
     meshes: Query<&ImportedMesh>,
     mut errors: ResMut<StageErrors>,
+    mut cache: ResMut<LadOpticsCache>,
     mut commands: Commands,
 ) {
     let Solver::MonteCarlo { photons, sampler } = settings.solver else {
@@ -52,7 +89,8 @@ pub fn track_photons(
     };
     let nb = info.bands.len();
     let used = used_turbid(mats.list.len(), &crowns, &plots, &meshes);
-    let optics = match build_photon_optics(&mats, &used, tables.as_deref(), sampler, nb) {
+    let optics = match build_photon_optics(&mats, &used, tables.as_deref(), sampler, nb, &mut cache)
+    {
         Ok(o) => o,
         Err(e) => {
             errors.0.push(e);
@@ -124,13 +162,15 @@ pub fn track_photons(
     ));
 }
 
-/// Photon-tracker optics of every material (`used[id]`: turbid materials a component uses).
+/// Photon-tracker optics of every material (`used[id]`: turbid materials a component uses);
+/// the LAD-derived parts come from (and go into) `cache`.
 pub fn build_photon_optics(
     mats: &Materials,
     used: &[bool],
     tables: Option<&OpticsTables>,
     sampler: crate::photon::engine::SamplerKind,
     nb: usize,
+    cache: &mut LadOpticsCache,
 ) -> Result<Vec<PhotonOptics>, String> {
     let mut optics = Vec::with_capacity(mats.list.len());
     for (id, m) in mats.list.iter().enumerate() {
@@ -148,18 +188,9 @@ pub fn build_photon_optics(
                         m.name
                     ));
                 }
-                let lad = match LeafAngleDistribution::new(lad) {
-                    Ok(l) => l,
-                    Err(e) => {
-                        return Err(format!("material `{}`: {e}", m.name));
-                    }
-                };
-                let leaf_sampler = match LeafSampler::new(&lad) {
-                    Ok(s) => s,
-                    Err(e) => {
-                        return Err(format!("material `{}`: {e}", m.name));
-                    }
-                };
+                let lo = cache
+                    .get(lad)
+                    .map_err(|e| format!("material `{}`: {e}", m.name))?;
                 let discrete = if sampler.is_discrete() {
                     let Some(TrackOptics::Turbid { tables, .. }) =
                         tables.and_then(|t| t.optics.get(id))
@@ -179,9 +210,9 @@ pub fn build_photon_optics(
                     None
                 };
                 PhotonOptics::Turbid {
-                    sampler: leaf_sampler,
-                    kernel: VolscattKernel::new(&lad, PEEL_LAD_BINS, false),
-                    g: GTable::new(&lad, G_TABLE_INTERVALS),
+                    sampler: lo.sampler.clone(),
+                    kernel: lo.kernel.clone(),
+                    g: lo.g.clone(),
                     rho: reflectance.clone(),
                     tau: transmittance.clone(),
                     discrete,
