@@ -935,8 +935,10 @@ impl Ctx<'_> {
     /// Lean tracker for the common case (see [`Ctx::simple`]): turbid cells with at most one
     /// tracked entry, no facets, no hotspot, flat top and bottom, repetitive boundaries without
     /// an altitude offset or isolated ones. Same physics and bookkeeping as [`Ctx::trace_w`]
-    /// (one exact attenuation `e^{−kℓ}` per crossing, the two DART interception points, the
-    /// ray dropped below the power threshold), with one 16-byte cell record per crossing
+    /// (DART 5 flux tracking, Gastellu-Etchegorry et al. 2015, Remote Sens. 7, 1667–1701, §3:
+    /// one exact attenuation `e^{−kℓ}` per crossing, the two interception points per crossing,
+    /// the ray dropped below the power threshold; the cells walked by the Amanatides & Woo 1987
+    /// DDA of [`super::dda`]), with one 16-byte cell record per crossing
     /// (`k = G_m(Ω) u_m` from the ray's G row), the periodic re-entries done in place
     /// ([`Dda::wrap_sides`]), no facet, hotspot or restart logic, and the dense accumulator's
     /// slices borrowed once per ray.
