@@ -563,7 +563,48 @@ pub fn detect_returns_with(
     noise_floor_j: f64,
     settings: &DecompositionSettings,
 ) -> Result<Vec<Return>, LidarError> {
+    decompose(w, noise_floor_j, settings, None)
+}
+
+/// Counters of the Levenberg–Marquardt fits of one decomposition (diagnostics, see
+/// [`detect_returns_stats`]).
+#[doc(hidden)]
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct FitStats {
+    /// Levenberg–Marquardt fits run (initial fit, trial additions, refits after pruning).
+    pub fits: u64,
+    /// Fits stopped by the iteration cap instead of a convergence test.
+    pub capped: u64,
+    /// Iterations (normal-equation builds) over all fits.
+    pub iterations: u64,
+    /// Model evaluations over all fits.
+    pub evaluations: u64,
+    /// Residual sum of squares of the returned model against `w.total` (J²).
+    pub rss_j2: f64,
+}
+
+/// [`detect_returns_with`] and the counters of its fits (diagnostics for the LiDAR bench).
+#[doc(hidden)]
+pub fn detect_returns_stats(
+    w: &Waveform,
+    noise_floor_j: f64,
+    settings: &DecompositionSettings,
+) -> Result<(Vec<Return>, FitStats), LidarError> {
+    let mut st = FitStats::default();
+    let r = decompose(w, noise_floor_j, settings, Some(&mut st))?;
+    Ok((r, st))
+}
+
+fn decompose(
+    w: &Waveform,
+    noise_floor_j: f64,
+    settings: &DecompositionSettings,
+    stats: Option<&mut FitStats>,
+) -> Result<Vec<Return>, LidarError> {
     let Some((ymax, floor_j)) = prepare(w, noise_floor_j, settings)? else {
+        if let Some(st) = stats {
+            st.rss_j2 = w.total.iter().map(|v| v * v).sum();
+        }
         return Ok(Vec::new());
     };
     // Normalised problem: values / ymax, time in bins.
@@ -572,6 +613,9 @@ pub fn detect_returns_with(
     let n = y.len();
     let peaks = find_peaks(&y, floor, settings.max_components);
     if peaks.is_empty() {
+        if let Some(st) = stats {
+            st.rss_j2 = w.total.iter().map(|v| v * v).sum();
+        }
         return Ok(Vec::new());
     }
     let mut fitter = Fitter::new(&y, settings);
@@ -641,6 +685,12 @@ pub fn detect_returns_with(
         fitter.fit(&mut comps);
     }
 
+    if let Some(st) = stats {
+        *st = fitter.stats;
+        let mut ev = Evaluation::default();
+        ev.compute(&y, &comps);
+        st.rss_j2 = ev.chi2 * ymax * ymax;
+    }
     let mut out: Vec<Return> = comps
         .iter()
         .filter(|c| c.mu > -0.5 * n as f64 && c.mu < 1.5 * n as f64)
@@ -865,6 +915,8 @@ struct Fitter<'a> {
     step: Vec<f64>,
     /// First non-zero column of each row of the normal matrix (its envelope).
     first: Vec<usize>,
+    /// Counters (diagnostics).
+    stats: FitStats,
 }
 
 impl<'a> Fitter<'a> {
@@ -886,6 +938,7 @@ impl<'a> Fitter<'a> {
             a: Vec::new(),
             step: Vec::new(),
             first: Vec::new(),
+            stats: FitStats::default(),
         }
     }
 
@@ -981,14 +1034,19 @@ impl<'a> Fitter<'a> {
         comps.sort_by(|a, b| a.mu.total_cmp(&b.mu));
         let np = 3 * comps.len();
         self.cur.compute(self.y, comps);
+        self.stats.fits += 1;
+        self.stats.evaluations += 1;
         let mut chi2 = self.cur.chi2;
         let mut lambda = 1e-3;
+        let mut converged = false;
         // Relative improvements of the last three accepted steps.
         let mut recent = [f64::INFINITY; 3];
         for it in 0..self.max_iter {
             if !(chi2 > 1e-30) {
+                converged = true;
                 break;
             }
+            self.stats.iterations += 1;
             self.normal_equations(comps);
             let max_diag = (0..np).map(|p| self.jtj[p * np + p]).fold(0.0, f64::max);
             let mut accepted = false;
@@ -1018,6 +1076,7 @@ impl<'a> Fitter<'a> {
                 // A step may reorder the centres; the envelope needs them sorted.
                 self.trial.sort_by(|a, b| a.mu.total_cmp(&b.mu));
                 self.next.compute(self.y, &self.trial);
+                self.stats.evaluations += 1;
                 let chi2_new = self.next.chi2;
                 if chi2_new < chi2 {
                     improvement = (chi2 - chi2_new) / chi2;
@@ -1037,8 +1096,12 @@ impl<'a> Fitter<'a> {
             }
             recent[it % 3] = improvement;
             if !accepted || improvement < 1e-13 || recent.iter().sum::<f64>() < self.rel_tol {
+                converged = true;
                 break;
             }
+        }
+        if !converged {
+            self.stats.capped += 1;
         }
         chi2
     }
