@@ -222,6 +222,7 @@ fn fit_study(r: &LidarRun, name: &str, f: &mut std::fs::File) {
         sum.capped += st.capped;
         sum.iterations += st.iterations;
         sum.evaluations += st.evaluations;
+        sum.chi2_pairs.extend_from_slice(&st.chi2_pairs);
         text += &format!(
             "{name} {} {:e} {} {} {} {}\n",
             p.id,
@@ -234,6 +235,31 @@ fn fit_study(r: &LidarRun, name: &str, f: &mut std::fs::File) {
     }
     f.write_all(text.as_bytes())
         .expect("--fit-study: write failed");
+    // Per fit, new vs legacy final χ² from the same start.
+    let mut rel: Vec<f64> = sum
+        .chi2_pairs
+        .iter()
+        .map(|&(old, new)| if old > 0.0 { (new - old) / old } else { 0.0 })
+        .collect();
+    rel.sort_by(f64::total_cmp);
+    let count = |f: &dyn Fn(f64) -> bool| rel.iter().filter(|&&r| f(r)).count();
+    let q = |p: f64| {
+        rel.get(((rel.len().max(1) - 1) as f64 * p) as usize)
+            .copied()
+    };
+    println!(
+        "fit study {name}: final chi2 of each fit vs the legacy fitter from the same start: lower by > 1e-9 relative in {}, within 1e-9 in {}, higher by > 1e-9 in {} (> 1e-6: {}) of {}; quantiles 0/1/50/99/100 %: {:?} {:?} {:?} {:?} {:?}",
+        count(&|r| r < -1e-9),
+        count(&|r| r.abs() <= 1e-9),
+        count(&|r| r > 1e-9),
+        count(&|r| r > 1e-6),
+        rel.len(),
+        q(0.0),
+        q(0.01),
+        q(0.5),
+        q(0.99),
+        q(1.0)
+    );
     let fits = sum.fits.max(1) as f64;
     println!(
         "fit study {name}: {waveforms} waveforms, {} fits, {:.1} % capped at {} iterations, {:.1} iterations and {:.1} evaluations per fit, {:.0} µs per waveform",
