@@ -5,7 +5,13 @@
 //! `discrete-gauss`, `discrete-peak`, `continuous-peak` or `urban`; repeatable);
 //! `--digest` (print an FNV-1a hash of every product of each row — raw and convolved
 //! waveforms, gate losses, returns — to prove bit-identity across code changes); `--dump FILE`
-//! (write those products as text, one pulse per line, rows one after another).
+//! (write those products as text, one pulse per line, rows one after another);
+//! `--fit-study FILE` (re-run the Gaussian decomposition with the pipeline's settings on every
+//! stored waveform, padded with 64 empty bins on each side, and print the fits' counters: share
+//! of fits stopped by the iteration cap, iterations and model evaluations per fit, decomposition
+//! CPU time per waveform; write one line per waveform — row, pulse, final residual sum of
+//! squares (J²), returns, fits, capped fits, evaluations — to FILE, to compare fitters on the
+//! same waveforms).
 //!
 //! 1. ALS on the 40 m forest (24 trees, 1 m cells): pulses per second per core at 1000
 //!    photons per pulse, multiple scattering (orders ≤ 100), nadir, 0.3 m footprints, for the
@@ -64,6 +70,7 @@ struct Options {
     rows: Vec<String>,
     digest: bool,
     dump: Option<std::fs::File>,
+    fit_study: Option<std::fs::File>,
 }
 
 impl Options {
@@ -85,6 +92,11 @@ impl Options {
                 "--dump" => {
                     let f = args.next().expect("--dump FILE");
                     o.dump = Some(std::fs::File::create(&f).expect("--dump: cannot create file"));
+                }
+                "--fit-study" => {
+                    let f = args.next().expect("--fit-study FILE");
+                    o.fit_study =
+                        Some(std::fs::File::create(&f).expect("--fit-study: cannot create file"));
                 }
                 _ => {} // `--bench` and the like, passed by cargo
             }
@@ -166,6 +178,9 @@ fn run(mut d: SceneDesc, l: LidarDesc, name: &str, opt: &mut Options) -> Outcome
             println!("digest {name}: {h:016x}");
         }
     }
+    if let Some(f) = opt.fit_study.as_mut() {
+        fit_study(r, name, f);
+    }
     let n = r.pulses.len().max(1) as f64;
     let energy = r
         .pulses
@@ -180,6 +195,81 @@ fn run(mut d: SceneDesc, l: LidarDesc, name: &str, opt: &mut Options) -> Outcome
         energy,
         returns,
     }
+}
+
+/// `--fit-study`: the decomposition's counters on the run's stored waveforms (see the module
+/// doc).
+fn fit_study(r: &LidarRun, name: &str, f: &mut std::fs::File) {
+    use lumenscape::lidar::returns::{FitStats, detect_returns_stats};
+    use std::io::Write;
+    let settings = lumenscape::lidar::simulate::pipeline_decomposition_settings();
+    let mut sum = FitStats::default();
+    let mut text = String::new();
+    let mut secs = 0.0;
+    let mut waveforms = 0;
+    for p in &r.pulses {
+        let w = &p.waveform;
+        let peak = w.total.iter().cloned().fold(0.0, f64::max);
+        if !(peak > 0.0) {
+            continue;
+        }
+        let w = w.padded_to(w.t0_ns - 64.0 * w.dt_ns, w.total.len() + 128);
+        let t0 = std::time::Instant::now();
+        let (ret, st) = detect_returns_stats(&w, 1e-3 * peak, &settings).expect("fit");
+        secs += t0.elapsed().as_secs_f64();
+        waveforms += 1;
+        sum.fits += st.fits;
+        sum.capped += st.capped;
+        sum.iterations += st.iterations;
+        sum.evaluations += st.evaluations;
+        sum.chi2_pairs.extend_from_slice(&st.chi2_pairs);
+        text += &format!(
+            "{name} {} {:e} {} {} {} {}\n",
+            p.id,
+            st.rss_j2,
+            ret.len(),
+            st.fits,
+            st.capped,
+            st.evaluations
+        );
+    }
+    f.write_all(text.as_bytes())
+        .expect("--fit-study: write failed");
+    // Per fit, new vs legacy final χ² from the same start.
+    let mut rel: Vec<f64> = sum
+        .chi2_pairs
+        .iter()
+        .map(|&(old, new)| if old > 0.0 { (new - old) / old } else { 0.0 })
+        .collect();
+    rel.sort_by(f64::total_cmp);
+    let count = |f: &dyn Fn(f64) -> bool| rel.iter().filter(|&&r| f(r)).count();
+    let q = |p: f64| {
+        rel.get(((rel.len().max(1) - 1) as f64 * p) as usize)
+            .copied()
+    };
+    println!(
+        "fit study {name}: final chi2 of each fit vs the legacy fitter from the same start: lower by > 1e-9 relative in {}, within 1e-9 in {}, higher by > 1e-9 in {} (> 1e-6: {}) of {}; quantiles 0/1/50/99/100 %: {:?} {:?} {:?} {:?} {:?}",
+        count(&|r| r < -1e-9),
+        count(&|r| r.abs() <= 1e-9),
+        count(&|r| r > 1e-9),
+        count(&|r| r > 1e-6),
+        rel.len(),
+        q(0.0),
+        q(0.01),
+        q(0.5),
+        q(0.99),
+        q(1.0)
+    );
+    let fits = sum.fits.max(1) as f64;
+    println!(
+        "fit study {name}: {waveforms} waveforms, {} fits, {:.1} % capped at {} iterations, {:.1} iterations and {:.1} evaluations per fit, {:.0} µs per waveform",
+        sum.fits,
+        100.0 * sum.capped as f64 / fits,
+        settings.max_iterations,
+        sum.iterations as f64 / fits,
+        sum.evaluations as f64 / fits,
+        1e6 * secs / waveforms.max(1) as f64
+    );
 }
 
 /// One LiDAR run: stage wall time, pulses, mean waveform energy per pulse (J) and mean number
