@@ -131,7 +131,7 @@ pub fn pulses_of(desc: &LidarDesc) -> (Vec<Pulse>, f64) {
 
 /// Returns settings of the LiDAR pipeline (noise floor 1e-3 of the waveform's peak): up to 15
 /// returns (the LAS limit); at most 200 Levenberg–Marquardt iterations per fit, a safety cap
-/// that the fit's convergence tests pre-empt in ~98 % of the fits of the forest bench.
+/// that the fit's convergence tests pre-empt in 97–99 % of the fits of the forest bench.
 pub fn pipeline_decomposition_settings() -> crate::lidar::returns::DecompositionSettings {
     crate::lidar::returns::DecompositionSettings {
         max_components: 15,
