@@ -210,7 +210,7 @@ fn fit_study(r: &LidarRun, name: &str, f: &mut std::fs::File) {
     for p in &r.pulses {
         let w = &p.waveform;
         let peak = w.total.iter().cloned().fold(0.0, f64::max);
-        if !(peak > 0.0) {
+        if peak <= 0.0 {
             continue;
         }
         let w = w.padded_to(w.t0_ns - 64.0 * w.dt_ns, w.total.len() + 128);
