@@ -115,13 +115,15 @@ fn main() {
         vec![Preset::Preview, Preset::Default, Preset::Reference]
     };
     for preset in presets {
-        for dirs in [100usize, 400] {
+        // The reference preset needs at least 400 directions: one row per cell size.
+        let dir_counts: &[usize] = if preset == Preset::Reference {
+            &[400]
+        } else {
+            &[100, 400]
+        };
+        for &dirs in dir_counts {
             for cell in [0.5, 0.2] {
-                let n = if preset == Preset::Reference {
-                    dirs.max(400)
-                } else {
-                    dirs
-                };
+                let n = dirs;
                 let name = format!("{preset:?} {n} {cell}");
                 if !wanted(&name) {
                     continue;
