@@ -1057,85 +1057,69 @@ impl Ctx<'_> {
                 let mut t1 = dda.t_exit();
                 // Receiver inside the grid (terrestrial LiDAR): stop at its distance.
                 let reached = travelled + t1 >= max_dist;
-                if self.empty[c] {
+                // Empty cells (no facet, no turbid density, no fluid) are crossed unread.
+                if !self.empty[c] {
                     if reached {
-                        break 'restart;
+                        t1 = (max_dist - travelled).max(t0);
                     }
-                    match dda.advance() {
-                        Exit::Inside => continue,
-                        exit => match self.transmittance_exit(exit, &dda, &mut crossings) {
-                            ExitTo::Receiver => break 'restart,
-                            ExitTo::Blocked => {
+                    let fhit = if self.inp.grid.facet_start[c] < self.inp.grid.facet_start[c + 1] {
+                        self.facet_hit(c, dda.point(0.0), d, t0, t1, skip)
+                    } else {
+                        None
+                    };
+                    if let Some((_, th)) = fhit {
+                        t1 = th.max(t0);
+                    }
+                    let ell = t1 - t0;
+                    if ell > 0.0 {
+                        for e in self.inp.grid.turbid_of(c) {
+                            let tm = self.tur_mat[e.material as usize];
+                            if tm != u32::MAX {
+                                let g = g_dir[tm as usize];
+                                match hs.get(tm as usize) {
+                                    Some(&[b, c]) if b > 0.0 => {
+                                        let corr = b * crate::radiative::engine::hotspot_integral(
+                                            c,
+                                            travelled + t0,
+                                            ell,
+                                        );
+                                        tau_v += e.density as f64 * (g * ell - corr).max(0.0);
+                                    }
+                                    _ => tau_v += g * e.density as f64 * ell,
+                                }
+                            }
+                        }
+                        if let Some(f) = self.fluid_of(c) {
+                            for (t, s) in t_out.iter_mut().zip(&f.sigma_e) {
+                                *t *= (-s * ell).exp();
+                            }
+                        }
+                    }
+                    if tau_v > 69.1 {
+                        // e^{−69.1} < 1e-30: below the peel-off cut.
+                        t_out.iter_mut().for_each(|t| *t = 0.0);
+                        return;
+                    }
+                    if let Some((f, th)) = fhit {
+                        let fa = &self.inp.facets[f as usize];
+                        let n = (fa.v[1] - fa.v[0]).cross(fa.v[2] - fa.v[0]).normalize();
+                        let mu = n.dot(d).abs().max(1e-6);
+                        match &self.inp.optics[fa.material as usize] {
+                            PhotonOptics::Lambert { t_dir, .. }
+                                if t_dir.iter().any(|&x| x > 0.0) =>
+                            {
+                                for (t, td) in t_out.iter_mut().zip(t_dir) {
+                                    *t *= if *td > 0.0 { td.powf(1.0 / mu) } else { 0.0 };
+                                }
+                                travelled += th;
+                                p = dda.point(th);
+                                skip = Some(f);
+                                continue 'restart;
+                            }
+                            _ => {
                                 t_out.iter_mut().for_each(|t| *t = 0.0);
                                 return;
                             }
-                            ExitTo::Wrapped(q) => {
-                                travelled += dda.t;
-                                p = q;
-                                skip = None;
-                                continue 'restart;
-                            }
-                        },
-                    }
-                }
-                if reached {
-                    t1 = (max_dist - travelled).max(t0);
-                }
-                let fhit = if self.inp.grid.facet_start[c] < self.inp.grid.facet_start[c + 1] {
-                    self.facet_hit(c, dda.point(0.0), d, t0, t1, skip)
-                } else {
-                    None
-                };
-                if let Some((_, th)) = fhit {
-                    t1 = th.max(t0);
-                }
-                let ell = t1 - t0;
-                if ell > 0.0 {
-                    for e in self.inp.grid.turbid_of(c) {
-                        let tm = self.tur_mat[e.material as usize];
-                        if tm != u32::MAX {
-                            let g = g_dir[tm as usize];
-                            match hs.get(tm as usize) {
-                                Some(&[b, c]) if b > 0.0 => {
-                                    let corr = b * crate::radiative::engine::hotspot_integral(
-                                        c,
-                                        travelled + t0,
-                                        ell,
-                                    );
-                                    tau_v += e.density as f64 * (g * ell - corr).max(0.0);
-                                }
-                                _ => tau_v += g * e.density as f64 * ell,
-                            }
-                        }
-                    }
-                    if let Some(f) = self.fluid_of(c) {
-                        for (t, s) in t_out.iter_mut().zip(&f.sigma_e) {
-                            *t *= (-s * ell).exp();
-                        }
-                    }
-                }
-                if tau_v > 69.1 {
-                    // e^{−69.1} < 1e-30: below the peel-off cut.
-                    t_out.iter_mut().for_each(|t| *t = 0.0);
-                    return;
-                }
-                if let Some((f, th)) = fhit {
-                    let fa = &self.inp.facets[f as usize];
-                    let n = (fa.v[1] - fa.v[0]).cross(fa.v[2] - fa.v[0]).normalize();
-                    let mu = n.dot(d).abs().max(1e-6);
-                    match &self.inp.optics[fa.material as usize] {
-                        PhotonOptics::Lambert { t_dir, .. } if t_dir.iter().any(|&x| x > 0.0) => {
-                            for (t, td) in t_out.iter_mut().zip(t_dir) {
-                                *t *= if *td > 0.0 { td.powf(1.0 / mu) } else { 0.0 };
-                            }
-                            travelled += th;
-                            p = dda.point(th);
-                            skip = Some(f);
-                            continue 'restart;
-                        }
-                        _ => {
-                            t_out.iter_mut().for_each(|t| *t = 0.0);
-                            return;
                         }
                     }
                 }
