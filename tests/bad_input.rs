@@ -398,3 +398,91 @@ fn bad_image_oversampling_is_rejected_with_its_field_and_line() {
         "{msg}"
     );
 }
+
+/// `--image-oversampling η` overrides the scene's η: nadir images of the 10 × 10-cell scene
+/// are 10η × 10η pixels and `summary.json` records η.
+#[test]
+fn cli_image_oversampling_sets_the_image_pixels() {
+    let exe = env!("CARGO_BIN_EXE_lumenscape");
+    let text = GOOD.replace(
+        "    objects: [",
+        "    directions: Some((count: 40, exact: [(zenith_deg: 0.0, azimuth_deg: 0.0, label: Some(\"nadir\"))])),\n    objects: [",
+    );
+    let p = write("eta.ron", &text);
+    let out_dir = dir().join("eta_out");
+    let out = Command::new(exe)
+        .args([
+            "run",
+            p.to_str().unwrap(),
+            "--quiet",
+            "--preset",
+            "preview",
+            "--image-oversampling",
+            "3",
+            "--out",
+            out_dir.to_str().unwrap(),
+        ])
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let mut n = 0;
+    for e in std::fs::read_dir(out_dir.join("images")).unwrap() {
+        let path = e.unwrap().path();
+        if path.extension().is_some_and(|x| x == "exr") {
+            let (nx, ny, _) = lumenscape::io::exr_out::read_exr_channels(&path).unwrap();
+            assert_eq!((nx, ny), (30, 30), "{}", path.display());
+            n += 1;
+        }
+    }
+    assert!(n >= 1, "no image written");
+    let summary: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(out_dir.join("summary.json")).unwrap()).unwrap();
+    assert_eq!(summary["settings"]["image_oversampling"], 3);
+}
+
+/// A bad `--image-oversampling` is refused with a message naming the option, exit non-zero,
+/// and no product: 0 and 65 are outside 1..=64; 9 on a 1000 × 1000-cell grid makes images of
+/// 8.1e7 pixels, above the 2^26 limit.
+#[test]
+fn cli_image_oversampling_out_of_range_is_refused() {
+    let exe = env!("CARGO_BIN_EXE_lumenscape");
+    let p = write("eta_bad.ron", GOOD);
+    for eta in ["0", "65", "x"] {
+        let out = Command::new(exe)
+            .args(["check", p.to_str().unwrap(), "--image-oversampling", eta])
+            .output()
+            .unwrap();
+        assert!(!out.status.success(), "η {eta} accepted");
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(err.contains("--image-oversampling"), "{err}");
+    }
+    let big = write(
+        "eta_big.ron",
+        &GOOD.replace("size_m: (10.0, 10.0)", "size_m: (1000.0, 1000.0)"),
+    );
+    let out_dir = dir().join("eta_big_out");
+    let out = Command::new(exe)
+        .args([
+            "run",
+            big.to_str().unwrap(),
+            "--image-oversampling",
+            "9",
+            "--out",
+            out_dir.to_str().unwrap(),
+        ])
+        .output()
+        .unwrap();
+    assert_eq!(out.status.code(), Some(1));
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        err.contains("--image-oversampling 9")
+            && err.contains("eta_big.ron")
+            && err.contains("limit"),
+        "{err}"
+    );
+    assert!(!out_dir.exists(), "no output folder after a refused run");
+}

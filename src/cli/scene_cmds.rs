@@ -82,6 +82,10 @@ pub struct SceneOpts {
     /// Box method: boxes per incident direction (memory budget).
     #[arg(long, default_value_t = 4096)]
     pub box_budget: usize,
+    /// Oversampling factor η of the orthographic images: pixels of Δx/η × Δy/η (overrides
+    /// the scene's `radiative.image_oversampling`; 1..=64, and at most 2^26 pixels per image).
+    #[arg(long, value_parser = clap::value_parser!(u32).range(1..=crate::scene::validate::MAX_IMAGE_OVERSAMPLING as i64))]
+    pub image_oversampling: Option<u32>,
 }
 
 /// `--solver` values.
@@ -126,7 +130,31 @@ impl SceneOpts {
                     sampler,
                 },
             },
+            image_oversampling: self.image_oversampling,
         }
+    }
+
+    /// Loads, validates and spawns the scene with these settings; an `--image-oversampling`
+    /// that would make images above the pixel limit for this scene's grid is refused here
+    /// (exit 1), before any work.
+    fn load(&self) -> Result<Simulation, CliError> {
+        let (desc, src) = crate::scene::load_scene(&self.scene)?;
+        if let Some(eta) = self.image_oversampling {
+            let g = &desc.grid;
+            let columns = (g.size_m.0 / g.cell_m.0).round() * (g.size_m.1 / g.cell_m.1).round();
+            let pixels = columns * (eta as f64).powi(2);
+            let limit = crate::scene::validate::MAX_IMAGE_PIXELS;
+            if pixels > limit as f64 {
+                return Err(CliError {
+                    message: format!(
+                        "--image-oversampling {eta}: {eta} × {eta} pixels per grid column of {} make images of {pixels:.3e} pixels (limit {limit})",
+                        self.scene.display()
+                    ),
+                    code: 1,
+                });
+            }
+        }
+        Ok(Simulation::from_desc(&desc, &src, self.settings())?)
     }
 }
 
@@ -266,7 +294,7 @@ fn radiative_estimate(sim: &mut Simulation, report: &MaketReport) -> (u64, usize
 
 /// Runs `check`.
 pub fn check(args: &CheckArgs, out: &mut dyn Write) -> Result<(), CliError> {
-    let mut sim = Simulation::load(&args.opts.scene, args.opts.settings())?;
+    let mut sim = args.opts.load()?;
     let planned = sim.plan();
     if !sim
         .world
@@ -313,7 +341,7 @@ pub struct MaketArgs {
 
 /// Runs `maket`.
 pub fn maket(args: &MaketArgs, out: &mut dyn Write) -> Result<(), CliError> {
-    let mut sim = Simulation::load(&args.opts.scene, args.opts.settings())?;
+    let mut sim = args.opts.load()?;
     sim.world
         .insert_resource(crate::resources::scene::OutputDir(args.out.clone()));
     sim.run_stage(Stage::Maket)?;
@@ -337,7 +365,7 @@ pub struct RunArgs {
 /// Runs `run`.
 pub fn run(args: &RunArgs, out: &mut dyn Write) -> Result<(), CliError> {
     let t0 = std::time::Instant::now();
-    let mut sim = Simulation::load(&args.opts.scene, args.opts.settings())?;
+    let mut sim = args.opts.load()?;
     let ran = sim.run(Some(&args.out))?;
     print_report(sim.resource::<MaketReport>(), out)?;
     let skipped: Vec<String> = Stage::ALL

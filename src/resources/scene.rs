@@ -78,6 +78,9 @@ pub struct RunSettings {
     /// Which passive solver runs: DART flux tracking (Radiative stage, the default) or the
     /// Monte Carlo photon tracker (Photon stage).
     pub solver: Solver,
+    /// Oversampling factor η of the orthographic images chosen on the command line
+    /// (overrides the scene's `radiative.image_oversampling`).
+    pub image_oversampling: Option<u32>,
 }
 
 /// Passive solver.
@@ -116,6 +119,7 @@ impl Default for RunSettings {
             progress: false,
             preset: None,
             solver: Solver::FluxTracking,
+            image_oversampling: None,
         }
     }
 }

@@ -616,10 +616,15 @@ pub fn spawn_scene(
         .and_then(|s| s.preset)
         .or(desc.radiative.as_ref().and_then(|r| r.preset))
         .unwrap_or_default();
-    world.insert_resource(crate::resources::tracking::RadiativeSettings::resolve(
-        preset,
-        desc.radiative.as_ref(),
-    ));
+    let mut radiative =
+        crate::resources::tracking::RadiativeSettings::resolve(preset, desc.radiative.as_ref());
+    if let Some(eta) = world
+        .get_resource::<crate::resources::scene::RunSettings>()
+        .and_then(|s| s.image_oversampling)
+    {
+        radiative.image_oversampling = eta.max(1);
+    }
+    world.insert_resource(radiative);
     world.insert_resource(TerrainRes(terrain));
     // Model only what the scene needs: LiDAR work exists only with instruments.
     if let Some(l) = desc.lidars.as_ref().filter(|l| !l.is_empty()) {
