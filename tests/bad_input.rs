@@ -35,6 +35,14 @@ fn dir() -> PathBuf {
     d
 }
 
+/// Runs the `lumenscape` binary with `args`.
+fn cli(args: &[&str]) -> std::process::Output {
+    Command::new(env!("CARGO_BIN_EXE_lumenscape"))
+        .args(args)
+        .output()
+        .unwrap()
+}
+
 fn write(name: &str, text: &str) -> PathBuf {
     let p = dir().join(name);
     std::fs::write(&p, text).unwrap();
@@ -288,13 +296,9 @@ fn degenerate_triangles_are_skipped_with_a_counted_warning_and_empty_meshes_fail
 
 #[test]
 fn cli_exits_non_zero_with_file_line_and_field() {
-    let exe = env!("CARGO_BIN_EXE_lumenscape");
     let text = GOOD.replace("radius_x_m: 1.5", "radius_x_m: -1.5");
     let p = write("cli_bad.ron", &text);
-    let out = Command::new(exe)
-        .args(["check", p.to_str().unwrap()])
-        .output()
-        .unwrap();
+    let out = cli(&["check", p.to_str().unwrap()]);
     assert!(!out.status.success());
     let err = String::from_utf8_lossy(&out.stderr);
     let line = line_containing(&text, "radius_x_m");
@@ -305,10 +309,7 @@ fn cli_exits_non_zero_with_file_line_and_field() {
     assert!(!err.contains("panicked"), "{err}");
     // Good scene: exit 0, summary on stdout.
     let p = write("cli_good.ron", GOOD);
-    let out = Command::new(exe)
-        .args(["check", p.to_str().unwrap()])
-        .output()
-        .unwrap();
+    let out = cli(&["check", p.to_str().unwrap()]);
     assert!(
         out.status.success(),
         "{}",
@@ -319,20 +320,16 @@ fn cli_exits_non_zero_with_file_line_and_field() {
 
 #[test]
 fn grids_above_the_memory_limit_are_refused_before_allocation() {
-    let exe = env!("CARGO_BIN_EXE_lumenscape");
     let p = write("mem.ron", GOOD);
     let out_dir = dir().join("mem_out");
-    let out = Command::new(exe)
-        .args([
-            "maket",
-            p.to_str().unwrap(),
-            "--max-memory",
-            "1K",
-            "--out",
-            out_dir.to_str().unwrap(),
-        ])
-        .output()
-        .unwrap();
+    let out = cli(&[
+        "maket",
+        p.to_str().unwrap(),
+        "--max-memory",
+        "1K",
+        "--out",
+        out_dir.to_str().unwrap(),
+    ]);
     assert!(!out.status.success());
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(err.contains("--max-memory"), "{err}");
@@ -340,10 +337,7 @@ fn grids_above_the_memory_limit_are_refused_before_allocation() {
         !out_dir.join("maket.json").exists(),
         "no product after a refused run"
     );
-    let out = Command::new(exe)
-        .args(["maket", p.to_str().unwrap(), "--max-memory", "lots"])
-        .output()
-        .unwrap();
+    let out = cli(&["maket", p.to_str().unwrap(), "--max-memory", "lots"]);
     assert!(!out.status.success());
 }
 
@@ -403,27 +397,23 @@ fn bad_image_oversampling_is_rejected_with_its_field_and_line() {
 /// are 10η × 10η pixels and `summary.json` records η.
 #[test]
 fn cli_image_oversampling_sets_the_image_pixels() {
-    let exe = env!("CARGO_BIN_EXE_lumenscape");
     let text = GOOD.replace(
         "    objects: [",
         "    directions: Some((count: 40, exact: [(zenith_deg: 0.0, azimuth_deg: 0.0, label: Some(\"nadir\"))])),\n    objects: [",
     );
     let p = write("eta.ron", &text);
     let out_dir = dir().join("eta_out");
-    let out = Command::new(exe)
-        .args([
-            "run",
-            p.to_str().unwrap(),
-            "--quiet",
-            "--preset",
-            "preview",
-            "--image-oversampling",
-            "3",
-            "--out",
-            out_dir.to_str().unwrap(),
-        ])
-        .output()
-        .unwrap();
+    let out = cli(&[
+        "run",
+        p.to_str().unwrap(),
+        "--quiet",
+        "--preset",
+        "preview",
+        "--image-oversampling",
+        "3",
+        "--out",
+        out_dir.to_str().unwrap(),
+    ]);
     assert!(
         out.status.success(),
         "{}",
@@ -449,13 +439,9 @@ fn cli_image_oversampling_sets_the_image_pixels() {
 /// 8.1e7 pixels, above the 2^26 limit.
 #[test]
 fn cli_image_oversampling_out_of_range_is_refused() {
-    let exe = env!("CARGO_BIN_EXE_lumenscape");
     let p = write("eta_bad.ron", GOOD);
     for eta in ["0", "65", "x"] {
-        let out = Command::new(exe)
-            .args(["check", p.to_str().unwrap(), "--image-oversampling", eta])
-            .output()
-            .unwrap();
+        let out = cli(&["check", p.to_str().unwrap(), "--image-oversampling", eta]);
         assert!(!out.status.success(), "η {eta} accepted");
         let err = String::from_utf8_lossy(&out.stderr);
         assert!(err.contains("--image-oversampling"), "{err}");
@@ -465,17 +451,14 @@ fn cli_image_oversampling_out_of_range_is_refused() {
         &GOOD.replace("size_m: (10.0, 10.0)", "size_m: (1000.0, 1000.0)"),
     );
     let out_dir = dir().join("eta_big_out");
-    let out = Command::new(exe)
-        .args([
-            "run",
-            big.to_str().unwrap(),
-            "--image-oversampling",
-            "9",
-            "--out",
-            out_dir.to_str().unwrap(),
-        ])
-        .output()
-        .unwrap();
+    let out = cli(&[
+        "run",
+        big.to_str().unwrap(),
+        "--image-oversampling",
+        "9",
+        "--out",
+        out_dir.to_str().unwrap(),
+    ]);
     assert_eq!(out.status.code(), Some(1));
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(
