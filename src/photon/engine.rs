@@ -1355,19 +1355,17 @@ impl Ctx<'_> {
                                     sampler.sample_normal(d_in, rng)
                                 };
                                 let mut phase = |ov: DVec3, s: &mut [f64]| {
-                                    if closed {
-                                        let (gr, gt) = kernel.gamma_components(d_in, ov);
-                                        for b in 0..nb {
-                                            s[b] = (rho[b] * gr + tl[b] * gt) / (PI * g_in);
-                                        }
-                                    } else {
-                                        let cz = ov.dot(n);
-                                        let fl = if cz > 0.0 { rho } else { tl };
-                                        for b in 0..nb {
-                                            s[b] = fl[b] * cz.abs() / PI;
-                                        }
-                                    }
-                                    s.iter().any(|&x| x > 0.0)
+                                    turbid_peel_phase(
+                                        kernel,
+                                        closed,
+                                        n,
+                                        d_in,
+                                        ov,
+                                        g_in,
+                                        rho,
+                                        tl,
+                                        &mut s[..nb],
+                                    )
                                 };
                                 emit(dda.point(t0 + u), u, &fac, &mut phase, out, scratch, tr);
                             }
@@ -1560,6 +1558,40 @@ impl Ctx<'_> {
             }
         }
     }
+}
+
+/// Peel-off radiant intensity per unit intercepted weight of a turbid leaf event toward
+/// `ov`, per band, into `s` (sr⁻¹): Γ_b(Ω'→Ω_v)/(π G(Ω')) (physics.md §3.3). Spherical LAD
+/// (`closed`): its closed form from the kernel's (Γ_ρ, Γ_τ). Other LADs: the unbiased one-leaf
+/// estimate given the sampled leaf normal `n`: ρ_b|Ω_v·n|/π on the incidence side, τ_b|Ω_v·n|/π
+/// beyond (E_n[·] = Γ_b/(π G)). Returns whether any band is positive.
+#[allow(clippy::too_many_arguments)]
+#[inline]
+fn turbid_peel_phase(
+    kernel: &VolscattKernel,
+    closed: bool,
+    n: DVec3,
+    d_in: DVec3,
+    ov: DVec3,
+    g_in: f64,
+    rho: &[f64],
+    tau: &[f64],
+    s: &mut [f64],
+) -> bool {
+    if closed {
+        let (gr, gt) = kernel.gamma_components(d_in, ov);
+        let norm = 1.0 / (PI * g_in);
+        for ((s, r), t) in s.iter_mut().zip(rho).zip(tau) {
+            *s = (r * gr + t * gt) * norm;
+        }
+    } else {
+        let c = ov.dot(n);
+        let f = if c > 0.0 { rho } else { tau };
+        for (s, f) in s.iter_mut().zip(f) {
+            *s = f * c.abs() / PI;
+        }
+    }
+    s.iter().any(|&x| x > 0.0)
 }
 
 /// Transmittance `e^{−τ}` of a return optical depth τ, zero beyond τ = 69.1 (e^{−69.1} < 1e-30,
@@ -2042,20 +2074,17 @@ fn trace_photon(
                             if forced {
                                 return false;
                             }
-                            if closed {
-                                let (gr, gt) = kernel.gamma_components(d_in, ov);
-                                let norm = 1.0 / (PI * g_in);
-                                for b in 0..nb {
-                                    s[b] = (rho[b] * gr + tau[b] * gt) * norm;
-                                }
-                            } else {
-                                let c = ov.dot(n);
-                                let f = if c > 0.0 { rho } else { tau };
-                                for b in 0..nb {
-                                    s[b] = f[b] * c.abs() / PI;
-                                }
-                            }
-                            s.iter().any(|&x| x > 0.0)
+                            turbid_peel_phase(
+                                kernel,
+                                closed,
+                                n,
+                                d_in,
+                                ov,
+                                g_in,
+                                rho,
+                                tau,
+                                &mut s[..nb],
+                            )
                         });
                         // w_b ← w_b ρ_b/p_r (reflection) or w_b τ_b/(1 − p_r) (transmission):
                         // E[w'_b] = w_b (ρ_b + τ_b) for every band.
