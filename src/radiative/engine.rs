@@ -528,6 +528,47 @@ enum TurAcc {
     },
 }
 
+/// The dense accumulator's arrays borrowed once (per ray in the lean tracker), with the
+/// channel count `w` that may be a compile-time constant there.
+struct DenseView<'a> {
+    ns: usize,
+    w: usize,
+    tur: &'a mut [f64],
+    pts: &'a mut [f64],
+    flag: &'a mut [bool],
+    touched: &'a mut Vec<u32>,
+}
+
+impl DenseView<'_> {
+    /// One interception by entry `e` from slot `slot`: `pw[ch] · f1 · f2` W per channel, and
+    /// the two interception points with weight `wt`.
+    #[allow(clippy::too_many_arguments)]
+    #[inline(always)]
+    fn add(
+        &mut self,
+        e: u32,
+        slot: u32,
+        pw: &[f64],
+        f1: f64,
+        f2: f64,
+        p1: DVec3,
+        p2: DVec3,
+        wt: f64,
+    ) {
+        let e = e as usize;
+        if !self.flag[e] {
+            self.flag[e] = true;
+            self.touched.push(e as u32);
+        }
+        let w = self.w;
+        let s = (e * self.ns + slot as usize) * w;
+        for (r, v) in self.tur[s..s + w].iter_mut().zip(pw) {
+            *r += v * f1 * f2;
+        }
+        add_points(&mut self.pts[e * 7..e * 7 + 7], p1, p2, wt);
+    }
+}
+
 impl TurAcc {
     fn new(n_entries: usize, ns: usize, w: usize) -> Self {
         if n_entries * ns * w <= DENSE_LIMIT && n_entries * 7 <= DENSE_LIMIT {
@@ -571,18 +612,15 @@ impl TurAcc {
                 pts,
                 flag,
                 touched,
-            } => {
-                let e = e as usize;
-                if !flag[e] {
-                    flag[e] = true;
-                    touched.push(e as u32);
-                }
-                let s = (e * *ns + slot as usize) * *w;
-                for (r, v) in tur[s..s + *w].iter_mut().zip(pw) {
-                    *r += v * f1 * f2;
-                }
-                add_points(&mut pts[e * 7..e * 7 + 7], p1, p2, wt);
+            } => DenseView {
+                ns: *ns,
+                w: *w,
+                tur,
+                pts,
+                flag,
+                touched,
             }
+            .add(e, slot, pw, f1, f2, p1, p2, wt),
             TurAcc::Sparse { ns, tur, pts } => {
                 let rec = tur.get(e * *ns as u32 + slot);
                 for (r, v) in rec.iter_mut().zip(pw) {
@@ -961,18 +999,16 @@ impl Ctx<'_> {
                 touched,
                 ..
             } => {
-                let ns = *ns;
+                let mut view = DenseView {
+                    ns: *ns,
+                    w,
+                    tur,
+                    pts,
+                    flag,
+                    touched,
+                };
                 self.walk_simple::<W>(p, dir, pw, out, |e, pw, frac, p1, p2, wt| {
-                    let e = e as usize;
-                    if !flag[e] {
-                        flag[e] = true;
-                        touched.push(e as u32);
-                    }
-                    let s = (e * ns + slot as usize) * w;
-                    for (r, v) in tur[s..s + w].iter_mut().zip(pw) {
-                        *r += v * frac * 1.0;
-                    }
-                    add_points(&mut pts[e * 7..e * 7 + 7], p1, p2, wt);
+                    view.add(e, slot, pw, frac, 1.0, p1, p2, wt)
                 });
             }
             sparse => self.walk_simple::<W>(p, dir, pw, out, |e, pw, frac, p1, p2, wt| {
