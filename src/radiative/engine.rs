@@ -607,6 +607,33 @@ impl DenseView<'_> {
         let pi = (e * self.np + q as usize) * 7;
         add_points(&mut self.pts[pi..pi + 7], p1, p2, wt);
     }
+
+    /// [`DenseView::add`] with `turbid_subfaces: Off` (index = entry, one points record).
+    #[allow(clippy::too_many_arguments)]
+    #[inline(always)]
+    fn add_entry(
+        &mut self,
+        e: u32,
+        slot: u32,
+        pw: &[f64],
+        f1: f64,
+        f2: f64,
+        p1: DVec3,
+        p2: DVec3,
+        wt: f64,
+    ) {
+        let e = e as usize;
+        if !self.flag[e] {
+            self.flag[e] = true;
+            self.touched.push(e as u32);
+        }
+        let w = self.w;
+        let s = (e * self.ns + slot as usize) * w;
+        for (r, v) in self.tur[s..s + w].iter_mut().zip(pw) {
+            *r += v * f1 * f2;
+        }
+        add_points(&mut self.pts[e * 7..e * 7 + 7], p1, p2, wt);
+    }
 }
 
 impl TurAcc {
@@ -1223,6 +1250,12 @@ impl Ctx<'_> {
                     flag,
                     touched,
                 };
+                if self.subfaces == TurbidSubfaces::Off {
+                    self.walk_simple::<W>(p, dir, pw, out, |e, pw, frac, p1, p2, wt, _| {
+                        view.add_entry(e, slot, pw, frac, 1.0, p1, p2, wt)
+                    });
+                    return;
+                }
                 self.walk_simple::<W>(p, dir, pw, out, |e, pw, frac, p1, p2, wt, q0| {
                     let eq = self.acc_index(e, q0, d, slot);
                     view.add(eq, slot, pw, frac, 1.0, p1, p2, wt)
