@@ -8,8 +8,12 @@
 //! `-- --dump FILE` writes every row's albedos and BRFs, full precision, one JSON object per
 //! line, to compare products between two builds; `-- --row NAME` runs only the row so named,
 //! e.g. `--row "Default 100 0.2"`, `--row "forest Default"` or `--row "forest images η 2"`, so
-//! that `valgrind --tool=callgrind` can count the instructions of one row); `-- --no-skip`
-//! turns empty-space skipping off (every cell visited).
+//! that `valgrind --tool=callgrind` can count the instructions of one row; `-- --subfaces MODE`
+//! sets the turbid interception stores of every row, `off`, `faces`, `subfaces` or `blend`
+//! (DART 5 paper §3.2, Figure 7; default: the preset's), `--exit-grouping` merges a turbid
+//! cell's scattered rays per exit sub-face (Figure 7c), `--ray-threshold X` sets the ray-power
+//! threshold, `--cells 0.5,0.25` the turbid-layer cell sizes; `-- --no-skip` turns empty-space
+//! skipping off (every cell visited)).
 //!
 //! Throughput columns: `Mcross/s/core` is visited cell crossings (empty cells jumped over by
 //! empty-space skipping are not counted; the forest line prints them apart) / (wall time of
@@ -21,7 +25,7 @@
 use lumenscape::radiative::products::RadiativeProducts;
 use lumenscape::resources::scene::RunSettings;
 use lumenscape::scene::SceneSource;
-use lumenscape::scene::desc::{LadDesc, Preset, RadiativeDesc};
+use lumenscape::scene::desc::{LadDesc, Preset, RadiativeDesc, TurbidSubfaces};
 use lumenscape::scene::generators::turbid_layer::{TurbidLayerParams, turbid_layer};
 use lumenscape::scene::generators::{BandOptics, forest, rami_directions};
 use lumenscape::simulation::Simulation;
@@ -88,6 +92,48 @@ fn main() {
         .and_then(|i| args.get(i + 1))
         .cloned();
     let wanted = |name: &str| only.as_deref().is_none_or(|o| o == name);
+    let subfaces = args
+        .iter()
+        .position(|a| a == "--subfaces")
+        .and_then(|i| args.get(i + 1))
+        .map(|m| match m.as_str() {
+            "off" => TurbidSubfaces::Off,
+            "faces" => TurbidSubfaces::Faces,
+            "subfaces" => TurbidSubfaces::Subfaces,
+            "blend" => TurbidSubfaces::Blend,
+            _ => panic!("--subfaces off|faces|subfaces|blend, not {m}"),
+        });
+    let ray_threshold: Option<f64> = args
+        .iter()
+        .position(|a| a == "--ray-threshold")
+        .and_then(|i| args.get(i + 1))
+        .map(|x| x.parse().expect("--ray-threshold X"));
+    let cells: Vec<f64> = args
+        .iter()
+        .position(|a| a == "--cells")
+        .and_then(|i| args.get(i + 1))
+        .map_or(vec![0.5, 0.2], |x| {
+            x.split(',')
+                .map(|c| c.parse().expect("--cells A,B"))
+                .collect()
+        });
+    let with_mode = |d: &mut lumenscape::scene::desc::SceneDesc| {
+        if subfaces.is_some() {
+            d.radiative
+                .get_or_insert_with(Default::default)
+                .turbid_subfaces = subfaces;
+        }
+        if args.iter().any(|a| a == "--exit-grouping") {
+            d.radiative
+                .get_or_insert_with(Default::default)
+                .turbid_exit_grouping = Some(true);
+        }
+        if ray_threshold.is_some() {
+            d.radiative
+                .get_or_insert_with(Default::default)
+                .ray_threshold = ray_threshold;
+        }
+    };
     let threads = rayon::current_num_threads();
     let oracle = std::fs::read_to_string(concat!(
         env!("CARGO_MANIFEST_DIR"),
@@ -100,7 +146,10 @@ fn main() {
         .map(|l| l.split(',').map(String::from).collect())
         .filter(|r: &Vec<String>| r[0] == "3" && r[2] == "20")
         .collect();
-    println!("turbid layer LAI 3, sun 20°, red+NIR, {threads} threads");
+    println!(
+        "turbid layer LAI 3, sun 20°, red+NIR, {threads} threads, turbid stores {}",
+        subfaces.map_or("of the preset".to_string(), |m| format!("{m:?}"))
+    );
     println!(
         "{:>9} {:>5} {:>6} {:>9} {:>6} {:>14} {:>7} {:>10} {:>11} {:>11}",
         "preset",
@@ -127,7 +176,7 @@ fn main() {
             &[100, 400]
         };
         for &dirs in dir_counts {
-            for cell in [0.5, 0.2] {
+            for &cell in &cells {
                 let n = dirs;
                 let name = format!("{preset:?} {n} {cell}");
                 if !wanted(&name) {
@@ -145,6 +194,7 @@ fn main() {
                 });
                 common::no_hotspot(&mut d);
                 d.directions.as_mut().unwrap().count = dirs;
+                with_mode(&mut d);
                 let (wall, p) = run_timed(&d, preset);
                 let (mut wb, mut wa) = (0.0f64, 0.0f64);
                 for r in &rows {
@@ -159,7 +209,7 @@ fn main() {
                 let kernel = p.crossings as f64 / p.raw.kernel_seconds / 1e6;
                 write_dump(name, &p);
                 println!(
-                    "{:>9} {:>5} {:>6} {:>9.3} {:>6} {:>14.2} {:>7.2} {:>8.1}MiB {:>11.3} {:>11.3}",
+                    "{:>9} {:>5} {:>6} {:>9.3} {:>6} {:>14.2} {:>7.2} {:>8.1}MiB {:>11.3} {:>11.3} lost {:.1e} closure {:.1e}",
                     format!("{preset:?}"),
                     n,
                     cell,
@@ -169,16 +219,44 @@ fn main() {
                     kernel,
                     peak_rss_mib(),
                     100.0 * wb,
-                    100.0 * wa
+                    100.0 * wa,
+                    p.bands.iter().map(|b| b.flost).fold(0.0, f64::max),
+                    p.bands.iter().map(|b| b.energy_closure).fold(0.0, f64::max)
                 );
             }
         }
     }
+    // Dense cells (physics.md §3.6 pitfalls: u_f = 50 m²/m³, LAI 25 in 0.5 m, red): albedo and
+    // wall time per cell size, where the interception points matter most.
+    for cell in [0.25, 0.125, 0.0625, 0.03125] {
+        let name = format!("dense {cell}");
+        if !wanted(&name) {
+            continue;
+        }
+        let mut d = turbid_layer(&TurbidLayerParams {
+            lai: 25.0,
+            height_m: 0.5,
+            cell_m: cell,
+            size_m: 1.0,
+            ..Default::default()
+        });
+        with_mode(&mut d);
+        let (wall, p) = run_timed(&d, Preset::Default);
+        write_dump(name, &p);
+        println!(
+            "dense u_f 50, cell {cell}: wall {wall:.3} s, albedo {:.6}, BRF nadir {:.6}, closure {:.1e}, peak RSS {:.1} MiB",
+            p.bands[0].albedo,
+            p.brf_at(0, 0.0, 0.0).map_or(f64::NAN, |e| e.brf),
+            p.bands[0].energy_closure,
+            peak_rss_mib()
+        );
+    }
     // Forest scene (no oracle): timing and throughput.
-    let f = forest::forest(&forest::ForestParams {
+    let mut f = forest::forest(&forest::ForestParams {
         size_m: 40.0,
         ..Default::default()
     });
+    with_mode(&mut f);
     for preset in [Preset::Preview, Preset::Default] {
         if !wanted(&format!("forest {preset:?}")) {
             continue;
@@ -226,6 +304,8 @@ fn main() {
         }
         fi.radiative = Some(RadiativeDesc {
             image_oversampling: eta,
+            turbid_subfaces: subfaces,
+            turbid_exit_grouping: Some(args.iter().any(|a| a == "--exit-grouping")),
             ..Default::default()
         });
         let (wall, p) = run_timed(&fi, Preset::Default);

@@ -469,3 +469,66 @@ fn cli_image_oversampling_out_of_range_is_refused() {
     );
     assert!(!out_dir.exists(), "no output folder after a refused run");
 }
+
+#[test]
+fn bad_turbid_subfaces_fields_are_rejected_with_their_field_and_line() {
+    let with = |v: &str| {
+        GOOD.replace(
+            "    illumination:",
+            &format!("    radiative: ({v}),\n    illumination:"),
+        )
+    };
+    for ok in [
+        "turbid_subfaces: Some(Subfaces), turbid_exit_grouping: Some(true)",
+        "turbid_subfaces: Some(Faces)",
+        "turbid_subfaces: Some(Blend), turbid_exit_grouping: Some(false)",
+        "turbid_exit_grouping: Some(true)",
+    ] {
+        let p = write("subfaces_ok.ron", &with(ok));
+        Simulation::load(&p, RunSettings::default()).unwrap_or_else(|e| panic!("{ok}: {e}"));
+    }
+    // Unknown mode and wrong types: syntax errors at the field's line naming what is wrong.
+    for (name, v, what) in [
+        (
+            "subfaces_variant.ron",
+            "turbid_subfaces: Some(Quads)",
+            "Quads",
+        ),
+        ("subfaces_type.ron", "turbid_subfaces: Some(2)", ""),
+        ("grouping_type.ron", "turbid_exit_grouping: Some(1)", ""),
+    ] {
+        let text = with(v);
+        let (e, msg) = error_of(name, &text);
+        assert!(matches!(e, SceneError::Syntax { .. }), "{name}: {msg}");
+        assert!(msg.contains(what), "{name}: {msg}");
+        assert_eq!(
+            line_of(&e),
+            Some(line_containing(&text, "turbid_")),
+            "{name}: {msg}"
+        );
+    }
+    // Exit grouping acts on incident-face stores only.
+    for v in ["Off", "Blend"] {
+        let text = with(&format!(
+            "turbid_subfaces: Some({v}),\n        turbid_exit_grouping: Some(true)"
+        ));
+        let (e, msg) = error_of("grouping_without_faces.ron", &text);
+        assert!(matches!(e, SceneError::Invalid { .. }), "{v}: {msg}");
+        assert!(msg.contains("radiative.turbid_exit_grouping"), "{v}: {msg}");
+        assert_eq!(
+            line_of(&e),
+            Some(line_containing(&text, "turbid_exit_grouping")),
+            "{v}: {msg}"
+        );
+        // The CLI refuses it with a non-zero exit, naming the file and the field.
+        let p = write("grouping_without_faces_cli.ron", &text);
+        let out = cli(&["check", p.to_str().unwrap()]);
+        assert!(!out.status.success(), "{v}: check accepted the scene");
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(
+            err.contains("grouping_without_faces_cli.ron")
+                && err.contains("radiative.turbid_exit_grouping"),
+            "{v}: {err}"
+        );
+    }
+}

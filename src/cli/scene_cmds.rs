@@ -278,9 +278,22 @@ fn radiative_estimate(sim: &mut Simulation, report: &MaketReport) -> (u64, usize
         })
         .count();
     let eta = settings.image_oversampling.max(1) as usize;
+    let subcells = sim
+        .world
+        .get_resource::<crate::resources::grid::GridSpec>()
+        .map_or(1, |g| g.subcells.clamp(1, 8) as usize);
+    let turbid_stores = match settings.tracking.turbid_subfaces {
+        crate::scene::desc::TurbidSubfaces::Off => (1, 1),
+        crate::scene::desc::TurbidSubfaces::Faces => (7, 7),
+        crate::scene::desc::TurbidSubfaces::Subfaces => {
+            (6 * subcells * subcells + 1, 6 * subcells * subcells + 1)
+        }
+        crate::scene::desc::TurbidSubfaces::Blend => (1, slots),
+    };
     let est = crate::radiative::memory_estimate(
         n_dirs,
         slots,
+        turbid_stores,
         info.bands.len(),
         sky,
         report.leaf_area.len(),

@@ -68,6 +68,12 @@ impl RadiativeSettings {
             if let Some(x) = r.per_direction_stores {
                 s.per_direction_stores = x;
             }
+            if let Some(x) = r.turbid_subfaces {
+                s.tracking.turbid_subfaces = x;
+            }
+            if let Some(x) = r.turbid_exit_grouping {
+                s.tracking.turbid_exit_grouping = x;
+            }
             s.image_oversampling = r.image_oversampling.max(1);
         }
         s

@@ -84,6 +84,13 @@ pub struct RadiativeDesc {
     pub extrapolate: Option<bool>,
     /// Store intercepted power per incident direction instead of per angular sector.
     pub per_direction_stores: Option<bool>,
+    /// Turbid interception stores per incident cell face or sub-face (DART 5 paper §3.2,
+    /// Figure 7): `Off`, `Faces`, `Subfaces` or `Blend` (see [`TurbidSubfaces`]).
+    pub turbid_subfaces: Option<TurbidSubfaces>,
+    /// With `turbid_subfaces: Faces` or `Subfaces`: rays scattered by a turbid cell are
+    /// followed to the cell's exit and merged per (exit face or sub-face, direction) before
+    /// being tracked further (DART 5 paper Figure 7c).
+    pub turbid_exit_grouping: Option<bool>,
     /// Spatial oversampling factor η of the orthographic images (DART 5 paper §3.2): pixels of
     /// (Δx/η, Δy/η), i.e. η × η pixels per grid column; integer ≥ 1, default 1. Not touched by
     /// presets.
@@ -101,9 +108,35 @@ impl Default for RadiativeDesc {
             launch_spacing_m: None,
             extrapolate: None,
             per_direction_stores: None,
+            turbid_subfaces: None,
+            turbid_exit_grouping: None,
             image_oversampling: default_image_oversampling(),
         }
     }
+}
+
+/// How a turbid cell stores what it intercepts and where it scatters it from (DART 5 paper,
+/// Gastellu-Etchegorry et al. 2015, §3.2 and Figure 7; physics.md §3.6, §6.3, §6.6). DART keeps
+/// the intercepted power and the interception points M_int per *incident cell sub-face* s (the
+/// sub-face the ray entered through; each face is split in D × D sub-faces, D = the sub-cell
+/// factor) and per incident angular sector, and scatters from each sub-face's points.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, Default)]
+pub enum TurbidSubfaces {
+    /// One store per (cell, incidence slot) and one pair of interception points per cell,
+    /// averaged over every ray of every direction.
+    #[default]
+    Off,
+    /// Stores and point pairs per incident face (6) plus one for rays that start inside the
+    /// cell (scattered from a point in the same cell); each non-empty store scatters from its
+    /// own points with its own power.
+    Faces,
+    /// As `Faces` with each face split in D × D sub-faces (6 D² + 1 stores per cell).
+    Subfaces,
+    /// One ray pair per (cell, direction j), as `Off`, but from a direction-dependent point:
+    /// the barycentre of the interception points of each incidence slot weighted by the power
+    /// that slot scatters into j (the finest blend of any face or sub-face partition's points:
+    /// blending per (sub-face, slot) points with these weights gives the same point).
+    Blend,
 }
 
 fn default_image_oversampling() -> u32 {

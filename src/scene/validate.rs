@@ -379,6 +379,20 @@ pub fn validate(desc: &SceneDesc, src: &SceneSource) -> Result<(), SceneError> {
                 ),
             ));
         }
+        if r.turbid_exit_grouping == Some(true)
+            && matches!(
+                r.turbid_subfaces,
+                Some(
+                    crate::scene::desc::TurbidSubfaces::Off
+                        | crate::scene::desc::TurbidSubfaces::Blend
+                )
+            )
+        {
+            return Err(src.invalid(
+                "radiative.turbid_exit_grouping",
+                "groups the rays of incident-face stores: needs turbid_subfaces: Some(Faces) or Some(Subfaces)",
+            ));
+        }
         if r.max_iterations == Some(0) {
             return Err(src.invalid(
                 "radiative.max_iterations",
