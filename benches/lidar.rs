@@ -3,6 +3,7 @@
 //! Options (after `--`): `--quick`; `--pulses N` (pulses of every forest row and of the urban
 //! scan, rounded up to a square grid); `--row NAME` (run one row only: `continuous-gauss`,
 //! `discrete-gauss`, `discrete-peak`, `continuous-peak` or `urban`; repeatable);
+//! `--no-skip` (empty-space skipping off: every cell visited, for comparisons);
 //! `--digest` (print an FNV-1a hash of every product of each row — raw and convolved
 //! waveforms, gate losses, returns — to prove bit-identity across code changes); `--dump FILE`
 //! (write those products as text, one pulse per line, rows one after another);
@@ -71,6 +72,8 @@ struct Options {
     digest: bool,
     dump: Option<std::fs::File>,
     fit_study: Option<std::fs::File>,
+    /// `--no-skip`: empty-space skipping off (every cell visited), for comparisons.
+    no_skip: bool,
 }
 
 impl Options {
@@ -81,6 +84,7 @@ impl Options {
             match a.as_str() {
                 "--quick" => o.quick = true,
                 "--digest" => o.digest = true,
+                "--no-skip" => o.no_skip = true,
                 "--pulses" => {
                     o.pulses = Some(
                         args.next()
@@ -166,6 +170,7 @@ fn run(mut d: SceneDesc, l: LidarDesc, name: &str, opt: &mut Options) -> Outcome
                 photons: 64,
                 sampler: SamplerKind::Continuous,
             },
+            skip_empty: !opt.no_skip,
             ..Default::default()
         },
     )

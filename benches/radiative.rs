@@ -12,10 +12,13 @@
 //! sets the turbid interception stores of every row, `off`, `faces`, `subfaces` or `blend`
 //! (DART 5 paper §3.2, Figure 7; default: the preset's), `--exit-grouping` merges a turbid
 //! cell's scattered rays per exit sub-face (Figure 7c), `--ray-threshold X` sets the ray-power
-//! threshold, `--cells 0.5,0.25` the turbid-layer cell sizes).
+//! threshold, `--cells 0.5,0.25` the turbid-layer cell sizes; `-- --no-skip` turns empty-space
+//! skipping off (every cell visited)).
 //!
-//! Throughput columns: `Mcross/s/core` is cell crossings / (wall time of the engine run ×
-//! threads), i.e. including emission, merging and extrapolation; `kernel` is cell crossings /
+//! Throughput columns: `Mcross/s/core` is visited cell crossings (empty cells jumped over by
+//! empty-space skipping are not counted; the forest line prints them apart) / (wall time of
+//! the engine run × threads), i.e. including emission, merging and extrapolation; `kernel` is
+//! visited cell crossings /
 //! `RadiativeResult::kernel_seconds`, the thread-seconds spent inside the ray-tracking loops
 //! only (source launch loops and each emitter's loop over its outgoing directions).
 
@@ -42,6 +45,8 @@ fn run_timed(
         &SceneSource::generated(),
         RunSettings {
             preset: Some(preset),
+            // `--no-skip`: every cell visited (empty-space skipping off), for comparisons.
+            skip_empty: !std::env::args().any(|a| a == "--no-skip"),
             ..Default::default()
         },
     )
@@ -259,12 +264,34 @@ fn main() {
         let (wall, p) = run_timed(&f, preset);
         write_dump(format!("forest {preset:?}"), &p);
         println!(
-            "forest 40 m, 24 trees, 1 m cells, {preset:?}: wall {wall:.2} s, {} iterations, {:.2} Mcrossings/s/core (kernel {:.2}), closure {:.1e}, peak RSS {:.1} MiB",
+            "forest 40 m, 24 trees, 1 m cells, {preset:?}: wall {wall:.2} s, {} iterations, {:.1} M visited + {:.1} M skipped cells, {:.2} Mcrossings/s/core (kernel {:.2}), closure {:.1e}, peak RSS {:.1} MiB",
             p.iterations,
+            p.crossings as f64 / 1e6,
+            p.skipped as f64 / 1e6,
             p.crossings as f64 / p.tracking_seconds / threads as f64 / 1e6,
             p.crossings as f64 / p.raw.kernel_seconds / 1e6,
             p.bands.iter().map(|b| b.energy_closure).fold(0.0, f64::max),
             peak_rss_mib()
+        );
+    }
+    // Sparse stand under a tall grid (empty-space skipping's case): 120 m, 6 trees, 60 m of
+    // grid height (mostly air).
+    if wanted("sparse Preview") {
+        let mut sp = forest::forest(&forest::ForestParams {
+            size_m: 120.0,
+            species: vec![forest::broadleaf(3), forest::conifer(3)],
+            ..Default::default()
+        });
+        sp.grid.height_m = Some(60.0);
+        let (wall, p) = run_timed(&sp, Preset::Preview);
+        write_dump("sparse Preview".into(), &p);
+        println!(
+            "sparse 120 m, 6 trees, 60 m high, Preview: wall {wall:.2} s, {:.1} M visited + {:.1} M skipped cells, {:.2} Mcrossings/s/core (kernel {:.2}), closure {:.1e}",
+            p.crossings as f64 / 1e6,
+            p.skipped as f64 / 1e6,
+            p.crossings as f64 / p.tracking_seconds / threads as f64 / 1e6,
+            p.crossings as f64 / p.raw.kernel_seconds / 1e6,
+            p.bands.iter().map(|b| b.energy_closure).fold(0.0, f64::max),
         );
     }
     // Orthographic images: the forest with nadir and the principal/orthogonal planes every 15°

@@ -131,6 +131,7 @@ impl SceneOpts {
                 },
             },
             image_oversampling: self.image_oversampling,
+            skip_empty: true,
         }
     }
 

@@ -85,6 +85,7 @@ pub fn photon_products(
         converged: true,
         rays: res.photons,
         crossings: res.crossings,
+        skipped: res.skipped,
         kernel_seconds: 0.0,
     };
     let mut p = RadiativeProducts::new(

@@ -191,6 +191,105 @@ impl Dda {
         exit
     }
 
+    /// Empty-space skipping, first half: the distance at which the ray leaves the box of cells
+    /// within Chebyshev distance `h` (in cells, per axis) of the current cell, clipped to the
+    /// grid. The caller checks it (e.g. against a range limit) before [`Dda::skip_to`].
+    #[inline(always)]
+    pub fn skip_exit(&self, h: i64) -> f64 {
+        let m = |a: f64, b: f64| if b < a { b } else { a };
+        m(
+            m(self.skip_axis_exit(0, h), self.skip_axis_exit(1, h)),
+            self.skip_axis_exit(2, h),
+        )
+    }
+
+    /// Distance at which the ray leaves the box of [`Dda::skip_exit`] along axis `a` (∞ if the
+    /// ray does not step along it).
+    #[inline(always)]
+    fn skip_axis_exit(&self, a: usize, h: i64) -> f64 {
+        if self.step[a] == 0 {
+            return f64::INFINITY;
+        }
+        let lim = (self.cell[a] + self.step[a] * h).clamp(0, self.n[a] - 1);
+        if lim == self.cell[a] {
+            self.t_max[a]
+        } else {
+            self.boundary_t(a, lim)
+        }
+    }
+
+    /// Empty-space skipping, second half: moves to the segment that starts at
+    /// `te = self.skip_exit(h)`, in the state (cell, linear index, exit distances, `t`) that
+    /// the same walk of [`Dda::advance`] calls would reach there — the per-axis boundary
+    /// distances are the same expressions of the integer indices, so the cells after the jump
+    /// and their segment ends are bit-identical — and reports how the box was left like
+    /// [`Dda::advance`] (a grid exit when the box reaches the grid's edge). Every cell the ray
+    /// crosses before `te` lies in the box, so the caller must know them all to be cells where
+    /// its walk does nothing (see [`empty_distance`]: `h = distance − 1`). Returns the exit and
+    /// the number of cell faces crossed (the cells skipped plus one, counting an edge or vertex
+    /// crossing once per axis).
+    ///
+    /// Not inlined: the walks' per-cell loops keep their code as without skipping, and a jump
+    /// (taken only from cells at distance ≥ [`MIN_SKIP_DISTANCE`]) replaces several advances.
+    #[inline(never)]
+    pub fn skip_to(&mut self, h: i64, te: f64) -> (Exit, u64) {
+        debug_assert_eq!(te, self.skip_exit(h));
+        self.t = te;
+        let mut exit = Exit::Inside;
+        // Axis by axis with constant indices (the per-axis code inlines and folds).
+        let faces = self.skip_axis(0, h, te, &mut exit)
+            + self.skip_axis(1, h, te, &mut exit)
+            + self.skip_axis(2, h, te, &mut exit);
+        (exit, faces)
+    }
+
+    /// One axis of [`Dda::skip_to`]: the number of faces crossed along it.
+    #[inline(always)]
+    fn skip_axis(&mut self, a: usize, h: i64, te: f64, exit: &mut Exit) -> u64 {
+        // Axes that do not step (t_max = ∞) or whose current slab extends beyond te.
+        if self.t_max[a] > te {
+            return 0;
+        }
+        let s = self.step[a];
+        let old = self.cell[a];
+        let lim = (old + s * h).clamp(0, self.n[a] - 1);
+        // The first index after `old` (in step order) whose exit boundary lies beyond te, at
+        // most lim + s: an estimate from the position at te, then corrected on the exact
+        // boundary distances (monotone in the index).
+        let (first, last) = (old + s, lim + s);
+        let x = self.origin[a] + self.dir[a] * te;
+        let lo = self.b_base[a] - (s > 0) as i64 as f64 * self.size[a];
+        let est = floor_i64((x - lo) / self.size[a]);
+        let mut idx = if s > 0 {
+            est.clamp(first, last)
+        } else {
+            est.clamp(last, first)
+        };
+        while idx != first && self.boundary_t(a, idx - s) > te {
+            idx -= s;
+        }
+        while idx != last && self.boundary_t(a, idx) <= te {
+            idx += s;
+        }
+        self.cell[a] = idx;
+        self.lin += (idx - old) * self.stride[a];
+        if idx < 0 || idx >= self.n[a] {
+            let e = match a {
+                2 if s > 0 => Exit::Top,
+                2 => Exit::Bottom,
+                _ => Exit::Side(a, s),
+            };
+            // Vertical exits win over side exits at a tie, the first side over the second
+            // (as in `advance_at`).
+            if matches!(e, Exit::Top | Exit::Bottom) || *exit == Exit::Inside {
+                *exit = e;
+            }
+        } else {
+            self.t_max[a] = self.boundary_t(a, idx);
+        }
+        (idx - old).unsigned_abs()
+    }
+
     /// Repetitive boundary without an altitude offset: after [`Dda::advance`] returned
     /// [`Exit::Side`], moves every side axis that left the grid to the opposite face (the
     /// cell on the other side, the ray's origin shifted by one period so that distances go on
@@ -213,6 +312,91 @@ impl Dda {
         }
         wrapped
     }
+}
+
+/// Empty-space skipping: per cell, the chessboard (Chebyshev, L∞) distance in cells to the
+/// nearest occupied cell (`occupied(c)`, linear index), capped at 255; 0 for an occupied cell.
+/// A cell at distance r has every cell within Chebyshev distance r − 1 (a box of (2r − 1)³
+/// cells) empty, so a ray in it may jump over that box ([`Dda::skip_exit`] with h = r − 1).
+/// Cells outside the grid are not looked at (a jump stops at the grid's edge). Two raster
+/// passes with the 3×3×3 neighbourhood (Rosenfeld & Pfaltz 1966, "Sequential operations in
+/// digital picture processing", J. ACM 13, 471–494; exact for the chessboard metric,
+/// Borgefors 1984, CVGIP 27, 321–345), O(27 N).
+pub fn empty_distance(n: [usize; 3], occupied: impl Fn(usize) -> bool) -> Vec<u8> {
+    let [nx, ny, nz] = n;
+    let len = nx * ny * nz;
+    let mut d: Vec<u8> = (0..len)
+        .map(|c| if occupied(c) { 0 } else { u8::MAX })
+        .collect();
+    // The 13 neighbours before a cell in raster order (k, then j, then i increasing), as
+    // (di, dj, dk); the backward pass uses their negatives.
+    let mut before: Vec<[i64; 3]> = Vec::with_capacity(13);
+    for dk in -1i64..=1 {
+        for dj in -1i64..=1 {
+            for di in -1i64..=1 {
+                if dk == -1 || (dk == 0 && (dj == -1 || (dj == 0 && di == -1))) {
+                    before.push([di, dj, dk]);
+                }
+            }
+        }
+    }
+    let dims = [nx as i64, ny as i64, nz as i64];
+    let stride = [1i64, nx as i64, (nx * ny) as i64];
+    for sg in [1i64, -1] {
+        let offs: Vec<([i64; 3], i64)> = before
+            .iter()
+            .map(|o| {
+                let o = [o[0] * sg, o[1] * sg, o[2] * sg];
+                (o, o[0] * stride[0] + o[1] * stride[1] + o[2] * stride[2])
+            })
+            .collect();
+        for step in 0..len {
+            let c = if sg > 0 { step } else { len - 1 - step };
+            if d[c] == 0 {
+                continue;
+            }
+            let ijk = [
+                (c % nx) as i64,
+                ((c / nx) % ny) as i64,
+                (c / (nx * ny)) as i64,
+            ];
+            let mut m = d[c];
+            for &(o, lin) in &offs {
+                let inside = (0..3).all(|a| ((ijk[a] + o[a]) as u64) < dims[a] as u64);
+                if inside {
+                    let v = d[(c as i64 + lin) as usize].saturating_add(1);
+                    if v < m {
+                        m = v;
+                    }
+                }
+            }
+            d[c] = m;
+        }
+    }
+    d
+}
+
+/// Smallest empty-space distance from which the walks jump ([`Dda::skip_to`]); cells at a
+/// smaller distance are crossed one by one. A jump costs about as much as five advances, and
+/// the box of a cell at distance 2 or 3 holds too few cells along a ray (measured: distance 2
+/// made the forest bench's flux tracking 7 % slower, 3 kept 2 % of that, 4 is neutral).
+pub const MIN_SKIP_DISTANCE: u8 = 4;
+
+/// [`empty_distance`] as the walks read it: 0 for an occupied cell, 1 for an empty cell
+/// crossed one by one (also every empty cell when `skip` is off), else the distance
+/// (≥ [`MIN_SKIP_DISTANCE`]) of a cell from which the walk jumps.
+pub fn skip_field(n: [usize; 3], skip: bool, occupied: impl Fn(usize) -> bool) -> Vec<u8> {
+    if !skip {
+        let len = n[0] * n[1] * n[2];
+        return (0..len).map(|c| (!occupied(c)) as u8).collect();
+    }
+    let mut d = empty_distance(n, occupied);
+    for v in d.iter_mut() {
+        if *v != 0 && *v < MIN_SKIP_DISTANCE {
+            *v = 1;
+        }
+    }
+    d
 }
 
 #[cfg(test)]
@@ -279,6 +463,186 @@ mod tests {
             count, 5,
             "diagonal through vertices visits one cell per layer"
         );
+    }
+
+    /// Small deterministic generator for the tests (SplitMix64).
+    struct Mix(u64);
+    impl Mix {
+        fn next(&mut self) -> u64 {
+            self.0 = self.0.wrapping_add(0x9E37_79B9_7F4A_7C15);
+            let mut z = self.0;
+            z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+            z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+            z ^ (z >> 31)
+        }
+        fn f(&mut self) -> f64 {
+            (self.next() >> 11) as f64 / (1u64 << 53) as f64
+        }
+    }
+
+    #[test]
+    fn empty_distance_is_the_chessboard_distance() {
+        let mut rng = Mix(7);
+        for (n, fill) in [
+            ([7, 5, 6], 0.05),
+            ([9, 9, 4], 0.01),
+            ([1, 1, 1], 0.0),
+            ([1, 1, 1], 1.0),
+            ([12, 3, 8], 0.2),
+        ] {
+            let len = n[0] * n[1] * n[2];
+            let occ: Vec<bool> = (0..len).map(|_| rng.f() < fill).collect();
+            let d = empty_distance(n, |c| occ[c]);
+            for (c, &dc) in d.iter().enumerate() {
+                let (i, j, k) = (c % n[0], (c / n[0]) % n[1], c / (n[0] * n[1]));
+                let mut best = u8::MAX as usize;
+                for (q, _) in occ.iter().enumerate().filter(|(_, o)| **o) {
+                    let (a, b, e) = (q % n[0], (q / n[0]) % n[1], q / (n[0] * n[1]));
+                    best = best.min(i.abs_diff(a).max(j.abs_diff(b)).max(k.abs_diff(e)));
+                }
+                assert_eq!(dc as usize, best, "cell {c} of {n:?}");
+            }
+        }
+    }
+
+    /// One walk: the (cell, t0 bits, t1 bits) of every occupied cell visited, then the exit
+    /// (kind, t bits) of each grid exit, wrapping repetitive sides up to `wraps` times.
+    fn walk(
+        s: &GridSpec,
+        p: DVec3,
+        d: DVec3,
+        dist: &[u8],
+        skip: bool,
+        wraps: u32,
+    ) -> (Vec<(usize, u64, u64)>, u64, u64) {
+        let mut dda = Dda::new(s, p, d).unwrap();
+        let mut seen = Vec::new();
+        let (mut visited, mut skipped) = (0u64, 0u64);
+        let mut w = 0;
+        loop {
+            visited += 1;
+            let c = dda.index();
+            let r = dist[c];
+            let exit = if r == 0 {
+                let (t0, t1) = (dda.t, dda.t_exit());
+                assert!(t1 >= t0 && t0.is_finite() && t1.is_finite());
+                seen.push((c, t0.to_bits(), t1.to_bits()));
+                dda.advance()
+            } else if skip && r > 1 {
+                let h = r as i64 - 1;
+                let te = dda.skip_exit(h);
+                let (e, faces) = dda.skip_to(h, te);
+                assert!(faces >= 1);
+                skipped += faces - 1;
+                e
+            } else {
+                dda.advance()
+            };
+            match exit {
+                Exit::Inside => {}
+                Exit::Side(..) if w < wraps => {
+                    seen.push((usize::MAX - 1, dda.t.to_bits(), 0));
+                    w += dda.wrap_sides();
+                }
+                e => {
+                    let code = match e {
+                        Exit::Top => 1,
+                        Exit::Bottom => 2,
+                        Exit::Side(a, sg) => 3 + a as u64 * 2 + (sg > 0) as u64,
+                        Exit::Inside => unreachable!(),
+                    };
+                    seen.push((usize::MAX, dda.t.to_bits(), code));
+                    break;
+                }
+            }
+        }
+        (seen, visited, skipped)
+    }
+
+    /// The skipping walk visits the same occupied cells with the same segment ends (bit for
+    /// bit) and leaves the grid at the same distance through the same face as the walk that
+    /// visits every cell: random rays, rays along cell edges, through vertices, grazing at
+    /// 89° and axis-parallel, starting inside occupied and empty cells, with periodic wraps
+    /// across empty space; sparse, dense, fully empty, one-cell and large sparse grids.
+    #[test]
+    fn skipping_walk_equals_the_cell_by_cell_walk() {
+        let mut rng = Mix(11);
+        let grids: [([usize; 3], DVec3, f64); 6] = [
+            ([12, 10, 8], DVec3::new(1.0, 1.0, 1.0), 0.03),
+            ([20, 20, 10], DVec3::new(0.5, 0.25, 1.0), 0.005),
+            ([16, 16, 16], DVec3::new(1.0, 1.0, 1.0), 0.0),
+            ([1, 1, 1], DVec3::new(2.0, 2.0, 2.0), 0.0),
+            ([8, 8, 8], DVec3::new(1.0, 1.0, 1.0), 0.5),
+            ([200, 150, 60], DVec3::new(1.0, 1.0, 0.5), 2e-5),
+        ];
+        let mut total_skipped = 0;
+        for (gi, (n, cell, fill)) in grids.into_iter().enumerate() {
+            let s = GridSpec {
+                n,
+                cell,
+                origin: DVec3::new(-3.0, 5.0, 100.0),
+                subcells: 2,
+                boundary: BoundaryMode::Repetitive,
+                topography_offset: (0.0, 0.0),
+            };
+            let len = n[0] * n[1] * n[2];
+            let mut occ: Vec<bool> = (0..len).map(|_| rng.f() < fill).collect();
+            if gi == 5 {
+                // A plane of occupied cells on an edge line, crossed by edge rays.
+                for i in 0..n[0] {
+                    occ[i + n[0] * (n[1] / 2 + n[1] * (n[2] / 2))] = true;
+                }
+            }
+            let dist = empty_distance(n, |c| occ[c]);
+            let size = DVec3::new(n[0] as f64, n[1] as f64, n[2] as f64) * cell;
+            let corner = |u: DVec3| s.origin + u * size;
+            let mut rays: Vec<(DVec3, DVec3)> = Vec::new();
+            for _ in 0..300 {
+                let p = corner(DVec3::new(rng.f(), rng.f(), rng.f()));
+                let d = DVec3::new(rng.f() - 0.5, rng.f() - 0.5, rng.f() - 0.5);
+                rays.push((p, d));
+            }
+            // Along cell edges and through vertices (start on grid nodes).
+            for _ in 0..60 {
+                let mut node = |m: usize, a: usize| {
+                    s.origin[a] + (rng.next() % (m as u64 + 1)) as f64 * cell[a]
+                };
+                let p = DVec3::new(node(n[0], 0), node(n[1], 1), node(n[2], 2));
+                let sx = if rng.f() < 0.5 { -1.0 } else { 1.0 };
+                let sy = if rng.f() < 0.5 { -1.0 } else { 1.0 };
+                let sz = if rng.f() < 0.5 { -1.0 } else { 1.0 };
+                rays.push((p, DVec3::new(sx * cell.x, sy * cell.y, sz * cell.z)));
+                rays.push((p, DVec3::new(sx, 0.0, 0.0)));
+                rays.push((p, DVec3::new(0.0, sy, sz * 0.0 - 1.0)));
+                rays.push((p, DVec3::new(sx * cell.x, sy * cell.y, 0.0)));
+            }
+            // Grazing (89° from the vertical), both ways.
+            for _ in 0..60 {
+                let p = corner(DVec3::new(rng.f(), rng.f(), rng.f()));
+                let phi = rng.f() * std::f64::consts::TAU;
+                let th = 89f64.to_radians();
+                let sz = if rng.f() < 0.5 { -1.0 } else { 1.0 };
+                rays.push((
+                    p,
+                    DVec3::new(th.sin() * phi.cos(), th.sin() * phi.sin(), sz * th.cos()),
+                ));
+            }
+            for (p, d) in rays {
+                let d = d.normalize();
+                if !d.is_finite() {
+                    continue;
+                }
+                let (a, va, sa) = walk(&s, p, d, &dist, false, 40);
+                let (b, vb, sb) = walk(&s, p, d, &dist, true, 40);
+                assert_eq!(sa, 0);
+                assert_eq!(a, b, "grid {gi} p {p:?} d {d:?}");
+                // Visited + skipped is the cell count of the plain walk (rays through edges
+                // or vertices count once per axis in `skipped`).
+                assert!(vb + sb >= va && vb <= va, "grid {gi}: {vb} + {sb} vs {va}");
+                total_skipped += sb;
+            }
+        }
+        assert!(total_skipped > 10_000, "the test grids exercise the jumps");
     }
 
     #[test]

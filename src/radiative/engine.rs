@@ -59,7 +59,7 @@
 //!   and chunk results are merged in chunk order, so products are bit-identical on any number
 //!   of threads.
 
-use super::dda::{Dda, Exit, floor_i64};
+use super::dda::{Dda, Exit, floor_i64, skip_field};
 use super::fastmath::{HalfBarycentres, attenuation};
 use super::images::ImageGrid;
 use crate::resources::directions::DirectionSet;
@@ -123,6 +123,11 @@ pub struct TrackingParams {
     pub extrapolate: bool,
     /// Maximum scene crossings of one ray in repetitive scenes (DART default 1000).
     pub max_crossings: u32,
+    /// Empty-space skipping: rays jump over boxes of empty cells (no tracked turbid entry, no
+    /// facet) found from a chessboard distance field ([`super::dda::skip_field`]) instead
+    /// of visiting them one by one; the same cells, segment ends and products bit for bit
+    /// ([`Dda::skip_to`]). Off: every cell is visited (kept for the equality tests).
+    pub skip_empty: bool,
     /// Turbid interception stores per incident face / sub-face (DART 5 paper §3.2, Figure 7;
     /// see [`TurbidSubfaces`]).
     pub turbid_subfaces: TurbidSubfaces,
@@ -145,6 +150,7 @@ impl TrackingParams {
             max_auto_subcells: 8,
             extrapolate: true,
             max_crossings: 1000,
+            skip_empty: true,
             turbid_subfaces: TurbidSubfaces::Off,
             turbid_exit_grouping: false,
         }
@@ -285,8 +291,12 @@ pub struct RadiativeResult {
     pub converged: bool,
     /// Rays traced.
     pub rays: u64,
-    /// Cell crossings (DDA steps).
+    /// Cell crossings the walks visited (read the cell's contents).
     pub crossings: u64,
+    /// Empty cells the walks jumped over without visiting them (empty-space skipping;
+    /// `crossings + skipped` is the crossing count of the walk that visits every cell, to
+    /// within rays through cell edges and vertices, which count once per axis here).
+    pub skipped: u64,
     /// Thread-seconds spent tracking rays, summed over all chunks and iterations: the wall time
     /// of each source chunk's launch loop and of each emitter's loop over its outgoing
     /// directions (ray set-up and [`Ctx::trace`] calls), measured inside the worker threads.
@@ -783,6 +793,8 @@ struct ChunkOut {
     absorbed_val: Vec<f64>,
     rays: u64,
     crossings: u64,
+    /// Empty cells jumped over (see [`RadiativeResult::skipped`]).
+    skipped: u64,
     /// Thread-seconds spent tracking (see [`RadiativeResult::kernel_seconds`]).
     kernel_seconds: f64,
     /// Factor on the ray-power threshold of the ray being traced (1; a turbid incident store's
@@ -984,6 +996,11 @@ struct Ctx<'a> {
     simple: bool,
     /// Per cell, for [`Ctx::trace_simple`]: its turbid entry (density 0: none).
     scells: Vec<SimpleCell>,
+    /// Per cell, for [`Ctx::trace_w`]: 0 for a cell with a tracked turbid entry or a facet, 1
+    /// for an empty cell crossed one by one, else its chessboard distance r in cells to the
+    /// nearest such cell ([`skip_field`]; no r when [`TrackingParams::skip_empty`] is off): a
+    /// ray in it jumps over the box of cells within r − 1.
+    skip: Vec<u8>,
     /// Turbid interception storage mode.
     subfaces: TurbidSubfaces,
     /// Turbid incident stores per entry: 1 (`Off`, `Blend`), 7 (`Faces`), 6 D² + 1 (`Subfaces`).
@@ -996,7 +1013,8 @@ struct Ctx<'a> {
 
 /// A cell as [`Ctx::trace_simple`] reads it (16 bytes): leaf area volume density u_f
 /// (m² m⁻³, 0 for a cell without tracked turbid entry), turbid material slot (column of the
-/// G rows) and entry index (into `CellGrid::turbid`).
+/// G rows) and entry index (into `CellGrid::turbid`). A cell without entry holds in `tm` its
+/// empty-space distance (see [`Ctx::skip`]; no extra read per crossing).
 #[derive(Debug, Clone, Copy, Default)]
 struct SimpleCell {
     density: f64,
@@ -1301,32 +1319,44 @@ impl Ctx<'_> {
         let mut psum: f64 = pw.iter().sum();
         // The traversal's origin, kept in a local (changes only at a wrap).
         let mut o = dda.origin();
+        let mut n_skip = 0u64;
         loop {
             n_cross += 1;
             let sc = scells[dda.index()];
             let t0 = dda.t;
             let t1 = dda.t_exit();
-            if sc.density > 0.0 && t1 > t0 {
-                let ell = t1 - t0;
-                let k = gd[sc.tm as usize] * sc.density;
-                if k > 0.0 {
-                    let x = k * ell;
-                    let (frac, tr) = attenuation(x);
-                    let (s1, s2) = hb.eval(x, ell);
-                    let p1 = o + d * (t0 + s1);
-                    let p2 = o + d * (t0 + s2);
-                    sink(sc.idx, pw, frac, p1, p2, psum * frac, o + d * t0);
-                    for v in pw.iter_mut() {
-                        *v *= tr;
-                    }
-                    psum = pw.iter().sum();
-                    if psum < min_ray {
-                        add(&mut out.lost, pw);
-                        break;
+            let exit = if sc.density > 0.0 {
+                if t1 > t0 {
+                    let ell = t1 - t0;
+                    let k = gd[sc.tm as usize] * sc.density;
+                    if k > 0.0 {
+                        let x = k * ell;
+                        let (frac, tr) = attenuation(x);
+                        let (s1, s2) = hb.eval(x, ell);
+                        let p1 = o + d * (t0 + s1);
+                        let p2 = o + d * (t0 + s2);
+                        sink(sc.idx, pw, frac, p1, p2, psum * frac, o + d * t0);
+                        for v in pw.iter_mut() {
+                            *v *= tr;
+                        }
+                        psum = pw.iter().sum();
+                        if psum < min_ray {
+                            add(&mut out.lost, pw);
+                            break;
+                        }
                     }
                 }
-            }
-            match dda.advance_at(t1) {
+                dda.advance_at(t1)
+            } else if sc.tm > 1 {
+                // Empty cell at distance r = sc.tm: jump over the empty box around it.
+                let h = sc.tm as i64 - 1;
+                let (e, faces) = dda.skip_to(h, dda.skip_exit(h));
+                n_skip += faces - 1;
+                e
+            } else {
+                dda.advance_at(t1)
+            };
+            match exit {
                 Exit::Inside => {}
                 Exit::Top => {
                     self.escape(dda.point(dda.t), dir, pw, out);
@@ -1351,6 +1381,7 @@ impl Ctx<'_> {
             }
         }
         out.crossings += n_cross;
+        out.skipped += n_skip;
     }
 
     /// Traces one ray; `pw` holds the channel powers and is consumed.
@@ -1445,6 +1476,7 @@ impl Ctx<'_> {
             spec.boundary != BoundaryMode::Isolated && spec.topography_offset == (0.0, 0.0);
         out.rays += 1;
         let mut n_cross = 0u64;
+        let mut n_skip = 0u64;
         let mut crossings = 0u32;
         'restart: loop {
             let Some(mut dda) = Dda::new(spec, p, d) else {
@@ -1571,7 +1603,18 @@ impl Ctx<'_> {
                     skip_facet = Some(f);
                     continue 'restart;
                 }
-                match dda.advance() {
+                let r = self.skip[c];
+                let exit = if r > 1 {
+                    // Empty cell at distance r: jump over the empty box around it (nothing in
+                    // it for the facet, turbid or hotspot bookkeeping above).
+                    let h = r as i64 - 1;
+                    let (e, faces) = dda.skip_to(h, dda.skip_exit(h));
+                    n_skip += faces - 1;
+                    e
+                } else {
+                    dda.advance()
+                };
+                match exit {
                     Exit::Inside => {}
                     Exit::Top => {
                         self.escape(dda.point(dda.t), dir, pw, out);
@@ -1684,6 +1727,7 @@ impl Ctx<'_> {
             }
         }
         out.crossings += n_cross;
+        out.skipped += n_skip;
     }
 }
 
@@ -2333,16 +2377,27 @@ pub fn run(inp: &RadiativeInput) -> RadiativeResult {
         .iter()
         .all(|c| c.fac_lo == c.fac_hi && c.ent_hi - c.ent_lo <= 1)
         && spec.topography_offset == (0.0, 0.0);
+    // Empty-space distance per cell: a cell is occupied when a walk does anything in it (a
+    // tracked turbid entry or a facet; the ground and the box's faces are exits of the DDA).
+    let skip = skip_field(spec.n, inp.params.skip_empty, |c| {
+        cells[c].fac_lo != cells[c].fac_hi || cells[c].ent_lo != cells[c].ent_hi
+    });
     let scells: Vec<SimpleCell> = if simple {
         cells
             .iter()
-            .map(|c| match ents.get(c.ent_lo as usize) {
-                Some(e) if c.ent_hi > c.ent_lo => SimpleCell {
+            .zip(&skip)
+            .map(|(c, &r)| match ents.get(c.ent_lo as usize) {
+                Some(e) if c.ent_hi > c.ent_lo && e.density > 0.0 => SimpleCell {
                     density: e.density,
                     tm: e.tm,
                     idx: e.idx,
                 },
-                _ => SimpleCell::default(),
+                // An entry of zero density: nothing happens in the cell, but it is not
+                // counted as empty (r = 0, visited).
+                _ => SimpleCell {
+                    tm: r as u32,
+                    ..SimpleCell::default()
+                },
             })
             .collect()
     } else {
@@ -2374,6 +2429,7 @@ pub fn run(inp: &RadiativeInput) -> RadiativeResult {
         image_grid: ImageGrid::new(spec, inp.image_oversampling),
         simple,
         scells,
+        skip,
         subfaces: inp.params.turbid_subfaces,
         tstores: match inp.params.turbid_subfaces {
             TurbidSubfaces::Off | TurbidSubfaces::Blend => 1,
@@ -2753,6 +2809,7 @@ fn merge(
     for out in outs {
         res.rays += out.rays;
         res.crossings += out.crossings;
+        res.skipped += out.skipped;
         res.kernel_seconds += out.kernel_seconds;
         add(&mut res.escaped, &out.escaped);
         for (k, v) in out.escaped.iter().enumerate() {

@@ -97,8 +97,10 @@ pub struct RadiativeProducts {
     pub extrapolation_ratio: Vec<f64>,
     /// Rays traced.
     pub rays: u64,
-    /// Cell crossings.
+    /// Cell crossings the walks visited (read the cell's contents).
     pub crossings: u64,
+    /// Empty cells jumped over by empty-space skipping (not in `crossings`).
+    pub skipped: u64,
     /// Wall time of the tracking, seconds.
     pub tracking_seconds: f64,
     /// Solver: `flux-tracking` (Radiative stage) or `monte-carlo` (Photon stage).
@@ -225,6 +227,7 @@ impl RadiativeProducts {
             extrapolation_ratio: raw.q.iter().take(nb).copied().collect(),
             rays: raw.rays,
             crossings: raw.crossings,
+            skipped: raw.skipped,
             tracking_seconds: seconds,
             solver: "flux-tracking",
             launch: Some(raw.launch),

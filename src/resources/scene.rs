@@ -81,6 +81,10 @@ pub struct RunSettings {
     /// Oversampling factor η of the orthographic images chosen on the command line
     /// (overrides the scene's `radiative.image_oversampling`).
     pub image_oversampling: Option<u32>,
+    /// Empty-space skipping in the ray and photon walks (default on; same products bit for
+    /// bit, see [`crate::radiative::dda::Dda::skip_to`]). Off: every cell is visited (kept for
+    /// the equality tests and for measuring).
+    pub skip_empty: bool,
 }
 
 /// Passive solver.
@@ -120,6 +124,7 @@ impl Default for RunSettings {
             preset: None,
             solver: Solver::FluxTracking,
             image_oversampling: None,
+            skip_empty: true,
         }
     }
 }

@@ -624,6 +624,9 @@ pub fn spawn_scene(
     {
         radiative.image_oversampling = eta.max(1);
     }
+    if let Some(s) = world.get_resource::<crate::resources::scene::RunSettings>() {
+        radiative.tracking.skip_empty = s.skip_empty;
+    }
     world.insert_resource(radiative);
     world.insert_resource(TerrainRes(terrain));
     // Model only what the scene needs: LiDAR work exists only with instruments.

@@ -120,10 +120,11 @@ pub fn run_lidars(
     dirs: Res<Directions>,
     mats: Res<Materials>,
     terrain: Res<TerrainRes>,
-    (passive, images, tables): (
+    (passive, images, tables, run): (
         Option<Res<RadiativeProducts>>,
         Option<Res<ImageDirections>>,
         Option<Res<OpticsTables>>,
+        Option<Res<crate::resources::scene::RunSettings>>,
     ),
     grounds: Query<&Ground>,
     crowns: Query<&TurbidCrown>,
@@ -187,6 +188,7 @@ pub fn run_lidars(
         let optics: Vec<_> = all.iter().map(|o| o.select_band(band)).collect();
         let mut params = PhotonParams::new(0, info.seed, kind);
         params.max_order = l.max_order;
+        params.skip_empty = run.as_ref().is_none_or(|r| r.skip_empty);
         // One forced peel-off point per crossing of a turbid or fluid cell (see
         // `PhotonParams::fluid_peel_points`): at 1000 photons per pulse the first-order
         // waveform is already smooth, and each point costs a trace to the receiver.

@@ -127,7 +127,10 @@ pub fn track_photons(
         .iter()
         .map(|f| f.kind == FacetKind::Ground)
         .collect();
-    let params = PhotonParams::new(photons, info.seed, sampler);
+    let params = PhotonParams {
+        skip_empty: settings.skip_empty,
+        ..PhotonParams::new(photons, info.seed, sampler)
+    };
     let input = PhotonInput {
         spec: &spec,
         grid: &grid,
