@@ -228,10 +228,7 @@ impl Dda {
     /// its walk does nothing (see [`empty_distance`]: `h = distance − 1`). Returns the exit and
     /// the number of cell faces crossed (the cells skipped plus one, counting an edge or vertex
     /// crossing once per axis).
-    ///
-    /// Not inlined: the walks' per-cell loops keep their code as without skipping, and a jump
-    /// (taken only from cells at distance ≥ [`MIN_SKIP_DISTANCE`]) replaces several advances.
-    #[inline(never)]
+    #[inline(always)]
     pub fn skip_to(&mut self, h: i64, te: f64) -> (Exit, u64) {
         debug_assert_eq!(te, self.skip_exit(h));
         self.t = te;
@@ -340,59 +337,73 @@ pub fn empty_distance(n: [usize; 3], occupied: impl Fn(usize) -> bool) -> Vec<u8
             }
         }
     }
-    let dims = [nx as i64, ny as i64, nz as i64];
     let stride = [1i64, nx as i64, (nx * ny) as i64];
+    let dims = [nx, ny, nz];
     for sg in [1i64, -1] {
-        let offs: Vec<([i64; 3], i64)> = before
+        let offs: Vec<([i64; 3], isize)> = before
             .iter()
             .map(|o| {
                 let o = [o[0] * sg, o[1] * sg, o[2] * sg];
-                (o, o[0] * stride[0] + o[1] * stride[1] + o[2] * stride[2])
+                let lin = o[0] * stride[0] + o[1] * stride[1] + o[2] * stride[2];
+                (o, lin as isize)
             })
             .collect();
-        for step in 0..len {
-            let c = if sg > 0 { step } else { len - 1 - step };
-            if d[c] == 0 {
-                continue;
-            }
-            let ijk = [
-                (c % nx) as i64,
-                ((c / nx) % ny) as i64,
-                (c / (nx * ny)) as i64,
-            ];
-            let mut m = d[c];
-            for &(o, lin) in &offs {
-                let inside = (0..3).all(|a| ((ijk[a] + o[a]) as u64) < dims[a] as u64);
-                if inside {
-                    let v = d[(c as i64 + lin) as usize].saturating_add(1);
-                    if v < m {
-                        m = v;
+        let lins: Vec<isize> = offs.iter().map(|o| o.1).collect();
+        for kk in 0..nz {
+            let k = if sg > 0 { kk } else { nz - 1 - kk };
+            for jj in 0..ny {
+                let j = if sg > 0 { jj } else { ny - 1 - jj };
+                // Rows with every neighbour inside the grid (all but the outer shell) take the
+                // unchecked loop.
+                let inner_row = k > 0 && k + 1 < nz && j > 0 && j + 1 < ny;
+                for ii in 0..nx {
+                    let i = if sg > 0 { ii } else { nx - 1 - ii };
+                    let c = i + nx * (j + ny * k);
+                    if d[c] == 0 {
+                        continue;
                     }
+                    let mut m = d[c];
+                    if inner_row && i > 0 && i + 1 < nx {
+                        for &lin in &lins {
+                            let v = d[c.wrapping_add_signed(lin)].saturating_add(1);
+                            m = m.min(v);
+                        }
+                    } else {
+                        let ijk = [i as i64, j as i64, k as i64];
+                        for &(o, lin) in &offs {
+                            let inside = (0..3).all(|a| ((ijk[a] + o[a]) as u64) < dims[a] as u64);
+                            if inside {
+                                m = m.min(d[c.wrapping_add_signed(lin)].saturating_add(1));
+                            }
+                        }
+                    }
+                    d[c] = m;
                 }
             }
-            d[c] = m;
         }
     }
     d
 }
 
-/// Smallest empty-space distance from which the walks jump ([`Dda::skip_to`]); cells at a
-/// smaller distance are crossed one by one. A jump costs about as much as five advances, and
-/// the box of a cell at distance 2 or 3 holds too few cells along a ray (measured: distance 2
-/// made the forest bench's flux tracking 7 % slower, 3 kept 2 % of that, 4 is neutral).
-pub const MIN_SKIP_DISTANCE: u8 = 4;
-
 /// [`empty_distance`] as the walks read it: 0 for an occupied cell, 1 for an empty cell
 /// crossed one by one (also every empty cell when `skip` is off), else the distance
-/// (≥ [`MIN_SKIP_DISTANCE`]) of a cell from which the walk jumps.
-pub fn skip_field(n: [usize; 3], skip: bool, occupied: impl Fn(usize) -> bool) -> Vec<u8> {
+/// (≥ `min_distance`, at least 2) of a cell from which the walk jumps. A jump costs about as
+/// much as five advances of a walk through empty cells, and the box of a cell at a small
+/// distance holds few cells along a ray, so each walk sets the smallest distance worth a jump
+/// from measurements.
+pub fn skip_field(
+    n: [usize; 3],
+    skip: bool,
+    min_distance: u8,
+    occupied: impl Fn(usize) -> bool,
+) -> Vec<u8> {
     if !skip {
         let len = n[0] * n[1] * n[2];
         return (0..len).map(|c| (!occupied(c)) as u8).collect();
     }
     let mut d = empty_distance(n, occupied);
     for v in d.iter_mut() {
-        if *v != 0 && *v < MIN_SKIP_DISTANCE {
+        if *v != 0 && *v < min_distance.max(2) {
             *v = 1;
         }
     }
