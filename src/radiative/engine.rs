@@ -713,6 +713,49 @@ impl TurAcc {
         }
     }
 
+    /// [`TurAcc::add`] with `turbid_subfaces: Off` (index = entry, one points record).
+    #[allow(clippy::too_many_arguments)]
+    #[inline(always)]
+    fn add_entry(
+        &mut self,
+        e: u32,
+        slot: u32,
+        pw: &[f64],
+        f1: f64,
+        f2: f64,
+        p1: DVec3,
+        p2: DVec3,
+        wt: f64,
+    ) {
+        match self {
+            TurAcc::Dense {
+                ns,
+                w,
+                np,
+                tur,
+                pts,
+                flag,
+                touched,
+            } => DenseView {
+                ns: *ns,
+                w: *w,
+                np: *np,
+                tur,
+                pts,
+                flag,
+                touched,
+            }
+            .add_entry(e, slot, pw, f1, f2, p1, p2, wt),
+            TurAcc::Sparse { ns, tur, pts, .. } => {
+                let rec = tur.get(e as u64 * *ns as u64 + slot as u64);
+                for (r, v) in rec.iter_mut().zip(pw) {
+                    *r += v * f1 * f2;
+                }
+                add_points(pts.get(e as u64), p1, p2, wt);
+            }
+        }
+    }
+
     /// Visits the power records: (`index × ns + slot`, W per channel).
     fn for_each_tur(&self, mut f: impl FnMut(u64, &[f64])) {
         match self {
@@ -1468,6 +1511,7 @@ impl Ctx<'_> {
             &[]
         };
         let min_ray = self.min_ray * out.ray_scale;
+        let off = self.subfaces == TurbidSubfaces::Off;
         // Distance travelled from the ray's origin to the current restart point, m.
         let mut s_base = 0.0;
         let hb = HalfBarycentres::get();
@@ -1550,14 +1594,30 @@ impl Ctx<'_> {
                         let p1 = dda.point(t0 + s1);
                         let p2 = dda.point(t0 + s2);
                         let wsum = psum * frac;
-                        let q0 = dda.point(t0);
-                        if let [e] = ents {
-                            // One material: share = k/k = 1 exactly.
-                            let eq = self.acc_index(e.idx, q0, d, slot);
-                            tur.add(eq, slot, pw, frac, 1.0, p1, p2, wsum);
+                        if off {
+                            if let [e] = ents {
+                                // One material: share = k/k = 1 exactly.
+                                tur.add_entry(e.idx, slot, pw, frac, 1.0, p1, p2, wsum);
+                            } else {
+                                for e in ents {
+                                    let share = k_of(e) / k;
+                                    tur.add_entry(
+                                        e.idx,
+                                        slot,
+                                        pw,
+                                        frac,
+                                        share,
+                                        p1,
+                                        p2,
+                                        wsum * share,
+                                    );
+                                }
+                            }
                         } else {
+                            // Incident (sub-)face stores, or per-slot points.
+                            let q0 = dda.point(t0);
                             for e in ents {
-                                let share = k_of(e) / k;
+                                let share = if ents.len() == 1 { 1.0 } else { k_of(e) / k };
                                 let eq = self.acc_index(e.idx, q0, d, slot);
                                 tur.add(eq, slot, pw, frac, share, p1, p2, wsum * share);
                             }
@@ -3343,7 +3403,12 @@ struct ExitGroups {
 /// incident store sends its own power from its own two points (half from the barycentre of the
 /// first half of its intercepted energy, half from the second's). `Blend`: one pair of rays per
 /// direction j, from the barycentres of the per-slot points weighted by the power each slot
-/// sends into j. The power not scattered is booked as absorbed by the entry.
+/// sends into j. With `turbid_exit_grouping` (cells without facets) the rays of all the
+/// entry's stores are first followed to the cell's exit by [`Ctx::to_exit`] and then traced
+/// merged, one per (direction, exit face or sub-face) from the power-weighted barycentre of the
+/// exit points (Figure 7c); first-order sun rays with the hotspot correlation are traced from
+/// their own points (the correlation depends on the path from the scattering point). The power
+/// not scattered is booked as absorbed by the entry.
 fn emit_turbid_records(
     ctx: &Ctx,
     st: &Stores,
