@@ -103,8 +103,11 @@ pub struct TrackingParams {
     /// Stop when the relative change of the extrapolated scene albedo between two iterations is
     /// below this (DART `albedoThreshold`, default 1e-3).
     pub albedo_threshold: f64,
-    /// A ray whose power falls below this fraction of the mean source-ray power is dropped and
-    /// booked as lost (DART `lightPropagationThreshold`, default 1e-7).
+    /// A ray of direction j whose power falls below this fraction of the mean source-ray power,
+    /// times `ΔΩ_j / ΔΩ_max` (its solid angle over the largest tiling solid angle), is dropped
+    /// and booked as lost (DART `lightPropagationThreshold`, default 1e-7; the threshold is
+    /// per steradian times the ray's ΔΩ, physics.md §6.4, so the small exact and oversampled
+    /// directions are not dropped earlier than the tiles they were cut from).
     pub ray_threshold: f64,
     /// Spacing of the sun and sky launch points on the top plane, metres (DART
     /// `distanceBetweenIlluminationSubCenters`, default 0.1 m); `None`: chosen from the
@@ -713,6 +716,49 @@ impl TurAcc {
         }
     }
 
+    /// [`TurAcc::add`] with `turbid_subfaces: Off` (index = entry, one points record).
+    #[allow(clippy::too_many_arguments)]
+    #[inline(always)]
+    fn add_entry(
+        &mut self,
+        e: u32,
+        slot: u32,
+        pw: &[f64],
+        f1: f64,
+        f2: f64,
+        p1: DVec3,
+        p2: DVec3,
+        wt: f64,
+    ) {
+        match self {
+            TurAcc::Dense {
+                ns,
+                w,
+                np,
+                tur,
+                pts,
+                flag,
+                touched,
+            } => DenseView {
+                ns: *ns,
+                w: *w,
+                np: *np,
+                tur,
+                pts,
+                flag,
+                touched,
+            }
+            .add_entry(e, slot, pw, f1, f2, p1, p2, wt),
+            TurAcc::Sparse { ns, tur, pts, .. } => {
+                let rec = tur.get(e as u64 * *ns as u64 + slot as u64);
+                for (r, v) in rec.iter_mut().zip(pw) {
+                    *r += v * f1 * f2;
+                }
+                add_points(pts.get(e as u64), p1, p2, wt);
+            }
+        }
+    }
+
     /// Visits the power records: (`index × ns + slot`, W per channel).
     fn for_each_tur(&self, mut f: impl FnMut(u64, &[f64])) {
         match self {
@@ -970,7 +1016,11 @@ struct Ctx<'a> {
     /// Cell index of each turbid entry.
     entry_cell: Vec<u32>,
     size: (f64, f64),
+    /// Ray threshold of a tile of the largest solid angle, W (see
+    /// [`TrackingParams::ray_threshold`]); direction j uses `min_ray · ray_factor[j]`.
     min_ray: f64,
+    /// `ΔΩ_j / ΔΩ_max` per direction (≤ 1; the sun's entry, last, is 1).
+    ray_factor: Vec<f64>,
     /// Phase rows averaged over each interception slot: `[turbid material][band][slot][dir]`.
     slot_rows: Vec<f64>,
     /// BRDF-ground rows averaged over each slot (weights ∫|μ|dΩ): `[band][slot][dir]`.
@@ -1312,7 +1362,7 @@ impl Ctx<'_> {
         let hb = HalfBarycentres::get();
         let isolated = spec.boundary == BoundaryMode::Isolated;
         let max_crossings = self.inp.params.max_crossings;
-        let min_ray = self.min_ray * out.ray_scale;
+        let min_ray = self.min_ray * self.ray_factor[dir] * out.ray_scale;
         let scells = &self.scells[..];
         out.rays += 1;
         let Some(mut dda) = Dda::new(spec, p, d) else {
@@ -1472,7 +1522,8 @@ impl Ctx<'_> {
         } else {
             &[]
         };
-        let min_ray = self.min_ray * out.ray_scale;
+        let min_ray = self.min_ray * self.ray_factor[dir] * out.ray_scale;
+        let off = self.subfaces == TurbidSubfaces::Off;
         // Distance travelled from the ray's origin to the current restart point, m.
         let mut s_base = 0.0;
         let hb = HalfBarycentres::get();
@@ -1571,14 +1622,30 @@ impl Ctx<'_> {
                             let p1 = dda.point(t0 + s1);
                             let p2 = dda.point(t0 + s2);
                             let wsum = psum * frac;
-                            let q0 = dda.point(t0);
-                            if let [e] = ents {
-                                // One material: share = k/k = 1 exactly.
-                                let eq = self.acc_index(e.idx, q0, d, slot);
-                                tur.add(eq, slot, pw, frac, 1.0, p1, p2, wsum);
+                            if off {
+                                if let [e] = ents {
+                                    // One material: share = k/k = 1 exactly.
+                                    tur.add_entry(e.idx, slot, pw, frac, 1.0, p1, p2, wsum);
+                                } else {
+                                    for e in ents {
+                                        let share = k_of(e) / k;
+                                        tur.add_entry(
+                                            e.idx,
+                                            slot,
+                                            pw,
+                                            frac,
+                                            share,
+                                            p1,
+                                            p2,
+                                            wsum * share,
+                                        );
+                                    }
+                                }
                             } else {
+                                // Incident (sub-)face stores, or per-slot points.
+                                let q0 = dda.point(t0);
                                 for e in ents {
-                                    let share = k_of(e) / k;
+                                    let share = if ents.len() == 1 { 1.0 } else { k_of(e) / k };
                                     let eq = self.acc_index(e.idx, q0, d, slot);
                                     tur.add(eq, slot, pw, frac, share, p1, p2, wsum * share);
                                 }
@@ -2265,6 +2332,24 @@ pub fn run(inp: &RadiativeInput) -> RadiativeResult {
         + (plan.sky_n.0 * plan.sky_n.1 * n_sky_dirs) as f64
         + inp.emitters.len() as f64;
     let min_ray = inp.params.ray_threshold * source.iter().sum::<f64>() / n_source_rays;
+    // DART's threshold is per steradian × the ray's ΔΩ (physics.md §6.4): relative to the
+    // largest tile, so the regular tiles keep `min_ray` and an exact view direction of 0.001 sr
+    // is tracked as far as the tile it was cut from.
+    let d_omega_max = tiling
+        .iter()
+        .map(|d| d.solid_angle_sr)
+        .fold(0.0_f64, f64::max);
+    let mut ray_factor: Vec<f64> = tiling
+        .iter()
+        .map(|d| {
+            if d_omega_max > 0.0 {
+                (d.solid_angle_sr / d_omega_max).min(1.0)
+            } else {
+                1.0
+            }
+        })
+        .collect();
+    ray_factor.push(1.0);
     // Rows of the interception slots: the phase rows of each slot's member directions,
     // averaged with the power a smooth diffuse field deposits along each member: ∝ G(Ω_i) ΔΩ_i
     // for turbid cells, ∝ ∫_{ΔΩ_i}|μ|dΩ for the ground. One direction per slot (reference
@@ -2430,6 +2515,7 @@ pub fn run(inp: &RadiativeInput) -> RadiativeResult {
         entry_cell,
         size,
         min_ray,
+        ray_factor,
         slot_rows,
         ground_rows,
         sub: plan.subcells.max(1),
@@ -3355,7 +3441,12 @@ struct ExitGroups {
 /// incident store sends its own power from its own two points (half from the barycentre of the
 /// first half of its intercepted energy, half from the second's). `Blend`: one pair of rays per
 /// direction j, from the barycentres of the per-slot points weighted by the power each slot
-/// sends into j. The power not scattered is booked as absorbed by the entry.
+/// sends into j. With `turbid_exit_grouping` (cells without facets) the rays of all the
+/// entry's stores are first followed to the cell's exit by [`Ctx::to_exit`] and then traced
+/// merged, one per (direction, exit face or sub-face) from the power-weighted barycentre of the
+/// exit points (Figure 7c); first-order sun rays with the hotspot correlation are traced from
+/// their own points (the correlation depends on the path from the scattering point). The power
+/// not scattered is booked as absorbed by the entry.
 fn emit_turbid_records(
     ctx: &Ctx,
     st: &Stores,
