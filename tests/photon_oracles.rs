@@ -68,7 +68,6 @@ fn assert_closes(p: &RadiativeProducts, what: &str) {
 }
 
 /// Principal-plane directions only (11 views), to keep peel-off cost down.
-
 fn layer(lai: f64, sza: f64, bands: Vec<BandOptics>) -> SceneDesc {
     let mut d = turbid_layer(&TurbidLayerParams {
         lai,

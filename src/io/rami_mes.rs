@@ -957,10 +957,10 @@ mod tests {
                     other => panic!("{name}: unexpected {other:?}"),
                 }
                 // Writing what was read gives the same bytes.
-                if let Ok(t) = parse_brf_table(text) {
-                    if meas.is_brf_table() {
-                        assert_eq!(&write_brf_table(&t), text);
-                    }
+                if let Ok(t) = parse_brf_table(text)
+                    && meas.is_brf_table()
+                {
+                    assert_eq!(&write_brf_table(&t), text);
                 }
             }
             // measurements.json round trip (serde_json parses floats to within 1 ulp).

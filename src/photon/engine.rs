@@ -166,6 +166,8 @@ impl DiscreteRows {
 }
 
 /// Optical model of one material as the photon tracker needs it.
+// One value per material, read in the hot loops: the turbid variant is kept inline (no Box).
+#[allow(clippy::large_enum_variant)]
 #[derive(Debug, Clone)]
 pub enum PhotonOptics {
     /// Not used by the tracker.
@@ -2450,7 +2452,7 @@ fn brdf_event(
 // ---------------------------------------------------------------------------------------------
 
 /// Photon stream purpose tag of LiDAR pulses.
-pub const LIDAR_STREAM: u64 = 0x4c49_4441_52; // "LIDAR"
+pub const LIDAR_STREAM: u64 = 0x4c_49_44_41_52; // "LIDAR"
 
 /// One LiDAR pulse (its receiver is at the emitter: monostatic).
 #[derive(Debug, Clone, PartialEq)]

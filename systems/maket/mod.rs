@@ -13,7 +13,7 @@ use crate::geometry::terrain::Terrain;
 use crate::geometry::triangle::{area, clip_to_box, is_degenerate, overlaps_box, polygon_area};
 use crate::resources::facets::{Facet, FacetBvh, FacetKind, FacetStore};
 use crate::resources::grid::{CellGrid, GridSpec, TurbidEntry, compress};
-use crate::resources::maket_report::{LeafAreaReport, MaketReport, MemoryEstimate};
+use crate::resources::maket_report::{MaketReport, MemoryEstimate};
 use crate::resources::materials::Materials;
 use crate::resources::scene::{RunSettings, SceneInfo, StageErrors, TerrainRes, Warnings};
 use crate::scene::desc::BoundaryMode;
@@ -697,10 +697,7 @@ pub fn make_report(
     };
     let name = |m: u32| mats.list[m as usize].name.clone();
     for c in crowns {
-        r.leaf_area
-            .entry(name(c.material))
-            .or_insert_with(LeafAreaReport::default)
-            .analytic_m2 += c.geom.leaf_area();
+        r.leaf_area.entry(name(c.material)).or_default().analytic_m2 += c.geom.leaf_area();
     }
     for p in plots {
         let a = crate::geometry::polygon::signed_area(&p.footprint).abs();
