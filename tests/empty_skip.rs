@@ -176,7 +176,8 @@ fn monte_carlo_and_lidar_are_bit_identical_with_skipping() {
         );
     }
     // LiDAR: waveforms, gate losses and returns of a small scan over the sparse stand (the
-    // forced first-flight walk, the flights and the receiver transmittances all skip).
+    // flights skip; the forced first-flight walk and the receiver transmittances cross empty
+    // cells one by one).
     let mut d = sparse(0.0, 30.0, 20.0);
     d.lidars = Some(vec![LidarDesc {
         name: "als".into(),

@@ -288,7 +288,7 @@ pub struct PhotonParams {
     pub max_order: u32,
     /// Maximum scene crossings of one flight in repetitive scenes.
     pub max_crossings: u32,
-    /// Empty-space skipping: walks jump over boxes of empty cells (no facet, no turbid entry
+    /// Empty-space skipping: flights jump over boxes of empty cells (no facet, no turbid entry
     /// with a density, no fluid) found from a chessboard distance field
     /// ([`crate::radiative::dda::skip_field`]) instead of crossing them one by one; same
     /// cells, segment ends and results bit for bit ([`Dda::skip_to`]). Off: kept for the
@@ -615,7 +615,8 @@ struct Ctx<'a> {
     /// density, a fluid), else its chessboard distance in cells to the nearest such cell
     /// ([`skip_field`]: 1 for a cell crossed one by one, and for every empty cell when
     /// [`PhotonParams::skip_empty`] is off). Walks cross an empty cell without looking at its
-    /// contents, and from a cell at distance r ≥ 2 jump over the box of cells within r − 1
+    /// contents, and flights from a cell at distance r ≥ 2 jump over the box of cells within
+    /// r − 1
     /// (same results bit for bit: an empty cell adds nothing to optical depths and draws no
     /// random numbers).
     empty: std::sync::Arc<[u8]>,
@@ -1161,12 +1162,7 @@ impl Ctx<'_> {
                 }
                 // Empty box around the cell: jumped over unless the receiver distance is
                 // reached inside it (then crossed cell by cell up to it).
-                let exit = if r > 1 {
-                    skip_before(&mut dda, r, travelled, max_dist)
-                } else {
-                    dda.advance()
-                };
-                match exit {
+                match dda.advance() {
                     Exit::Inside => {}
                     exit => match self.transmittance_exit(exit, &dda, &mut crossings) {
                         ExitTo::Receiver => break 'restart,
@@ -1427,12 +1423,7 @@ impl Ctx<'_> {
                         return None;
                     }
                 }
-                let exit = if r > 1 {
-                    fly_skip(&mut dda, r, &mut 0)
-                } else {
-                    dda.advance()
-                };
-                match exit {
+                match dda.advance() {
                     Exit::Inside => {}
                     Exit::Top => return None,
                     Exit::Bottom => return exact.then_some((None, tau_ret)),
@@ -1779,15 +1770,18 @@ pub fn run(inp: &PhotonInput) -> PhotonResult {
     res
 }
 
-/// Smallest empty-space distance from which the Photon walks jump ([`skip_field`]): an empty
+/// Smallest empty-space distance from which the Photon flights jump ([`skip_field`]): an empty
 /// cell costs them only ~20 instructions, so short jumps do not pay (measured, callgrind,
 /// LiDAR forest discrete-peak: jumping from distance 4 cost 27 M more instructions than it
 /// saved over 64 pulses; the urban scan +7 %). From 8 only long runs of empty air jump.
 const MIN_SKIP_DISTANCE: u8 = 8;
 
-/// A walk's jump from an empty cell at distance `r` ≥ 2 ([`Dda::skip_to`]), counting the
+/// A flight's jump from an empty cell at distance `r` ≥ 2 ([`Dda::skip_to`]), counting the
 /// cells skipped. Out of line and cold (measured: inlined into the Photon walks' loops, the
-/// jump code made the common path of the LiDAR forest 5 % longer).
+/// jump code made the common path of the LiDAR forest 5 % longer). Only the flights
+/// ([`Ctx::fly`]) jump: the same branch in the forced walk and the transmittance rays cost the
+/// LiDAR forest 2 % (`trace_photon` 751.5 M → 766.5 M instructions over 64 pulses) without
+/// ever jumping there; they cross empty cells one by one, unread.
 #[cold]
 #[inline(never)]
 fn fly_skip(dda: &mut Dda, r: u8, skipped: &mut u64) -> Exit {
@@ -1795,21 +1789,6 @@ fn fly_skip(dda: &mut Dda, r: u8, skipped: &mut u64) -> Exit {
     let (e, faces) = dda.skip_to(h, dda.skip_exit(h));
     *skipped += faces - 1;
     e
-}
-
-/// [`fly_skip`] for a transmittance ray that stops at the path length `max_dist` (`travelled`
-/// before this traversal): the jump is taken only if the ray stays short of it (else one
-/// advance, as the walk without skipping).
-#[cold]
-#[inline(never)]
-fn skip_before(dda: &mut Dda, r: u8, travelled: f64, max_dist: f64) -> Exit {
-    let h = r as i64 - 1;
-    let te = dda.skip_exit(h);
-    if travelled + te < max_dist {
-        dda.skip_to(h, te).0
-    } else {
-        dda.advance()
-    }
 }
 
 /// Photon stream purpose tag (see `scene::spawn::stream`).
