@@ -650,6 +650,31 @@ impl DenseView<'_> {
 }
 
 impl TurAcc {
+    /// The dense arrays borrowed as one [`DenseView`] (`None`: the sparse maps).
+    #[inline(always)]
+    fn view(&mut self) -> Option<DenseView<'_>> {
+        match self {
+            TurAcc::Dense {
+                ns,
+                w,
+                np,
+                tur,
+                pts,
+                flag,
+                touched,
+            } => Some(DenseView {
+                ns: *ns,
+                w: *w,
+                np: *np,
+                tur,
+                pts,
+                flag,
+                touched,
+            }),
+            TurAcc::Sparse { .. } => None,
+        }
+    }
+
     /// `n_index` accumulator indices, `ns` slots, `w` channels, `np` points records per index.
     fn new(n_index: usize, ns: usize, w: usize, np: usize) -> Self {
         if n_index * ns * w <= DENSE_LIMIT && n_index * np * 7 <= DENSE_LIMIT {
@@ -687,32 +712,15 @@ impl TurAcc {
         p2: DVec3,
         wt: f64,
     ) {
-        match self {
-            TurAcc::Dense {
-                ns,
-                w,
-                np,
-                tur,
-                pts,
-                flag,
-                touched,
-            } => DenseView {
-                ns: *ns,
-                w: *w,
-                np: *np,
-                tur,
-                pts,
-                flag,
-                touched,
+        if let Some(mut v) = self.view() {
+            return v.add(eq, slot, pw, f1, f2, p1, p2, wt);
+        }
+        if let TurAcc::Sparse { ns, np, tur, pts } = self {
+            let rec = tur.get(eq.0 as u64 * *ns as u64 + slot as u64);
+            for (r, v) in rec.iter_mut().zip(pw) {
+                *r += v * f1 * f2;
             }
-            .add(eq, slot, pw, f1, f2, p1, p2, wt),
-            TurAcc::Sparse { ns, np, tur, pts } => {
-                let rec = tur.get(eq.0 as u64 * *ns as u64 + slot as u64);
-                for (r, v) in rec.iter_mut().zip(pw) {
-                    *r += v * f1 * f2;
-                }
-                add_points(pts.get(eq.0 as u64 * *np as u64 + eq.1 as u64), p1, p2, wt);
-            }
+            add_points(pts.get(eq.0 as u64 * *np as u64 + eq.1 as u64), p1, p2, wt);
         }
     }
 
@@ -730,32 +738,15 @@ impl TurAcc {
         p2: DVec3,
         wt: f64,
     ) {
-        match self {
-            TurAcc::Dense {
-                ns,
-                w,
-                np,
-                tur,
-                pts,
-                flag,
-                touched,
-            } => DenseView {
-                ns: *ns,
-                w: *w,
-                np: *np,
-                tur,
-                pts,
-                flag,
-                touched,
+        if let Some(mut v) = self.view() {
+            return v.add_entry(e, slot, pw, f1, f2, p1, p2, wt);
+        }
+        if let TurAcc::Sparse { ns, tur, pts, .. } = self {
+            let rec = tur.get(e as u64 * *ns as u64 + slot as u64);
+            for (r, v) in rec.iter_mut().zip(pw) {
+                *r += v * f1 * f2;
             }
-            .add_entry(e, slot, pw, f1, f2, p1, p2, wt),
-            TurAcc::Sparse { ns, tur, pts, .. } => {
-                let rec = tur.get(e as u64 * *ns as u64 + slot as u64);
-                for (r, v) in rec.iter_mut().zip(pw) {
-                    *r += v * f1 * f2;
-                }
-                add_points(pts.get(e as u64), p1, p2, wt);
-            }
+            add_points(pts.get(e as u64), p1, p2, wt);
         }
     }
 
@@ -1304,25 +1295,10 @@ impl Ctx<'_> {
         let w = if W == 0 { self.w } else { W };
         let slot = self.slot_of(dir) as u32;
         let d = self.omega[dir];
-        match tur {
-            TurAcc::Dense {
-                ns,
-                np,
-                tur,
-                pts,
-                flag,
-                touched,
-                ..
-            } => {
-                let mut view = DenseView {
-                    ns: *ns,
-                    w,
-                    np: *np,
-                    tur,
-                    pts,
-                    flag,
-                    touched,
-                };
+        match tur.view() {
+            Some(mut view) => {
+                // The channel count as the walk knows it (a constant when W > 0).
+                view.w = w;
                 if self.subfaces == TurbidSubfaces::Off {
                     self.walk_simple::<W>(p, dir, pw, out, |e, pw, frac, p1, p2, wt, _| {
                         view.add_entry(e, slot, pw, frac, 1.0, p1, p2, wt)
@@ -1334,9 +1310,9 @@ impl Ctx<'_> {
                     view.add(eq, slot, pw, frac, 1.0, p1, p2, wt)
                 });
             }
-            sparse => self.walk_simple::<W>(p, dir, pw, out, |e, pw, frac, p1, p2, wt, q0| {
+            None => self.walk_simple::<W>(p, dir, pw, out, |e, pw, frac, p1, p2, wt, q0| {
                 let eq = self.acc_index(e, q0, d, slot);
-                sparse.add(eq, slot, pw, frac, 1.0, p1, p2, wt)
+                tur.add(eq, slot, pw, frac, 1.0, p1, p2, wt)
             }),
         }
     }
