@@ -92,15 +92,6 @@ fn brf_pp(p: &RadiativeProducts, b: usize, vz: f64) -> (f64, f64) {
     (e.brf, e.brf_se.unwrap())
 }
 
-fn disort_rows() -> Vec<Vec<String>> {
-    std::fs::read_to_string(asset("assets/reference/turbid_canopy_disort.csv"))
-        .unwrap()
-        .lines()
-        .skip(1)
-        .map(|l| l.split(',').map(String::from).collect())
-        .collect()
-}
-
 #[test]
 fn continuous_monte_carlo_matches_disort_turbid_canopy() {
     let rows = disort_rows();

@@ -72,12 +72,7 @@ fn brf_pp(p: &RadiativeProducts, b: usize, vz: f64, sun_az: f64) -> f64 {
 
 #[test]
 fn turbid_canopy_matches_disort_with_the_reference_preset() {
-    let text = std::fs::read_to_string(asset("assets/reference/turbid_canopy_disort.csv")).unwrap();
-    let rows: Vec<Vec<String>> = text
-        .lines()
-        .skip(1)
-        .map(|l| l.split(',').map(String::from).collect())
-        .collect();
+    let rows = disort_rows();
     let mut worst_brf: f64 = 0.0;
     let mut worst_alb: f64 = 0.0;
     for lai in [1.0, 3.0] {

@@ -247,11 +247,8 @@ fn face_stores_bring_the_coarse_layer_closer_to_disort() {
     // assets/reference) is 5.0 % with the knob off, 4.3 % with Faces and 3.4 % with Subfaces
     // (D = 2; README "Turbid sub-faces"): per-face interception points are a finer
     // quadrature of where the light is intercepted, so the error must shrink.
-    let text = std::fs::read_to_string(asset("assets/reference/turbid_canopy_disort.csv")).unwrap();
-    let rows: Vec<Vec<String>> = text
-        .lines()
-        .skip(1)
-        .map(|l| l.split(',').map(String::from).collect())
+    let rows: Vec<Vec<String>> = disort_rows()
+        .into_iter()
         .filter(|r: &Vec<String>| r[0] == "3" && r[2] == "20")
         .collect();
     let mut d = layer(0.5);

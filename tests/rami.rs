@@ -7,7 +7,7 @@
 //! with an assertion that the standard error is small enough to mean something.
 
 mod common;
-use common::asset;
+use common::disort_rows;
 use lumenscape::cli::rami as rami_cli;
 use lumenscape::io::rami_mes::*;
 use lumenscape::photon::engine::SamplerKind;
@@ -545,14 +545,10 @@ fn check_files(f: &BTreeMap<String, MesContent>, r: &RunOut, soil: f64, mc: bool
 fn hom_turbid_case_runs_end_to_end_and_matches_disort() {
     let id = "HOM03_TUR_UNI_NIR_20";
     let d = rami_hom(&RamiCase::parse(id).unwrap(), &opts()).unwrap();
-    let rows: Vec<Vec<String>> =
-        std::fs::read_to_string(asset("assets/reference/turbid_canopy_disort.csv"))
-            .unwrap()
-            .lines()
-            .skip(1)
-            .map(|l| l.split(',').map(String::from).collect())
-            .filter(|r: &Vec<String>| r[0] == "3" && r[1] == "nir" && r[2] == "20")
-            .collect();
+    let rows: Vec<Vec<String>> = disort_rows()
+        .into_iter()
+        .filter(|r: &Vec<String>| r[0] == "3" && r[1] == "nir" && r[2] == "20")
+        .collect();
     assert_eq!(rows.len(), 11);
     let mc = run(
         &d,

@@ -608,6 +608,15 @@ impl DenseView<'_> {
         wt: f64,
     ) {
         let e = e as usize;
+        self.add_power(e, slot, pw, f1, f2);
+        let pi = (e * self.np + q as usize) * 7;
+        add_points(&mut self.pts[pi..pi + 7], p1, p2, wt);
+    }
+
+    /// The power part of a booking: `pw[ch] · f1 · f2` W per channel into (index `e`, `slot`),
+    /// and `e` marked touched.
+    #[inline(always)]
+    fn add_power(&mut self, e: usize, slot: u32, pw: &[f64], f1: f64, f2: f64) {
         if !self.flag[e] {
             self.flag[e] = true;
             self.touched.push(e as u32);
@@ -617,8 +626,6 @@ impl DenseView<'_> {
         for (r, v) in self.tur[s..s + w].iter_mut().zip(pw) {
             *r += v * f1 * f2;
         }
-        let pi = (e * self.np + q as usize) * 7;
-        add_points(&mut self.pts[pi..pi + 7], p1, p2, wt);
     }
 
     /// [`DenseView::add`] with `turbid_subfaces: Off` (index = entry, one points record).
@@ -636,15 +643,7 @@ impl DenseView<'_> {
         wt: f64,
     ) {
         let e = e as usize;
-        if !self.flag[e] {
-            self.flag[e] = true;
-            self.touched.push(e as u32);
-        }
-        let w = self.w;
-        let s = (e * self.ns + slot as usize) * w;
-        for (r, v) in self.tur[s..s + w].iter_mut().zip(pw) {
-            *r += v * f1 * f2;
-        }
+        self.add_power(e, slot, pw, f1, f2);
         add_points(&mut self.pts[e * 7..e * 7 + 7], p1, p2, wt);
     }
 }

@@ -13,6 +13,17 @@ pub fn asset(rel: &str) -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR")).join(rel)
 }
 
+/// Rows of the DISORT turbid-canopy oracle (`assets/reference/turbid_canopy_disort.csv`, header
+/// skipped), fields as strings: lai, band, sun zenith, view zenith, BRF, albedo, ….
+pub fn disort_rows() -> Vec<Vec<String>> {
+    std::fs::read_to_string(asset("assets/reference/turbid_canopy_disort.csv"))
+        .unwrap()
+        .lines()
+        .skip(1)
+        .map(|l| l.split(',').map(String::from).collect())
+        .collect()
+}
+
 /// A one-band scene with leaf, turbid, soil and wall optics and no objects.
 pub fn base_scene(size: (f64, f64), cell: (f64, f64, f64), boundary: BoundaryMode) -> SceneDesc {
     let mut optics = BTreeMap::new();
