@@ -17,10 +17,7 @@ const SZA: f64 = 30.0;
 const HEIGHT: f64 = 2.0;
 
 fn run(desc: &SceneDesc) -> RadiativeProducts {
-    let mut sim = Simulation::from_desc(desc, &SceneSource::generated(), RunSettings::default())
-        .unwrap_or_else(|e| panic!("{e}"));
-    sim.run(None).unwrap_or_else(|e| panic!("{e}"));
-    sim.resource::<RadiativeProducts>().clone()
+    common::run_radiative(desc, None)
 }
 
 /// Spherical-LAD layer of height 2 m over a Lambertian soil, sun at (30°, φ = 0), leaf size

@@ -13,16 +13,7 @@ use lumenscape::scene::generators::turbid_layer::{TurbidLayerParams, turbid_laye
 use lumenscape::scene::generators::{BandOptics, rami_directions};
 use lumenscape::simulation::Simulation;
 
-fn run(desc: &SceneDesc, preset: Option<Preset>) -> RadiativeProducts {
-    let settings = RunSettings {
-        preset,
-        ..Default::default()
-    };
-    let mut sim = Simulation::from_desc(desc, &SceneSource::generated(), settings)
-        .unwrap_or_else(|e| panic!("{e}"));
-    sim.run(None).unwrap_or_else(|e| panic!("{e}"));
-    sim.resource::<RadiativeProducts>().clone()
-}
+use common::run_radiative as run;
 
 fn assert_closes(p: &RadiativeProducts, tol: f64, what: &str) {
     for b in &p.bands {

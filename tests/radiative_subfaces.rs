@@ -7,12 +7,9 @@
 mod common;
 use common::*;
 use lumenscape::radiative::products::RadiativeProducts;
-use lumenscape::resources::scene::RunSettings;
-use lumenscape::scene::SceneSource;
 use lumenscape::scene::desc::*;
 use lumenscape::scene::generators::turbid_layer::{TurbidLayerParams, turbid_layer};
 use lumenscape::scene::generators::{BandOptics, rami_directions};
-use lumenscape::simulation::Simulation;
 
 /// Every mode other than off: (stores, exit grouping).
 const MODES: [(TurbidSubfaces, bool); 5] = [
@@ -23,16 +20,7 @@ const MODES: [(TurbidSubfaces, bool); 5] = [
     (TurbidSubfaces::Blend, false),
 ];
 
-fn run(desc: &SceneDesc, preset: Option<Preset>) -> RadiativeProducts {
-    let settings = RunSettings {
-        preset,
-        ..Default::default()
-    };
-    let mut sim = Simulation::from_desc(desc, &SceneSource::generated(), settings)
-        .unwrap_or_else(|e| panic!("{e}"));
-    sim.run(None).unwrap_or_else(|e| panic!("{e}"));
-    sim.resource::<RadiativeProducts>().clone()
-}
+use common::run_radiative as run;
 
 fn with_mode(d: &SceneDesc, (m, g): (TurbidSubfaces, bool)) -> SceneDesc {
     let mut d = d.clone();

@@ -13,6 +13,23 @@ pub fn asset(rel: &str) -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR")).join(rel)
 }
 
+/// Runs the scene's stages with `preset` (None: the scene's own) and returns the Radiative
+/// products; any error panics with its message.
+pub fn run_radiative(
+    desc: &SceneDesc,
+    preset: Option<Preset>,
+) -> lumenscape::radiative::products::RadiativeProducts {
+    let settings = RunSettings {
+        preset,
+        ..Default::default()
+    };
+    let mut sim = Simulation::from_desc(desc, &SceneSource::generated(), settings)
+        .unwrap_or_else(|e| panic!("{e}"));
+    sim.run(None).unwrap_or_else(|e| panic!("{e}"));
+    sim.resource::<lumenscape::radiative::products::RadiativeProducts>()
+        .clone()
+}
+
 /// Rows of the DISORT turbid-canopy oracle (`assets/reference/turbid_canopy_disort.csv`, header
 /// skipped), fields as strings: lai, band, sun zenith, view zenith, BRF, albedo, ….
 pub fn disort_rows() -> Vec<Vec<String>> {
