@@ -216,7 +216,8 @@ const HB_N: usize = 20 << HB_BITS;
 /// interpolates the closed form at the 4 Chebyshev nodes of its bin, in the offset from the
 /// bin's start.
 pub struct HalfBarycentres {
-    /// Per bin: s₁/ℓ coefficients (c0..c3), then s₂/ℓ's.
+    /// Per bin: the s₁/ℓ and s₂/ℓ coefficients interleaved, `[c0₁, c0₂, c1₁, c1₂, …]`, so
+    /// that the two Horner evaluations run as one on pairs (no shuffles).
     bins: Box<[[f64; 8]; HB_N]>,
 }
 
@@ -244,7 +245,9 @@ impl HalfBarycentres {
                         let (a, b) = super::engine::half_barycentres(x_lo + nodes[i], 1.0);
                         if half == 0 { a } else { b }
                     });
-                    out[4 * half..4 * half + 4].copy_from_slice(&cubic_through(&nodes, &ys));
+                    for (i, c) in cubic_through(&nodes, &ys).into_iter().enumerate() {
+                        out[2 * i + half] = c;
+                    }
                 }
                 out
             })
@@ -278,8 +281,8 @@ impl HalfBarycentres {
         let c = &self.bins[((bits >> (52 - HB_BITS)) - first) as usize];
         let t = x - f64::from_bits(bits & !((1u64 << (52 - HB_BITS)) - 1));
         (
-            ell * (c[0] + t * (c[1] + t * (c[2] + t * c[3]))),
-            ell * (c[4] + t * (c[5] + t * (c[6] + t * c[7]))),
+            ell * (c[0] + t * (c[2] + t * (c[4] + t * c[6]))),
+            ell * (c[1] + t * (c[3] + t * (c[5] + t * c[7]))),
         )
     }
 }
