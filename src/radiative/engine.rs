@@ -1449,8 +1449,14 @@ impl Ctx<'_> {
             type Output = ();
             #[inline(always)]
             fn with_simd<S: pulp::Simd>(self, _simd: S) {
-                self.ctx
-                    .walk_lean_body::<W>(self.p, self.dir, self.pw, self.view, self.out)
+                // One tracked turbid material (the common case): its G hoisted out of the walk.
+                if self.ctx.n_tm == 1 {
+                    self.ctx
+                        .walk_lean_body::<W, true>(self.p, self.dir, self.pw, self.view, self.out)
+                } else {
+                    self.ctx
+                        .walk_lean_body::<W, false>(self.p, self.dir, self.pw, self.view, self.out)
+                }
             }
         }
         pulp::Arch::new().dispatch(Walk::<W> {
@@ -1463,9 +1469,10 @@ impl Ctx<'_> {
         })
     }
 
-    /// The body of [`Ctx::walk_lean`] (inlined into each instruction-set copy).
+    /// The body of [`Ctx::walk_lean`] (inlined into each instruction-set copy); `ONE_TM`: the
+    /// scene has one tracked turbid material (every turbid cell's `tm` is 0).
     #[inline(always)]
-    fn walk_lean_body<const W: usize>(
+    fn walk_lean_body<const W: usize, const ONE_TM: bool>(
         &self,
         p: DVec3,
         dir: usize,
@@ -1480,6 +1487,7 @@ impl Ctx<'_> {
         let slot = self.slot_of(dir);
         let n_tm = self.n_tm;
         let gd = &self.g_dir[dir * n_tm..(dir + 1) * n_tm];
+        let g0 = gd[0];
         let hb = HalfBarycentres::get();
         let isolated = spec.boundary == BoundaryMode::Isolated;
         let max_crossings = self.inp.params.max_crossings;
@@ -1509,7 +1517,8 @@ impl Ctx<'_> {
             let inside = if sc.density > 0.0 {
                 if t1 > t0 {
                     let ell = t1 - t0;
-                    let k = gd[sc.tm as usize] * sc.density;
+                    let g = if ONE_TM { g0 } else { gd[sc.tm as usize] };
+                    let k = g * sc.density;
                     if k > 0.0 {
                         let x = k * ell;
                         let (frac, tr) = attenuation(x);
