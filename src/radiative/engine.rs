@@ -1487,7 +1487,8 @@ impl Ctx<'_> {
         let slot = self.slot_of(dir);
         let n_tm = self.n_tm;
         let gd = &self.g_dir[dir * n_tm..(dir + 1) * n_tm];
-        let g0 = gd[0];
+        // Read only when `ONE_TM` (a scene may have no tracked turbid material at all).
+        let g0 = gd.first().copied().unwrap_or(0.0);
         let hb = HalfBarycentres::get();
         let isolated = spec.boundary == BoundaryMode::Isolated;
         let max_crossings = self.inp.params.max_crossings;
