@@ -1514,7 +1514,11 @@ mod tests {
         };
         // A whole turn is a valid box and oversamples every azimuth.
         let set = DirectionSet::new(&region(0.0, 360.0)).expect("0..360 is valid");
-        assert!(set.tiling().iter().any(|d| d.kind == DirectionKind::Oversampled));
+        assert!(
+            set.tiling()
+                .iter()
+                .any(|d| d.kind == DirectionKind::Oversampled)
+        );
         // Equal bounds: an empty range, rejected with the field named (it used to pass and
         // oversample nothing while the direction-count bound counted a whole turn).
         let e = DirectionSet::new(&region(90.0, 90.0)).expect_err("empty azimuth range");
