@@ -58,6 +58,17 @@ pub struct TurbidPlot {
     pub material: MaterialId,
 }
 
+impl TurbidPlot {
+    /// Horizontal bounding box of the footprint: (min corner, max corner), metres.
+    pub fn footprint_bounds(&self) -> (DVec2, DVec2) {
+        self.footprint
+            .iter()
+            .fold((DVec2::INFINITY, DVec2::NEG_INFINITY), |(lo, hi), v| {
+                (lo.min(*v), hi.max(*v))
+            })
+    }
+}
+
 /// A building.
 #[derive(Debug, Clone, PartialEq, Component)]
 pub struct Building {

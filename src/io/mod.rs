@@ -1,6 +1,7 @@
 //! Input/output: atomic writes, EXR products, mesh import.
 
 pub mod atomic;
+pub mod csv_text;
 pub mod exr_out;
 pub mod las_out;
 pub mod leaf_list;

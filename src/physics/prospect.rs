@@ -30,6 +30,7 @@ use std::sync::OnceLock;
 
 use serde::{Deserialize, Serialize};
 
+use crate::io::csv_text::CsvText;
 use crate::physics::spectral::{SpectralError, Spectrum};
 
 /// First wavelength of the published PROSPECT tables, nm.
@@ -274,20 +275,13 @@ impl ProspectData {
             line,
             message,
         };
-        let mut lines = text
-            .lines()
-            .enumerate()
-            .map(|(i, l)| (i + 1, l.trim()))
-            .filter(|(_, l)| !l.is_empty() && !l.starts_with('#'));
-        let (header_line, header) = lines
-            .next()
-            .ok_or_else(|| err(0, "empty file: no header line".to_string()))?;
-        let names: Vec<&str> = header.split(',').map(str::trim).collect();
+        let csv =
+            CsvText::split(text).ok_or_else(|| err(0, "empty file: no header line".to_string()))?;
         let mut index = [0usize; 14];
         for (k, col) in COLUMNS.iter().enumerate() {
-            index[k] = names.iter().position(|n| n == col).ok_or_else(|| {
+            index[k] = csv.column(col).ok_or_else(|| {
                 err(
-                    header_line,
+                    csv.header_line,
                     format!(
                         "header lacks column `{col}` (expected: {})",
                         COLUMNS.join(",")
@@ -296,13 +290,9 @@ impl ProspectData {
             })?;
         }
         let mut cols: Vec<Vec<f64>> = vec![Vec::new(); 14];
-        for (line_no, line) in lines {
-            let fields: Vec<&str> = line.split(',').map(str::trim).collect();
-            if fields.len() != names.len() {
-                return Err(err(
-                    line_no,
-                    format!("expected {} fields, found {}", names.len(), fields.len()),
-                ));
+        for (line_no, fields) in csv.rows() {
+            if let Some(m) = csv.width_error(&fields) {
+                return Err(err(line_no, m));
             }
             for (k, col) in COLUMNS.iter().enumerate() {
                 let raw = fields[index[k]];

@@ -26,6 +26,8 @@
 use std::path::Path;
 use std::sync::OnceLock;
 
+use crate::io::csv_text::CsvText;
+
 /// Smallest fraction of a band's response weight that a spectrum must cover for band integration
 /// (the missing ≤ 0.1 % is excluded from both numerator and denominator).
 pub const MIN_SPECTRAL_COVERAGE: f64 = 0.999;
@@ -292,18 +294,12 @@ fn parse_two_columns(
         line,
         message,
     };
-    let mut lines = text
-        .lines()
-        .enumerate()
-        .map(|(i, l)| (i + 1, l.trim()))
-        .filter(|(_, l)| !l.is_empty() && !l.starts_with('#'));
-    let (header_line, header) = lines
-        .next()
-        .ok_or_else(|| err(0, "empty file: no header line".to_string()))?;
-    let names: Vec<&str> = header.split(',').map(str::trim).collect();
-    let (iw, scale) = if let Some(i) = names.iter().position(|n| *n == "wavelength_nm") {
+    let csv =
+        CsvText::split(text).ok_or_else(|| err(0, "empty file: no header line".to_string()))?;
+    let (header_line, header, names) = (csv.header_line, csv.header, &csv.names);
+    let (iw, scale) = if let Some(i) = csv.column("wavelength_nm") {
         (i, 1.0)
-    } else if let Some(i) = names.iter().position(|n| *n == "wavelength_um") {
+    } else if let Some(i) = csv.column("wavelength_um") {
         (i, 1000.0)
     } else {
         return Err(err(
@@ -311,7 +307,7 @@ fn parse_two_columns(
             format!("header `{header}` has no `wavelength_nm` (or `wavelength_um`) column"),
         ));
     };
-    let iv = names.iter().position(|n| *n == column).ok_or_else(|| {
+    let iv = csv.column(column).ok_or_else(|| {
         err(
             header_line,
             format!("header `{header}` has no `{column}` column"),
@@ -319,13 +315,9 @@ fn parse_two_columns(
     })?;
     let mut w = Vec::new();
     let mut v = Vec::new();
-    for (line_no, line) in lines {
-        let fields: Vec<&str> = line.split(',').map(str::trim).collect();
-        if fields.len() != names.len() {
-            return Err(err(
-                line_no,
-                format!("expected {} fields, found {}", names.len(), fields.len()),
-            ));
+    for (line_no, fields) in csv.rows() {
+        if let Some(m) = csv.width_error(&fields) {
+            return Err(err(line_no, m));
         }
         let parse = |i: usize, name: &str| -> Result<f64, SpectralError> {
             let x: f64 = fields[i]
@@ -772,29 +764,21 @@ impl Sensor {
             line,
             message,
         };
-        let mut lines = text
-            .lines()
-            .enumerate()
-            .map(|(i, l)| (i + 1, l.trim()))
-            .filter(|(_, l)| !l.is_empty() && !l.starts_with('#'));
-        let (hl, header) = lines
-            .next()
-            .ok_or_else(|| err(0, "empty file: no header line".to_string()))?;
-        let names: Vec<&str> = header.split(',').map(str::trim).collect();
-        if names != ["band", "wavelength_nm", "response"] {
+        let csv =
+            CsvText::split(text).ok_or_else(|| err(0, "empty file: no header line".to_string()))?;
+        if csv.names != ["band", "wavelength_nm", "response"] {
             return Err(err(
-                hl,
-                format!("header must be `band,wavelength_nm,response`, found `{header}`"),
+                csv.header_line,
+                format!(
+                    "header must be `band,wavelength_nm,response`, found `{}`",
+                    csv.header
+                ),
             ));
         }
         let mut groups: Vec<(String, usize, Vec<f64>, Vec<f64>)> = Vec::new();
-        for (line_no, line) in lines {
-            let f: Vec<&str> = line.split(',').map(str::trim).collect();
-            if f.len() != 3 {
-                return Err(err(
-                    line_no,
-                    format!("expected 3 fields, found {}", f.len()),
-                ));
+        for (line_no, f) in csv.rows() {
+            if let Some(m) = csv.width_error(&f) {
+                return Err(err(line_no, m));
             }
             let num = |s: &str, what: &str| -> Result<f64, SpectralError> {
                 s.parse::<f64>()

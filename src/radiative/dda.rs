@@ -191,6 +191,53 @@ impl Dda {
         exit
     }
 
+    /// [`Dda::advance_at`] without building the [`Exit`], for the lean turbid walk: steps every
+    /// axis whose boundary is reached at `te` (ties: edges and vertices) into the same state,
+    /// and returns whether the ray is still inside the grid; when it is not,
+    /// [`Dda::exit_kind`] says how it left. One unsigned comparison per stepped axis for the
+    /// grid bounds, and no per-axis exit bookkeeping.
+    #[inline(always)]
+    pub fn step_at(&mut self, te: f64) -> bool {
+        debug_assert_eq!(te, self.t_exit());
+        self.t = te;
+        // `&`, not `&&`: every tied axis steps.
+        self.step_axis(0, te) & self.step_axis(1, te) & self.step_axis(2, te)
+    }
+
+    /// One axis of [`Dda::step_at`]: false if the ray left the grid along it.
+    #[inline(always)]
+    fn step_axis(&mut self, a: usize, te: f64) -> bool {
+        if self.t_max[a] <= te {
+            self.cell[a] += self.step[a];
+            self.lin += self.dlin[a];
+            let idx = self.cell[a];
+            if (idx as u64) >= self.n[a] as u64 {
+                return false;
+            }
+            self.t_max[a] = self.boundary_t(a, idx);
+        }
+        true
+    }
+
+    /// How the ray left the grid, once [`Dda::step_at`] returned false or [`Dda::skip_to`] did
+    /// not return [`Exit::Inside`]: the same exit as [`Dda::advance_at`] reports (top and
+    /// bottom win over the sides, the x side over the y side).
+    #[inline]
+    pub fn exit_kind(&self) -> Exit {
+        let k = self.cell[2];
+        if k >= self.n[2] {
+            Exit::Top
+        } else if k < 0 {
+            Exit::Bottom
+        } else if self.cell[0] < 0 || self.cell[0] >= self.n[0] {
+            Exit::Side(0, self.step[0])
+        } else if self.cell[1] < 0 || self.cell[1] >= self.n[1] {
+            Exit::Side(1, self.step[1])
+        } else {
+            Exit::Inside
+        }
+    }
+
     /// Empty-space skipping, first half: the distance at which the ray leaves the box of cells
     /// within Chebyshev distance `h` (in cells, per axis) of the current cell, clipped to the
     /// grid. The caller checks it (e.g. against a range limit) before [`Dda::skip_to`].
@@ -294,20 +341,24 @@ impl Dda {
     /// Returns the number of axes wrapped (2 when the ray left through a vertical edge).
     #[inline]
     pub fn wrap_sides(&mut self) -> u32 {
-        let mut wrapped = 0;
-        for a in 0..2 {
-            let idx = self.cell[a];
-            if idx >= 0 && idx < self.n[a] {
-                continue;
-            }
-            let back = if idx < 0 { self.n[a] } else { -self.n[a] };
-            self.cell[a] += back;
-            self.lin += back * self.stride[a];
-            self.origin[a] += back as f64 * self.size[a];
-            self.t_max[a] = self.boundary_t(a, self.cell[a]).max(self.t);
-            wrapped += 1;
+        // Axis by axis with constant indices (a loop over the axes kept the whole traversal
+        // state in memory in the walks that inline this).
+        self.wrap_axis(0) + self.wrap_axis(1)
+    }
+
+    /// One axis of [`Dda::wrap_sides`]: 1 if it wrapped.
+    #[inline(always)]
+    fn wrap_axis(&mut self, a: usize) -> u32 {
+        let idx = self.cell[a];
+        if idx >= 0 && idx < self.n[a] {
+            return 0;
         }
-        wrapped
+        let back = if idx < 0 { self.n[a] } else { -self.n[a] };
+        self.cell[a] += back;
+        self.lin += back * self.stride[a];
+        self.origin[a] += back as f64 * self.size[a];
+        self.t_max[a] = self.boundary_t(a, self.cell[a]).max(self.t);
+        1
     }
 }
 

@@ -208,6 +208,9 @@ const HB_X0: f64 = 1.0 / 16384.0;
 const HB_X1: f64 = 64.0;
 /// Number of bins: 20 octaves × 2^HB_BITS.
 const HB_N: usize = 20 << HB_BITS;
+/// Bins allocated: [`HB_N`] rounded up to a power of two, so that the index is masked instead
+/// of bound-checked in the hot path (the padding bins are never read).
+const HB_ALLOC: usize = HB_N.next_power_of_two();
 
 /// Cubic pieces of the relative interception points `s₁/ℓ`, `s₂/ℓ` of
 /// [`super::engine::half_barycentres`] as functions of x = kℓ, one per bin of x: the bins are
@@ -216,8 +219,9 @@ const HB_N: usize = 20 << HB_BITS;
 /// interpolates the closed form at the 4 Chebyshev nodes of its bin, in the offset from the
 /// bin's start.
 pub struct HalfBarycentres {
-    /// Per bin: s₁/ℓ coefficients (c0..c3), then s₂/ℓ's.
-    bins: Box<[[f64; 8]; HB_N]>,
+    /// Per bin: the s₁/ℓ and s₂/ℓ coefficients interleaved, `[c0₁, c0₂, c1₁, c1₂, …]`, so
+    /// that the two Horner evaluations run as one on pairs (no shuffles).
+    bins: Box<[[f64; 8]; HB_ALLOC]>,
 }
 
 impl HalfBarycentres {
@@ -230,7 +234,7 @@ impl HalfBarycentres {
     fn build() -> Self {
         let first = HB_X0.to_bits() >> (52 - HB_BITS);
         let last = HB_X1.to_bits() >> (52 - HB_BITS);
-        let bins: Vec<[f64; 8]> = (first..last)
+        let mut bins: Vec<[f64; 8]> = (first..last)
             .map(|b| {
                 let x_lo = f64::from_bits(b << (52 - HB_BITS));
                 let x_hi = f64::from_bits((b + 1) << (52 - HB_BITS));
@@ -244,16 +248,19 @@ impl HalfBarycentres {
                         let (a, b) = super::engine::half_barycentres(x_lo + nodes[i], 1.0);
                         if half == 0 { a } else { b }
                     });
-                    out[4 * half..4 * half + 4].copy_from_slice(&cubic_through(&nodes, &ys));
+                    for (i, c) in cubic_through(&nodes, &ys).into_iter().enumerate() {
+                        out[2 * i + half] = c;
+                    }
                 }
                 out
             })
             .collect();
+        bins.resize(HB_ALLOC, [0.0; 8]);
         Self {
             bins: bins
                 .into_boxed_slice()
                 .try_into()
-                .expect("20 octaves of bins"),
+                .expect("20 octaves of bins, padded"),
         }
     }
 
@@ -274,12 +281,12 @@ impl HalfBarycentres {
         }
         let bits = x.to_bits();
         let first = HB_X0.to_bits() >> (52 - HB_BITS);
-        // x ∈ [2⁻¹⁴, 2⁶): the index is below HB_N (the bound check is against a constant).
-        let c = &self.bins[((bits >> (52 - HB_BITS)) - first) as usize];
+        // x ∈ [2⁻¹⁴, 2⁶): the index is below HB_N; the mask only spares the bound check.
+        let c = &self.bins[((bits >> (52 - HB_BITS)) - first) as usize & (HB_ALLOC - 1)];
         let t = x - f64::from_bits(bits & !((1u64 << (52 - HB_BITS)) - 1));
         (
-            ell * (c[0] + t * (c[1] + t * (c[2] + t * c[3]))),
-            ell * (c[4] + t * (c[5] + t * (c[6] + t * c[7]))),
+            ell * (c[0] + t * (c[2] + t * (c[4] + t * c[6]))),
+            ell * (c[1] + t * (c[3] + t * (c[5] + t * c[7]))),
         )
     }
 }

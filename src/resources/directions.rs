@@ -281,13 +281,7 @@ impl OversampleRegion {
                 }
                 let a = azimuth(v).to_degrees();
                 let lo = azimuth_min_deg.rem_euclid(360.0);
-                let span = (azimuth_max_deg - azimuth_min_deg).rem_euclid(360.0);
-                let span = if span == 0.0 && azimuth_max_deg != azimuth_min_deg {
-                    360.0
-                } else {
-                    span
-                };
-                (a - lo).rem_euclid(360.0) <= span
+                (a - lo).rem_euclid(360.0) <= azimuth_span_deg(azimuth_min_deg, azimuth_max_deg)
             }
         }
     }
@@ -305,13 +299,10 @@ impl OversampleRegion {
                 azimuth_min_deg,
                 azimuth_max_deg,
                 ..
-            } => {
-                let span = (azimuth_max_deg - azimuth_min_deg).rem_euclid(360.0);
-                direction_from_deg(
-                    0.5 * (zenith_min_deg + zenith_max_deg),
-                    azimuth_min_deg + 0.5 * span,
-                )
-            }
+            } => direction_from_deg(
+                0.5 * (zenith_min_deg + zenith_max_deg),
+                azimuth_min_deg + 0.5 * azimuth_span_deg(azimuth_min_deg, azimuth_max_deg),
+            ),
         }
     }
 
@@ -325,13 +316,22 @@ impl OversampleRegion {
                 azimuth_max_deg,
                 ..
             } => {
-                let span = (azimuth_max_deg - azimuth_min_deg)
-                    .rem_euclid(360.0)
-                    .to_radians();
-                let span = if span == 0.0 { TAU } else { span };
+                let span = azimuth_span_deg(azimuth_min_deg, azimuth_max_deg).to_radians();
                 span * (zenith_min_deg.to_radians().cos() - zenith_max_deg.to_radians().cos()).abs()
             }
         }
+    }
+}
+
+/// Width of the azimuth range from `min_deg` anticlockwise to `max_deg`, degrees in (0, 360]
+/// (the range may wrap through 0°; a whole turn, e.g. 0 to 360, is 360, not 0). Validation
+/// rejects `min_deg == max_deg`.
+fn azimuth_span_deg(min_deg: f64, max_deg: f64) -> f64 {
+    let span = (max_deg - min_deg).rem_euclid(360.0);
+    if span == 0.0 && max_deg != min_deg {
+        360.0
+    } else {
+        span
     }
 }
 
@@ -1464,6 +1464,12 @@ fn validate(p: &DirectionParams) -> Result<(), DirectionError> {
                 if !(azimuth_min_deg.is_finite() && azimuth_max_deg.is_finite()) {
                     return Err(derr(f("azimuth_min_deg"), "azimuths must be finite"));
                 }
+                if azimuth_min_deg == azimuth_max_deg {
+                    return Err(derr(
+                        f("azimuth_max_deg"),
+                        "equals azimuth_min_deg: the azimuth range is empty (0 and 360 give every azimuth)",
+                    ));
+                }
                 if !(solid_angle_sr.is_finite() && (1e-6..=0.5).contains(&solid_angle_sr)) {
                     return Err(derr(f("solid_angle_sr"), "must be in [1e-6, 0.5]"));
                 }
@@ -1489,6 +1495,36 @@ fn validate(p: &DirectionParams) -> Result<(), DirectionError> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn azimuth_box_span_and_the_empty_range() {
+        assert_eq!(azimuth_span_deg(0.0, 360.0), 360.0);
+        assert_eq!(azimuth_span_deg(350.0, 10.0), 20.0);
+        assert_eq!(azimuth_span_deg(10.0, 350.0), 340.0);
+        let region = |lo: f64, hi: f64| DirectionParams {
+            count: 100,
+            oversample: vec![OversampleRegion::Box {
+                zenith_min_deg: 10.0,
+                zenith_max_deg: 40.0,
+                azimuth_min_deg: lo,
+                azimuth_max_deg: hi,
+                solid_angle_sr: 0.01,
+            }],
+            ..DirectionParams::default()
+        };
+        // A whole turn is a valid box and oversamples every azimuth.
+        let set = DirectionSet::new(&region(0.0, 360.0)).expect("0..360 is valid");
+        assert!(
+            set.tiling()
+                .iter()
+                .any(|d| d.kind == DirectionKind::Oversampled)
+        );
+        // Equal bounds: an empty range, rejected with the field named (it used to pass and
+        // oversample nothing while the direction-count bound counted a whole turn).
+        let e = DirectionSet::new(&region(90.0, 90.0)).expect_err("empty azimuth range");
+        let m = e.to_string();
+        assert!(m.contains("azimuth_max_deg") && m.contains("empty"), "{m}");
+    }
 
     #[test]
     fn default_set_identities() {

@@ -338,14 +338,7 @@ pub fn plan_grid(
         turbid_max += bbox_cells(DVec3::new(b[0], b[1], b[2]), DVec3::new(b[3], b[4], b[5]));
     }
     for p in &plots {
-        let lo = p
-            .footprint
-            .iter()
-            .fold(glam::DVec2::INFINITY, |m, v| m.min(*v));
-        let hi = p
-            .footprint
-            .iter()
-            .fold(glam::DVec2::NEG_INFINITY, |m, v| m.max(*v));
+        let (lo, hi) = p.footprint_bounds();
         turbid_max += bbox_cells(lo.extend(z0), hi.extend(top));
     }
     for m in &meshes {
@@ -423,14 +416,7 @@ fn rasterise_crown(c: &TurbidCrown, g: &GridSpec) -> Triples {
 }
 
 fn rasterise_plot(p: &TurbidPlot, g: &GridSpec, terrain: &Terrain) -> Triples {
-    let lo = p
-        .footprint
-        .iter()
-        .fold(glam::DVec2::INFINITY, |m, v| m.min(*v));
-    let hi = p
-        .footprint
-        .iter()
-        .fold(glam::DVec2::NEG_INFINITY, |m, v| m.max(*v));
+    let (lo, hi) = p.footprint_bounds();
     let (i0, i1) = cell_range(lo.x, hi.x, g.origin.x, g.cell.x);
     let (j0, j1) = cell_range(lo.y, hi.y, g.origin.y, g.cell.y);
     let mut out = Vec::new();

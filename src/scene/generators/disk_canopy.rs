@@ -231,21 +231,12 @@ pub fn disk_canopy(p: &DiskCanopyParams) -> Result<SceneDesc, String> {
         version: SCENE_FORMAT_VERSION,
         name: format!("disk canopy LAI {} r {} m", p.lai, p.disk_radius_m),
         seed: p.seed,
-        grid: GridDesc {
-            size_m: (p.size_m, p.size_m),
-            cell_m: (p.cell_m, p.cell_m, p.cell_m),
-            height_m: None,
-            subcells: 2,
-            boundary: BoundaryMode::Repetitive,
-        },
+        grid: cube_grid(p.size_m, p.cell_m, BoundaryMode::Repetitive),
         bands,
         optics,
         illumination: sun(p.sun_zenith_deg, p.sun_azimuth_deg),
         objects: vec![
-            ObjectDesc::Ground(GroundDesc {
-                optics: "soil".into(),
-                topography: TopographyDesc::Flat,
-            }),
+            flat_ground("soil"),
             ObjectDesc::Leaves(LeavesDesc {
                 radius_m: p.disk_radius_m,
                 sides: 12,

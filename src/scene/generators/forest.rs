@@ -192,17 +192,15 @@ pub fn forest(p: &ForestParams) -> SceneDesc {
             p.species.iter().map(|s| s.count).sum::<usize>()
         ),
         seed: p.seed,
-        grid: GridDesc {
-            size_m: (p.size_m, p.size_m),
-            cell_m: (p.cell_m, p.cell_m, p.cell_m),
-            height_m: None,
-            subcells: 2,
-            boundary: if p.slope_deg == 0.0 {
+        grid: cube_grid(
+            p.size_m,
+            p.cell_m,
+            if p.slope_deg == 0.0 {
                 BoundaryMode::Repetitive
             } else {
                 BoundaryMode::RepetitiveContinuousTopography
             },
-        },
+        ),
         bands,
         optics,
         illumination: sun(p.sun_zenith_deg, p.sun_azimuth_deg),

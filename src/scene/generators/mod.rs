@@ -202,3 +202,23 @@ pub fn sun(zenith_deg: f64, azimuth_deg: f64) -> IlluminationDesc {
         irradiance_w_m2_um: vec![],
     }
 }
+
+/// The generators' grid: square horizontal extent `size_m` (m), cubic cells of `cell_m` (m),
+/// height from the objects, 2 × 2 × 2 facet sub-cells.
+pub fn cube_grid(size_m: f64, cell_m: f64, boundary: BoundaryMode) -> GridDesc {
+    GridDesc {
+        size_m: (size_m, size_m),
+        cell_m: (cell_m, cell_m, cell_m),
+        height_m: None,
+        subcells: 2,
+        boundary,
+    }
+}
+
+/// A flat ground of material `optics`.
+pub fn flat_ground(optics: &str) -> ObjectDesc {
+    ObjectDesc::Ground(GroundDesc {
+        optics: optics.into(),
+        topography: TopographyDesc::Flat,
+    })
+}

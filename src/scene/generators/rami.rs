@@ -490,10 +490,7 @@ pub fn rami_het01(case: &RamiCase, opts: &RamiOptions) -> Result<SceneDesc, Stri
         *leaf_size_m = if discrete { HET01_DISC_RADIUS_M } else { 0.0 };
     }
     let r = HET_SPHERE_RADIUS_M;
-    let mut objects = vec![ObjectDesc::Ground(GroundDesc {
-        optics: "soil".into(),
-        topography: TopographyDesc::Flat,
-    })];
+    let mut objects = vec![flat_ground("soil")];
     for &(x, y, z) in &centres {
         objects.push(match &opts.leaves {
             Some(path) => ObjectDesc::LeafList(LeafListDesc {
@@ -532,11 +529,8 @@ pub fn rami_het01(case: &RamiCase, opts: &RamiOptions) -> Result<SceneDesc, Stri
         name: format!("RAMI-3 {case} ({what})"),
         seed: opts.seed,
         grid: GridDesc {
-            size_m: (HET_SIZE_M, HET_SIZE_M),
-            cell_m: (cell, cell, cell),
             height_m: Some(HET_HEIGHT_M),
-            subcells: 2,
-            boundary: BoundaryMode::Repetitive,
+            ..cube_grid(HET_SIZE_M, cell, BoundaryMode::Repetitive)
         },
         bands,
         optics,

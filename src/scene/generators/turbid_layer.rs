@@ -46,21 +46,12 @@ pub fn turbid_layer(p: &TurbidLayerParams) -> SceneDesc {
         version: SCENE_FORMAT_VERSION,
         name: format!("turbid layer LAI {}", p.lai),
         seed: 0,
-        grid: GridDesc {
-            size_m: (p.size_m, p.size_m),
-            cell_m: (p.cell_m, p.cell_m, p.cell_m),
-            height_m: None,
-            subcells: 2,
-            boundary: BoundaryMode::Repetitive,
-        },
+        grid: cube_grid(p.size_m, p.cell_m, BoundaryMode::Repetitive),
         bands,
         optics,
         illumination: sun(p.sun_zenith_deg, p.sun_azimuth_deg),
         objects: vec![
-            ObjectDesc::Ground(GroundDesc {
-                optics: "soil".into(),
-                topography: TopographyDesc::Flat,
-            }),
+            flat_ground("soil"),
             ObjectDesc::TurbidPlot(TurbidPlotDesc {
                 footprint: FootprintDesc::Box((0.0, 0.0, p.size_m, p.size_m)),
                 bottom_m: 0.0,

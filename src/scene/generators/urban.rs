@@ -58,10 +58,7 @@ pub fn urban(p: &UrbanParams) -> SceneDesc {
     optics.insert("asphalt".into(), lam(0.08));
     optics.insert("bark".into(), lam(0.2));
     let mut rng = stream(p.seed, 4, 0);
-    let mut objects = vec![ObjectDesc::Ground(GroundDesc {
-        optics: "asphalt".into(),
-        topography: TopographyDesc::Flat,
-    })];
+    let mut objects = vec![flat_ground("asphalt")];
     let mut trees = Vec::new();
     for bj in 0..p.blocks {
         for bi in 0..p.blocks {
@@ -118,13 +115,7 @@ pub fn urban(p: &UrbanParams) -> SceneDesc {
         version: SCENE_FORMAT_VERSION,
         name: format!("urban block {}x{}", p.blocks, p.blocks),
         seed: p.seed,
-        grid: GridDesc {
-            size_m: (size, size),
-            cell_m: (p.cell_m, p.cell_m, p.cell_m),
-            height_m: None,
-            subcells: 2,
-            boundary: BoundaryMode::Isolated,
-        },
+        grid: cube_grid(size, p.cell_m, BoundaryMode::Isolated),
         bands,
         optics,
         illumination: sun(p.sun_zenith_deg, p.sun_azimuth_deg),
