@@ -1,9 +1,11 @@
 //! LiDAR speed (harness = false): `cargo bench --bench lidar` (`-- --quick`: fewer pulses).
 //!
 //! Options (after `--`): `--quick`; `--pulses N` (pulses of every forest row and of the urban
-//! scan, rounded up to a square grid); `--row NAME` (run one row only: `continuous-gauss`,
-//! `discrete-gauss`, `discrete-peak`, `continuous-peak` or `urban`; repeatable);
-//! `--no-skip` (empty-space skipping off: every cell visited, for comparisons);
+//! scan, rounded up to a square grid); `--row NAME` (run one row only: `legacy-peak`,
+//! `continuous-gauss`, `discrete-gauss`, `discrete-peak`, `continuous-peak` or `urban`;
+//! repeatable); `--estimator legacy|stratified`, `--photons N`, `--scattering N` (estimator,
+//! beam rays and rays continued into multiple scattering of the forest rows, e.g. under
+//! callgrind; the estimator also of the urban scan); `--no-skip` (empty-space skipping off: every cell visited, for comparisons);
 //! `--digest` (print an FNV-1a hash of every product of each row — raw and convolved
 //! waveforms, gate losses, returns — to prove bit-identity across code changes); `--dump FILE`
 //! (write those products as text, one pulse per line, rows one after another);
@@ -14,21 +16,32 @@
 //! squares (J²), returns, fits, capped fits, evaluations — to FILE, to compare fitters on the
 //! same waveforms).
 //!
-//! 1. ALS on the 40 m forest (24 trees, 1 m cells): pulses per second per core at 1000
-//!    photons per pulse, multiple scattering (orders ≤ 100), nadir, 0.3 m footprints, for the
-//!    continuous and discrete (Ray-Carlo) samplers and both returns methods, with the mean
-//!    waveform energy and return count per pulse next to each speed.
+//! `--error` runs the speed-against-error study instead of the speed rows (see
+//! `error_study`): `--setting EST:PHOTONS[:SCATTERING]` (repeatable; default `legacy:1000` and
+//! `stratified:600`), `--reps R` realizations per setting (default 4), `--ref-photons N`
+//! (reference photons per pulse, default 1e5), `--ref-cache FILE` (reuse the reference).
+//!
+//! 1. ALS on the 40 m forest (24 trees, 1 m cells): pulses per second per core at the default
+//!    photons per pulse (600, `Stratified` estimator; row `legacy-peak`: 1000 photons of the
+//!    `Legacy` estimator, the former default at the same waveform error), multiple scattering
+//!    (orders ≤ 100), nadir, 0.3 m footprints, for the continuous and discrete (Ray-Carlo)
+//!    samplers and both returns methods, with the mean waveform energy and return count per
+//!    pulse next to each speed.
 //! 2. A multi-pulse scan of the urban scene: 250 000 pulses (500 × 500 grid, 0.12 m spacing)
 //!    at 100 photons per pulse (`--quick`: 10 000 pulses), wall time, pulses/s/core, peak RSS.
 //!
 //! The passive solver is reduced to a 64-photon Monte Carlo run so the timings are the LiDAR's.
 
 use lumenscape::lidar::returns::ReturnsMethod;
+use lumenscape::lidar::waveform::Waveform;
 use lumenscape::photon::engine::SamplerKind;
 use lumenscape::resources::lidar::{LidarProducts, LidarRun};
 use lumenscape::resources::scene::{RunSettings, Solver};
 use lumenscape::scene::SceneSource;
-use lumenscape::scene::desc::{LidarDesc, LidarPlatform, LidarSampler, PulsePattern, SceneDesc};
+use lumenscape::scene::desc::{
+    DEFAULT_LIDAR_PHOTONS, LidarDesc, LidarEstimator, LidarPlatform, LidarSampler, PulsePattern,
+    SceneDesc,
+};
 use lumenscape::scene::generators::{forest, urban};
 use lumenscape::simulation::Simulation;
 
@@ -60,6 +73,8 @@ fn lidar(pulses: PulsePattern, photons: u32) -> LidarDesc {
         beam: None,
         returns: ReturnsMethod::GaussianDecomposition,
         sampler: LidarSampler::Discrete,
+        estimator: Default::default(),
+        scattering_photons_per_pulse: None,
     }
 }
 
@@ -74,11 +89,31 @@ struct Options {
     fit_study: Option<std::fs::File>,
     /// `--no-skip`: empty-space skipping off (every cell visited), for comparisons.
     no_skip: bool,
+    /// `--estimator legacy|stratified` for the forest speed rows (default: the scene default).
+    estimator: Option<LidarEstimator>,
+    /// `--photons N`: beam rays per pulse of the forest speed rows (default 1000).
+    photons: Option<u32>,
+    /// `--scattering N`: rays per pulse continued into multiple scattering (stratified).
+    scattering: Option<u32>,
+    /// `--error`: the speed-against-error study (see the module doc).
+    error: bool,
+    /// `--ref-photons N`: photons per pulse of the error study's reference (default 100 000).
+    ref_photons: u32,
+    /// `--ref-cache FILE`: read the reference from FILE if it exists, else write it there.
+    ref_cache: Option<String>,
+    /// `--setting EST:PHOTONS[:SCATTERING]` (repeatable): the error study's settings.
+    settings: Vec<(LidarEstimator, u32, Option<u32>)>,
+    /// `--reps R`: independent realizations of each setting in the error study (default 4).
+    reps: usize,
 }
 
 impl Options {
     fn parse() -> Self {
-        let mut o = Options::default();
+        let mut o = Options {
+            ref_photons: 100_000,
+            reps: 4,
+            ..Default::default()
+        };
         let mut args = std::env::args().skip(1);
         while let Some(a) = args.next() {
             match a.as_str() {
@@ -93,6 +128,44 @@ impl Options {
                     )
                 }
                 "--row" => o.rows.push(args.next().expect("--row NAME")),
+                "--estimator" => {
+                    o.estimator = Some(parse_estimator(&args.next().expect("--estimator NAME")))
+                }
+                "--photons" => {
+                    o.photons = Some(
+                        args.next()
+                            .and_then(|v| v.parse().ok())
+                            .expect("--photons N"),
+                    )
+                }
+                "--scattering" => {
+                    o.scattering = Some(
+                        args.next()
+                            .and_then(|v| v.parse().ok())
+                            .expect("--scattering N"),
+                    )
+                }
+                "--error" => o.error = true,
+                "--ref-photons" => {
+                    o.ref_photons = args
+                        .next()
+                        .and_then(|v| v.parse().ok())
+                        .expect("--ref-photons N")
+                }
+                "--reps" => o.reps = args.next().and_then(|v| v.parse().ok()).expect("--reps R"),
+                "--ref-cache" => o.ref_cache = Some(args.next().expect("--ref-cache FILE")),
+                "--setting" => {
+                    let v = args.next().expect("--setting EST:PHOTONS[:SCATTERING]");
+                    let f: Vec<&str> = v.split(':').collect();
+                    let n = |i: usize| -> Option<u32> {
+                        f.get(i).map(|x| x.parse().expect("--setting: a count"))
+                    };
+                    o.settings.push((
+                        parse_estimator(f[0]),
+                        n(1).expect("--setting EST:PHOTONS"),
+                        n(2),
+                    ));
+                }
                 "--dump" => {
                     let f = args.next().expect("--dump FILE");
                     o.dump = Some(std::fs::File::create(&f).expect("--dump: cannot create file"));
@@ -109,6 +182,9 @@ impl Options {
     }
 
     fn wants(&self, row: &str) -> bool {
+        if self.error && self.rows.is_empty() {
+            return false;
+        }
         self.rows.is_empty() || self.rows.iter().any(|r| r == row)
     }
 }
@@ -158,6 +234,26 @@ fn digest(r: &LidarRun, name: &str, dump: Option<&mut std::fs::File>) -> u64 {
         f.write_all(text.as_bytes()).expect("--dump: write failed");
     }
     h
+}
+
+/// Runs the scene with one LiDAR and returns its products.
+fn run_products(mut d: SceneDesc, l: LidarDesc, opt: &Options) -> LidarRun {
+    d.lidars = Some(vec![l]);
+    let mut sim = Simulation::from_desc(
+        &d,
+        &SceneSource::generated(),
+        RunSettings {
+            solver: Solver::MonteCarlo {
+                photons: 64,
+                sampler: SamplerKind::Continuous,
+            },
+            skip_empty: !opt.no_skip,
+            ..Default::default()
+        },
+    )
+    .unwrap();
+    sim.run(None).unwrap();
+    sim.resource::<LidarProducts>().0[0].clone()
 }
 
 fn run(mut d: SceneDesc, l: LidarDesc, name: &str, opt: &mut Options) -> Outcome {
@@ -297,10 +393,12 @@ fn main() {
     let n = opt.pulses.unwrap_or(if quick { 200 } else { 2000 });
     let side = ((n as f64).sqrt().ceil() as u32).max(2);
     println!(
-        "ALS forest 40 m, 1000 photons/pulse, multiple scattering (100 orders), {threads} threads"
+        "ALS forest 40 m, multiple scattering (100 orders), {threads} threads; photons/pulse: {} (stratified estimator, the default) or 1000 (legacy row)",
+        opt.photons.unwrap_or(DEFAULT_LIDAR_PHOTONS)
     );
     println!(
-        "{:>10} {:>22} {:>7} {:>8} {:>13} {:>15} {:>13} {:>9}",
+        "{:>16} {:>10} {:>22} {:>7} {:>8} {:>13} {:>15} {:>13} {:>9}",
+        "row",
         "sampler",
         "returns",
         "pulses",
@@ -311,6 +409,11 @@ fn main() {
         "returns"
     );
     for (name, sampler, method) in [
+        (
+            "legacy-peak",
+            LidarSampler::Discrete,
+            ReturnsMethod::PeakDetection,
+        ),
         (
             "continuous-gauss",
             LidarSampler::Continuous,
@@ -343,24 +446,38 @@ fn main() {
                 line_spacing_m: 38.0 / side as f64,
                 pulse_spacing_m: 38.0 / (side - 1) as f64,
             },
-            1000,
+            opt.photons.unwrap_or(DEFAULT_LIDAR_PHOTONS),
         );
         l.sampler = sampler;
         l.returns = method;
+        if name == "legacy-peak" {
+            // The estimator and photon count before 2026-11-26.
+            l.estimator = LidarEstimator::Legacy;
+            l.photons_per_pulse = 1000;
+        }
+        if let Some(e) = opt.estimator {
+            l.estimator = e;
+        }
+        l.scattering_photons_per_pulse = opt.scattering.or(l.scattering_photons_per_pulse);
+        let photons = l.photons_per_pulse as f64;
         let o = run(f.clone(), l, name, &mut opt);
         println!(
-            "{:>10} {:>22} {:>7} {:>8.2} {:>13.0} {:>15.2e} {:>13.4e} {:>9.2}",
+            "{:>16} {:>10} {:>22} {:>7} {:>8.2} {:>13.0} {:>15.2e} {:>13.4e} {:>9.2}",
+            name,
             format!("{sampler:?}"),
             format!("{method:?}"),
             o.pulses,
             o.seconds,
             o.pulses as f64 / o.seconds / threads,
-            o.pulses as f64 * 1000.0 / o.seconds / threads,
+            o.pulses as f64 * photons / o.seconds / threads,
             o.energy,
             o.returns
         );
     }
     println!("peak RSS {:.0} MiB", peak_rss_mib());
+    if opt.error {
+        error_study(&f, &mut opt);
+    }
     if !opt.wants("urban") {
         return;
     }
@@ -381,6 +498,9 @@ fn main() {
         100,
     );
     l.returns = ReturnsMethod::PeakDetection;
+    if let Some(e) = opt.estimator {
+        l.estimator = e;
+    }
     let o = run(u, l, "urban", &mut opt);
     let (secs, pulses) = (o.seconds, o.pulses);
     println!(
@@ -388,4 +508,220 @@ fn main() {
         pulses as f64 / secs / threads,
         peak_rss_mib()
     );
+}
+
+fn parse_estimator(v: &str) -> LidarEstimator {
+    match v {
+        "legacy" => LidarEstimator::Legacy,
+        "stratified" => LidarEstimator::Stratified,
+        _ => panic!("estimator `{v}`: legacy or stratified"),
+    }
+}
+
+/// Waveforms (raw, convolved) of every pulse of a run, in pulse order.
+fn waveforms_of(r: &LidarRun) -> Vec<(Waveform, Waveform)> {
+    let mut v: Vec<_> = r
+        .pulses
+        .iter()
+        .map(|p| (p.id, p.raw.clone(), p.waveform.clone()))
+        .collect();
+    v.sort_by_key(|x| x.0);
+    v.into_iter().map(|(_, a, b)| (a, b)).collect()
+}
+
+fn write_waveform(text: &mut String, w: &Waveform) {
+    *text += &format!("{:e} {:e} {}", w.t0_ns, w.dt_ns, w.total.len());
+    for v in w.total.iter().chain(&w.first_order) {
+        *text += &format!(" {v:e}");
+    }
+    text.push('\n');
+}
+
+fn read_waveform(line: &str) -> Waveform {
+    let mut it = line
+        .split_whitespace()
+        .map(|x| x.parse::<f64>().expect("cache"));
+    let t0 = it.next().expect("cache");
+    let dt = it.next().expect("cache");
+    let n = it.next().expect("cache") as usize;
+    let v: Vec<f64> = it.collect();
+    assert_eq!(v.len(), 2 * n, "cache: bins");
+    Waveform {
+        t0_ns: t0,
+        dt_ns: dt,
+        total: v[..n].to_vec(),
+        first_order: v[n..].to_vec(),
+    }
+}
+
+/// Relative L2 distance `‖a − r‖/‖r‖` over a common time axis, for the total, the first
+/// order and the rest (multiple scattering), and the relative energy error of the total.
+fn waveform_errors(a: &Waveform, r: &Waveform) -> [f64; 4] {
+    let dt = r.dt_ns;
+    let t0 = a.t0_ns.min(r.t0_ns);
+    let t1 = (a.t0_ns + a.total.len() as f64 * dt).max(r.t0_ns + r.total.len() as f64 * dt);
+    let n = ((t1 - t0) / dt).round() as usize + 1;
+    let (a, r) = (a.padded_to(t0, n), r.padded_to(t0, n));
+    let l2 = |x: &dyn Fn(&Waveform, usize) -> f64| {
+        let (mut d, mut s) = (0.0, 0.0);
+        for k in 0..n {
+            let (u, v) = (x(&a, k), x(&r, k));
+            d += (u - v) * (u - v);
+            s += v * v;
+        }
+        if s > 0.0 { (d / s).sqrt() } else { 0.0 }
+    };
+    let ea: f64 = a.total.iter().sum();
+    let er: f64 = r.total.iter().sum();
+    [
+        l2(&|w, k| w.total[k]),
+        l2(&|w, k| w.first_order[k]),
+        l2(&|w, k| w.total[k] - w.first_order[k]),
+        if er > 0.0 { (ea / er - 1.0).abs() } else { 0.0 },
+    ]
+}
+
+/// `--error`: speed against waveform error on 64 forest ALS pulses (8 × 8 grid over the 40 m
+/// forest, the speed rows' instrument, discrete sampler, peak detection). Reference: the
+/// `Legacy` estimator at `--ref-photons` photons per pulse (default 1e5), with the pulses listed
+/// in reverse order so that its random streams (one per pulse index) differ from the
+/// settings' (same scene seed). Per pulse: relative L2 error of the convolved waveform (the
+/// product) and of the raw one, total, first order and multiple scattering (total − first),
+/// and the relative error of the pulse energy; the table gives their means over the pulses.
+/// The reference's own noise adds (N_set/N_ref) of each setting's error variance (1 % at
+/// 1000 vs 1e5 photons: +0.5 % on the error).
+fn error_study(f: &SceneDesc, opt: &mut Options) {
+    let side = 8usize;
+    let centres: Vec<(f64, f64)> = (0..side * side)
+        .map(|k| {
+            let (i, j) = (k % side, k / side);
+            (
+                1.0 + 38.0 * i as f64 / (side - 1) as f64,
+                1.0 + 38.0 * j as f64 / (side - 1) as f64,
+            )
+        })
+        .collect();
+    let desc =
+        |est: LidarEstimator, photons: u32, scattering: Option<u32>, list: Vec<(f64, f64)>| {
+            let mut l = lidar(PulsePattern::List(list), photons);
+            l.returns = ReturnsMethod::PeakDetection;
+            l.estimator = est;
+            l.scattering_photons_per_pulse = scattering;
+            l
+        };
+    let cached = opt
+        .ref_cache
+        .as_ref()
+        .and_then(|p| std::fs::read_to_string(p).ok());
+    let reference: Vec<(Waveform, Waveform)> = match cached {
+        Some(text) => {
+            let lines: Vec<&str> = text.lines().collect();
+            assert_eq!(lines.len(), 2 * centres.len(), "--ref-cache: pulses");
+            lines
+                .chunks(2)
+                .map(|c| (read_waveform(c[0]), read_waveform(c[1])))
+                .collect()
+        }
+        None => {
+            let mut rev = centres.clone();
+            rev.reverse();
+            let l = desc(LidarEstimator::Legacy, opt.ref_photons, None, rev);
+            let t = std::time::Instant::now();
+            let r = run_products(f.clone(), l, opt);
+            let mut w = waveforms_of(&r);
+            w.reverse();
+            println!(
+                "reference: {} pulses × {} photons (legacy), {:.1} s",
+                w.len(),
+                opt.ref_photons,
+                t.elapsed().as_secs_f64()
+            );
+            if let Some(p) = &opt.ref_cache {
+                let mut text = String::new();
+                for (a, b) in &w {
+                    write_waveform(&mut text, a);
+                    write_waveform(&mut text, b);
+                }
+                std::fs::write(p, text).expect("--ref-cache: write");
+            }
+            w
+        }
+    };
+    let settings = if opt.settings.is_empty() {
+        vec![
+            (LidarEstimator::Legacy, 1000, None),
+            (LidarEstimator::Stratified, DEFAULT_LIDAR_PHOTONS, None),
+        ]
+    } else {
+        opt.settings.clone()
+    };
+    let threads = rayon::current_num_threads() as f64;
+    let p = centres.len();
+    let reps = opt.reps.max(1);
+    println!(
+        "error study: 64 forest pulses × {reps} realizations; mean over pulses of the relative L2 error of the convolved (raw) waveform: total, first order, multiple scattering; mean |energy error|"
+    );
+    println!(
+        "{:>11} {:>7} {:>7} {:>8} {:>13} {:>16} {:>16} {:>16} {:>8}",
+        "estimator",
+        "photons",
+        "scatter",
+        "wall_s",
+        "pulses/s/core",
+        "total",
+        "first",
+        "multiple",
+        "energy"
+    );
+    for (est, photons, scattering) in settings {
+        let mut conv = [0.0; 4];
+        let mut raw = [0.0; 4];
+        let (mut seconds, mut pulses) = (0.0, 0);
+        let mut per_rep = Vec::new();
+        for k in 0..reps {
+            // Realization k: centre i gets pulse index (i + 2k) mod P (its random stream);
+            // never the reference's P − 1 − i (P even).
+            let rot = (2 * k) % p;
+            let list: Vec<(f64, f64)> = (0..p).map(|j| centres[(j + p - rot) % p]).collect();
+            let l = desc(est, photons, scattering, list);
+            let r = run_products(f.clone(), l, opt);
+            seconds += r.seconds;
+            pulses += r.pulses.len();
+            let mut w = waveforms_of(&r);
+            w.rotate_left(rot);
+            let mut e_rep = 0.0;
+            for ((wr, wc), (rr, rc)) in w.iter().zip(&reference) {
+                let ec = waveform_errors(wc, rc);
+                let er = waveform_errors(wr, rr);
+                for k in 0..4 {
+                    conv[k] += ec[k] / (w.len() * reps) as f64;
+                    raw[k] += er[k] / (w.len() * reps) as f64;
+                }
+                e_rep += ec[0] / w.len() as f64;
+            }
+            per_rep.push(format!("{:.2}", 100.0 * e_rep));
+        }
+        let r = Outcome {
+            seconds,
+            pulses,
+            energy: 0.0,
+            returns: 0.0,
+        };
+        println!(
+            "{:>11} {:>7} {:>7} {:>8.2} {:>13.0} {:>7.2} % ({:>4.1}) {:>7.2} % ({:>4.1}) {:>7.2} % ({:>4.1}) {:>6.2} %",
+            format!("{est:?}"),
+            photons,
+            scattering.map_or("all".to_string(), |s| s.to_string()),
+            r.seconds,
+            r.pulses as f64 / r.seconds / threads,
+            100.0 * conv[0],
+            100.0 * raw[0],
+            100.0 * conv[1],
+            100.0 * raw[1],
+            100.0 * conv[2],
+            100.0 * raw[2],
+            100.0 * conv[3]
+        );
+        println!("    total error per realization (%): {}", per_rep.join(" "));
+    }
 }

@@ -209,6 +209,8 @@ fn monte_carlo_and_lidar_are_bit_identical_with_skipping() {
         beam: None,
         returns: lumenscape::lidar::returns::ReturnsMethod::PeakDetection,
         sampler: LidarSampler::Discrete,
+        estimator: Default::default(),
+        scattering_photons_per_pulse: None,
     }]);
     let lidar = |skip| {
         let s = sim(&d, mc, skip);

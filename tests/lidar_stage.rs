@@ -43,6 +43,8 @@ fn lidar(name: &str, altitude_m: f64, pulses: PulsePattern, photons: u32) -> Lid
         beam: None,
         returns: ReturnsMethod::GaussianDecomposition,
         sampler: LidarSampler::Discrete,
+        estimator: Default::default(),
+        scattering_photons_per_pulse: None,
     }
 }
 
@@ -142,19 +144,44 @@ fn turbid_layer_first_order_waveform_matches_the_analytic_form_in_every_bin() {
         (0.0, GapCorrelation::Independent),
         (0.05, GapCorrelation::Correlated),
     ] {
-        first_order_waveform_matches(leaf, correlation);
+        first_order_waveform_matches(leaf, correlation, LadDesc::Spherical, 0.5, 0.45 / 3.0);
     }
 }
 
-fn first_order_waveform_matches(leaf: f64, correlation: GapCorrelation) {
+/// The same analytic first-order waveform with erectophile leaves (de Wit: f(θ_L) =
+/// (4/π) sin²θ_L), whose exact-backscatter intensity the stratified estimator takes from the
+/// LAD's second moment instead of sampling a leaf normal: at nadir G(1) = ∫f cosθ_L dθ_L =
+/// 4/(3π) and Γ(π) = ρ_L⟨cos²θ_L⟩ = ρ_L/4 (physics.md §3.2–3.3, §9.6).
+#[test]
+fn erectophile_layer_first_order_waveform_matches_the_analytic_form_in_every_bin() {
+    first_order_waveform_matches(
+        0.0,
+        GapCorrelation::Independent,
+        LadDesc::Erectophile,
+        4.0 / (3.0 * std::f64::consts::PI),
+        0.45 / 4.0,
+    );
+}
+
+fn first_order_waveform_matches(
+    leaf: f64,
+    correlation: GapCorrelation,
+    lad_desc: LadDesc,
+    g_function: f64,
+    gamma_backscatter: f64,
+) {
     let h = 10_000.0;
     let mut d = scene(
         2.0,
         0.3,
         lidar("als", h, PulsePattern::Single((2.0, 2.0)), 200_000),
     );
-    if let Some(OpticsDesc::Turbid { leaf_size_m, .. }) = d.optics.get_mut("veg") {
+    if let Some(OpticsDesc::Turbid {
+        leaf_size_m, lad, ..
+    }) = d.optics.get_mut("veg")
+    {
         *leaf_size_m = leaf;
+        *lad = lad_desc;
     }
     let runs = run(&d, None);
     let p = &runs[0].pulses[0];
@@ -166,8 +193,8 @@ fn first_order_waveform_matches(leaf: f64, correlation: GapCorrelation) {
             range_top_m: h - 2.0,
             height_m: 2.0,
             lai: 2.0,
-            g_function: 0.5,
-            gamma_backscatter: 0.45 / 3.0,
+            g_function,
+            gamma_backscatter,
             rho_ground: 0.3,
             correlation,
         },
@@ -232,13 +259,25 @@ fn lidar_waveforms_are_bit_identical_on_1_2_and_8_threads() {
         },
         300,
     );
-    let d = scene(1.5, 0.2, l);
+    for (estimator, scattering) in [
+        (LidarEstimator::Stratified, None),
+        (LidarEstimator::Stratified, Some(100)),
+        (LidarEstimator::Legacy, None),
+    ] {
+        let mut l = l.clone();
+        l.estimator = estimator;
+        l.scattering_photons_per_pulse = scattering;
+        bit_identical_on_1_2_and_8_threads(&scene(1.5, 0.2, l));
+    }
+}
+
+fn bit_identical_on_1_2_and_8_threads(d: &SceneDesc) {
     let run_with = |t: usize| {
         rayon::ThreadPoolBuilder::new()
             .num_threads(t)
             .build()
             .unwrap()
-            .install(|| run(&d, None))
+            .install(|| run(d, None))
     };
     let a = run_with(1);
     assert_eq!(a[0].pulses.len(), 9);
@@ -523,6 +562,119 @@ fn reused_first_flight_return_transmittance_matches_the_shadow_ray() {
                 e1.is_finite() && e1 > 0.0,
                 "{what}, leaf {leaf}: first-order energy {e1:e}"
             );
+        }
+    }
+}
+
+/// The stratified estimator (the default: lattice beam rays, one walk per first flight, first
+/// order integrated bin by bin, Russian roulette into multiple scattering) against the legacy
+/// one (independent rays, one forced point per cell, every photon continued) on the turbid
+/// layer, spherical and erectophile leaves, independent and correlated gaps: 24 pulses at the
+/// same place (each its own random stream) per estimator give the mean and standard error of
+/// the first-order energy, the multiple-scattering energy and the first-order and total
+/// energy of each bin above 5 % of the peak; every mean must agree within 4.5 combined
+/// standard errors (two-sided p ≈ 7e-6 per comparison, ~100 comparisons) and, for the
+/// energies, within 2 % (first order) and 5 % (multiple scattering).
+#[test]
+fn stratified_estimator_agrees_with_the_legacy_one() {
+    let n_pulses = 24;
+    for (lad_desc, leaf) in [(LadDesc::Spherical, 0.0), (LadDesc::Erectophile, 0.05)] {
+        let waveforms = |estimator: LidarEstimator, scattering: Option<u32>| {
+            let mut l = lidar(
+                "cmp",
+                1000.0,
+                PulsePattern::List(vec![(2.0, 2.0); n_pulses]),
+                2000,
+            );
+            l.estimator = estimator;
+            l.scattering_photons_per_pulse = scattering;
+            let mut d = scene(2.0, 0.3, l);
+            if let Some(OpticsDesc::Turbid {
+                leaf_size_m, lad, ..
+            }) = d.optics.get_mut("veg")
+            {
+                *leaf_size_m = leaf;
+                *lad = lad_desc.clone();
+            }
+            let runs = run(&d, None);
+            runs[0]
+                .pulses
+                .iter()
+                .map(|p| p.raw.clone())
+                .collect::<Vec<Waveform>>()
+        };
+        // Mean and standard error over the pulses of E1, E_ms, then the first-order and total
+        // bins, on the time axis `(t0, n)`.
+        let stats = |w: &[Waveform], t0: f64, n: usize| {
+            let q: Vec<Vec<f64>> = w
+                .iter()
+                .map(|x| {
+                    let x = x.padded_to(t0, n);
+                    let e1: f64 = x.first_order.iter().sum();
+                    let et: f64 = x.total.iter().sum();
+                    let mut v = vec![e1, et - e1];
+                    v.extend(&x.first_order);
+                    v.extend(&x.total);
+                    v
+                })
+                .collect();
+            let m = q[0].len();
+            let k = q.len() as f64;
+            let mean: Vec<f64> = (0..m)
+                .map(|i| q.iter().map(|v| v[i]).sum::<f64>() / k)
+                .collect();
+            let se: Vec<f64> = (0..m)
+                .map(|i| {
+                    let var = q.iter().map(|v| (v[i] - mean[i]).powi(2)).sum::<f64>() / (k - 1.0);
+                    (var / k).sqrt()
+                })
+                .collect();
+            (mean, se)
+        };
+        let legacy = waveforms(LidarEstimator::Legacy, None);
+        for scattering in [None, Some(500)] {
+            let strat = waveforms(LidarEstimator::Stratified, scattering);
+            // Every pulse on one axis: the union of their (trimmed) bins.
+            let all = || legacy.iter().chain(&strat);
+            let dt = legacy[0].dt_ns;
+            let t0 = all().map(|w| w.t0_ns).fold(f64::INFINITY, f64::min);
+            let t1 = all()
+                .map(|w| w.t0_ns + w.n_bins() as f64 * dt)
+                .fold(0.0, f64::max);
+            let na = ((t1 - t0) / dt).round() as usize;
+            let (ma, sa) = stats(&legacy, t0, na);
+            let (mb, sb) = stats(&strat, t0, na);
+            let peak = ma[2 + na..].iter().cloned().fold(0.0, f64::max);
+            let mut worst: f64 = 0.0;
+            let mut compared = 0;
+            for i in 0..ma.len() {
+                if i >= 2 && ma[i] < 0.05 * peak {
+                    continue;
+                }
+                let z = (mb[i] - ma[i]).abs() / (sa[i] * sa[i] + sb[i] * sb[i]).sqrt().max(1e-300);
+                worst = worst.max(z);
+                compared += 1;
+                assert!(
+                    z < 4.5,
+                    "{lad_desc:?} leaf {leaf} scattering {scattering:?}: quantity {i}: stratified {:e} ± {:e} vs legacy {:e} ± {:e} ({z:.1} σ)",
+                    mb[i],
+                    sb[i],
+                    ma[i],
+                    sa[i]
+                );
+            }
+            let rel = |i: usize| mb[i] / ma[i] - 1.0;
+            eprintln!(
+                "{lad_desc:?} leaf {leaf} scattering {scattering:?}: {compared} quantities, worst {worst:.2} σ; first order {:+.3} % (SE {:.3} % vs {:.3} %), multiple scattering {:+.2} % (SE {:.2} % vs {:.2} %)",
+                100.0 * rel(0),
+                100.0 * sb[0] / mb[0],
+                100.0 * sa[0] / ma[0],
+                100.0 * rel(1),
+                100.0 * sb[1] / mb[1],
+                100.0 * sa[1] / ma[1]
+            );
+            assert!(compared >= 10, "{compared} quantities compared");
+            assert!(rel(0).abs() < 0.02 && rel(1).abs() < 0.05);
         }
     }
 }

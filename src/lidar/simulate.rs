@@ -210,6 +210,10 @@ pub fn simulate_lidar(
         photons: desc.photons_per_pulse,
         gate_m: gate,
         bin_ns: desc.bin_ns,
+        estimator: desc.estimator,
+        scattering_photons: desc
+            .scattering_photons_per_pulse
+            .unwrap_or(desc.photons_per_pulse),
     };
     let results = run_lidar(input, &beam, &pulses)?;
     let shape = PulseShape::from_fwhm_ns(desc.pulse_fwhm_ns, 3.0)

@@ -354,6 +354,19 @@ impl WaveformBinner {
         }
     }
 
+    /// Adds a first-order packet of `energy_j` (J) to bin `i` (known to the caller, e.g. a
+    /// stratum that is one bin); rejected (counted) if `i` is outside the gate or the energy
+    /// is not finite and ≥ 0.
+    #[inline]
+    pub fn add_first_order_at(&mut self, i: usize, energy_j: f64) {
+        if !(energy_j.is_finite() && energy_j >= 0.0) || i >= self.total.len() {
+            self.rejected += 1;
+            return;
+        }
+        self.total[i].add(energy_j);
+        self.first[i].add(energy_j);
+    }
+
     /// Adds a packet of `energy_j` (J) that travelled `path_length_m` (m) after `order`
     /// scattering events (1 = single scattering; 0 is accepted for a direct emitter→receiver
     /// path and counted in the total only). Hot-loop method: never fails, reports what it did.

@@ -49,7 +49,7 @@ use crate::resources::directions::DirectionSet;
 use crate::resources::facets::Facet;
 use crate::resources::grid::{CellGrid, GridSpec};
 use crate::resources::phase_tables::PhaseTable;
-use crate::scene::desc::BoundaryMode;
+use crate::scene::desc::{BoundaryMode, LidarEstimator};
 use glam::DVec3;
 use rand_xoshiro::Xoshiro256PlusPlus;
 use rayon::prelude::*;
@@ -623,6 +623,12 @@ struct Ctx<'a> {
     /// Receiver mode: the end of the range gate (path length, m); photons that can no longer
     /// be recorded before it are dropped (booked as lost, see [`Ctx::beyond_gate`]).
     max_path: f64,
+    /// Receiver mode: the first flight from the emitter uses [`Ctx::first_flight`] (one walk,
+    /// first order stratified by digitiser bin) instead of [`Ctx::forced_peel`] + [`Ctx::fly`].
+    stratified: bool,
+    /// Receiver mode: survival probability of a photon past its first interaction (Russian
+    /// roulette into multiple scattering, weight divided by it; 1: every photon goes on).
+    continue_prob: f64,
 }
 
 /// A LiDAR receiver (DART 5 paper §4; physics.md §9.2): peel-off goes toward a point.
@@ -705,6 +711,8 @@ impl<'a> Ctx<'a> {
             view_sector: inp.views.iter().map(|v| inp.dirs.find_sector(*v)).collect(),
             receiver: None,
             max_path: f64::INFINITY,
+            stratified: false,
+            continue_prob: 1.0,
             empty: std::sync::Arc::from(Vec::new()),
         };
         let grid = inp.grid;
@@ -901,6 +909,7 @@ impl Ctx<'_> {
     }
 
     /// Flies the photon to its next event; handles null collisions and boundary wrapping.
+    #[inline]
     fn fly(
         &self,
         ph: &mut Photon,
@@ -908,8 +917,20 @@ impl Ctx<'_> {
         rng: &mut Xoshiro256PlusPlus,
         out: &mut BatchOut,
     ) -> Hit {
+        let tau_star = -(1.0 - rng.next_f64()).ln();
+        self.fly_to(ph, g_cur, tau_star, rng, out)
+    }
+
+    /// [`Ctx::fly`] with the free optical path `tau_star` given.
+    fn fly_to(
+        &self,
+        ph: &mut Photon,
+        g_cur: &[f64],
+        mut tau_star: f64,
+        rng: &mut Xoshiro256PlusPlus,
+        out: &mut BatchOut,
+    ) -> Hit {
         let spec = self.inp.spec;
-        let mut tau_star = -(1.0 - rng.next_f64()).ln();
         let mut crossings = 0u32;
         'restart: loop {
             let Some(mut dda) = Dda::new(spec, ph.p, ph.d) else {
@@ -1209,6 +1230,329 @@ impl Ctx<'_> {
                 }
             }
         }
+    }
+
+    /// The LiDAR first flight from the emitter in one walk (receiver mode, `ph.order == 0`,
+    /// `ph.direct`, one band, no fluid; [`LidarEstimator::Stratified`]): the collision is
+    /// sampled as [`Ctx::fly`] does (same free path, cells, facet and exit rules, so the same
+    /// hit distribution), and along the same walk the expected-value (forced) first-order
+    /// return of the whole flight is binned (DART 5 paper §4 forced peel-off, physics.md
+    /// §9.2, §9.6).
+    ///
+    /// Every point of this flight lies on the ray from the monostatic receiver, so the return
+    /// direction is −Ω, at the distance L walked from the emitter, recorded at path 2L, with
+    /// cosine Ω·axis to the receiver axis, and the return transmittance is the optical depth
+    /// already walked (see [`Ctx::forced_peel`]). A vegetation segment `u ∈ [0, ℓ]` entered at
+    /// distance L₀ with optical depth τ (and return depth τ_r) then sends
+    /// `w e^{−τ−τ_r} Σ_m k_m f_m e^{−(k_v + k_r)u} · A (Ω·axis)/(L₀ + u)²` J per metre, with
+    /// `f_m = ρ_m ⟨|Ω·Ω_L|⟩_m/π` (sr⁻¹) the exact-backscatter intensity per unit intercepted
+    /// weight ([`crate::photon::sampling::LeafSampler::mean_abs_cos`]; the expectation of the
+    /// one-leaf estimate). That density is integrated by stratified sampling with the digitiser
+    /// bins as strata (at most [`MAX_FIRST_ORDER_STRATA`] per segment, grouping bins beyond):
+    /// per stratum the exact mass of `e^{−αu}` times `1/(L₀ + u)²` at one point drawn from
+    /// `e^{−αu}` inside it. Unbiased, and only the slowly varying `1/(L₀ + u)²` is sampled,
+    /// so the first-order waveform has no per-bin sampling noise left for a given beam ray.
+    /// A cell where the flight crosses a one-sided facet from behind (a hit for the return)
+    /// switches the rest of the walk to one forced point per segment with a shadow ray.
+    ///
+    /// Returns the hit (the photon's path, shift and position updated as [`Ctx::fly`] does)
+    /// and, when the flight ends on a surface with no volume collision before it, the return
+    /// optical depth there (for the surface's own collision peel-off).
+    #[allow(clippy::too_many_arguments)]
+    fn first_flight(
+        &self,
+        ph: &mut Photon,
+        g_cur: &[f64],
+        rng: &mut Xoshiro256PlusPlus,
+        out: &mut BatchOut,
+        scratch: &mut [f64],
+        tr: &mut [f64],
+    ) -> (Hit, Option<f64>) {
+        let spec = self.inp.spec;
+        let Some(rx) = self.receiver else {
+            return (self.fly(ph, g_cur, rng, out), None);
+        };
+        let tau_star0 = -(1.0 - rng.next_f64()).ln();
+        let mut tau_star = tau_star0;
+        let d = ph.d;
+        let cos_rx = d.dot(rx.axis);
+        let in_fov = cos_rx >= rx.cos_fov;
+        // Exact-backscatter intensity per unit intercepted weight, per turbid material.
+        let back: PerMaterial<f64> = Small::from_fn(self.tur_ids.len(), |tm| {
+            match &self.inp.optics[self.tur_ids[tm] as usize] {
+                PhotonOptics::Turbid { sampler, rho, .. } => {
+                    rho[0] * sampler.mean_abs_cos(d.z, g_cur[tm]) / PI
+                }
+                _ => 0.0,
+            }
+        });
+        let w = ph.w[0];
+        let path0 = ph.path;
+        let mut tau: f64 = 0.0;
+        let mut tau_ret: f64 = 0.0;
+        let mut exact = true;
+        let mut p = ph.p;
+        let mut skip = ph.skip_facet;
+        let mut shift = ph.shift;
+        let mut crossings = 0u32;
+        let mut travelled = 0.0;
+        // The sampled collision: (cell, point, path, shift).
+        let mut coll: Option<(usize, DVec3, f64, DVec3)> = None;
+        // How the walk ended when no collision came first (None: fall back to `fly_to`).
+        let end: Option<Hit>;
+        let mut ret = None;
+        'restart: loop {
+            let Some(mut dda) = Dda::new(spec, p, d) else {
+                end = Some(Hit::Lost);
+                break 'restart;
+            };
+            loop {
+                out.crossings += 1;
+                let c = dda.index();
+                let r = self.empty[c];
+                let exit = if r != 0 {
+                    if r > 1 {
+                        fly_skip(&mut dda, r, &mut out.skipped)
+                    } else {
+                        dda.advance()
+                    }
+                } else {
+                    let t0 = dda.t;
+                    let mut t1 = dda.t_exit();
+                    let has_facets =
+                        self.inp.grid.facet_start[c] < self.inp.grid.facet_start[c + 1];
+                    let fhit = if has_facets {
+                        self.facet_hit(c, dda.point(0.0), d, t0, t1, skip)
+                    } else {
+                        None
+                    };
+                    if let Some((_, th)) = fhit {
+                        t1 = th.max(t0);
+                    }
+                    if exact && has_facets && self.facet_behind(c, dda.point(0.0), d, t0, t1) {
+                        exact = false;
+                    }
+                    let ell = t1 - t0;
+                    // Extinction (m⁻¹): vegetation k_v, return k_r (materials without a leaf
+                    // size), and Σ k_m f_m (m⁻¹ sr⁻¹), in one pass over the cell's entries.
+                    let (mut kv, mut kr, mut kf) = (0.0, 0.0, 0.0);
+                    for e in self.inp.grid.turbid_of(c) {
+                        let tm = self.tur_mat[e.material as usize];
+                        if tm != u32::MAX {
+                            let k = g_cur[tm as usize] * e.density as f64;
+                            kv += k;
+                            kf += k * back[tm as usize];
+                            // hs_leaf ≥ 0 (validated): no leaf size means 0.
+                            if self.hs_leaf[tm as usize] <= 0.0 {
+                                kr += k;
+                            }
+                        }
+                    }
+                    if ell > 0.0 && kv > 0.0 {
+                        if coll.is_none() {
+                            let dt = ell * kv;
+                            if dt >= tau_star {
+                                let t = t0 + tau_star / kv;
+                                coll = Some((c, dda.point(t), path0 + travelled + t, shift));
+                            } else {
+                                tau_star -= dt;
+                            }
+                        }
+                        if in_fov {
+                            let l0 = path0 + travelled + t0;
+                            if exact {
+                                let base = w
+                                    * (-tau).exp()
+                                    * return_transmittance(tau_ret)
+                                    * kf
+                                    * rx.aperture_m2
+                                    * cos_rx;
+                                if base > 0.0 {
+                                    #[cfg(debug_assertions)]
+                                    self.check_first_flight_return(
+                                        ph,
+                                        (dda.point(t0), shift, l0),
+                                        d,
+                                        (tau_ret, kr, 0.5 * ell),
+                                    );
+                                    if let Some(wave) = out.wave.as_mut() {
+                                        bin_first_order(wave, l0, ell, kv + kr, base, rng);
+                                    }
+                                }
+                            } else {
+                                // One forced point with a shadow ray (see above).
+                                let norm = -(-kv * ell).exp_m1();
+                                let u = -(1.0 - rng.next_f64() * norm).ln() / kv;
+                                let mut rr = rng.next_f64() * kv;
+                                let mut mid = None;
+                                for e in self.inp.grid.turbid_of(c) {
+                                    let tm = self.tur_mat[e.material as usize];
+                                    if tm == u32::MAX {
+                                        continue;
+                                    }
+                                    let k = g_cur[tm as usize] * e.density as f64;
+                                    mid = Some((e.material as usize, tm as usize));
+                                    if rr < k {
+                                        break;
+                                    }
+                                    rr -= k;
+                                }
+                                if let Some((mid, tm)) = mid
+                                    && let PhotonOptics::Turbid {
+                                        sampler,
+                                        kernel,
+                                        rho,
+                                        tau: tl,
+                                        ..
+                                    } = &self.inp.optics[mid]
+                                {
+                                    let g_in = g_cur[tm].max(1e-12);
+                                    let closed = kernel.is_closed_form();
+                                    let n = if closed {
+                                        DVec3::Z
+                                    } else {
+                                        sampler.sample_normal(d, rng)
+                                    };
+                                    let fac = (-tau).exp() * norm;
+                                    let at = dda.point(t0 + u);
+                                    self.peel_receiver(
+                                        &rx,
+                                        ph,
+                                        (at, shift, l0 + u),
+                                        None,
+                                        None,
+                                        out,
+                                        scratch,
+                                        tr,
+                                        |_, ov, s| {
+                                            if !turbid_peel_phase(
+                                                kernel, closed, n, d, ov, g_in, rho, tl, s,
+                                            ) {
+                                                return false;
+                                            }
+                                            s[0] *= fac;
+                                            true
+                                        },
+                                    );
+                                }
+                            }
+                        }
+                        tau += kv * ell;
+                        if exact {
+                            tau_ret += kr * ell;
+                        }
+                    }
+                    if let Some((f, th)) = fhit {
+                        if coll.is_none() {
+                            ph.path = path0 + travelled + th;
+                            ph.shift = shift;
+                            ret = exact.then_some(tau_ret);
+                        }
+                        end = Some(Hit::Facet {
+                            f,
+                            p: dda.point(th),
+                        });
+                        break 'restart;
+                    }
+                    if tau > 30.0 {
+                        // e^{−30} ≈ 1e-13: the forced estimate stops (as `forced_peel`).
+                        end = None;
+                        break 'restart;
+                    }
+                    dda.advance()
+                };
+                match exit {
+                    Exit::Inside => {}
+                    Exit::Top => {
+                        ph.path = path0 + travelled + dda.t;
+                        ph.p = dda.point(dda.t);
+                        ph.shift = shift;
+                        end = Some(Hit::Escape);
+                        break 'restart;
+                    }
+                    Exit::Bottom => {
+                        ph.path = path0 + travelled + dda.t;
+                        ph.shift = shift;
+                        let q = dda.point(dda.t);
+                        end = Some(if self.inp.flat_ground.is_some() {
+                            ret = exact.then_some(tau_ret);
+                            Hit::Ground { p: q }
+                        } else {
+                            Hit::Lost
+                        });
+                        break 'restart;
+                    }
+                    Exit::Side(axis, s) => {
+                        if spec.boundary == BoundaryMode::Isolated {
+                            end = Some(Hit::Lost);
+                            break 'restart;
+                        }
+                        crossings += 1;
+                        if crossings > self.inp.params.max_crossings
+                            || path0 + travelled + dda.t > self.max_path
+                        {
+                            end = Some(Hit::Lost);
+                            break 'restart;
+                        }
+                        let e = dda.point(dda.t);
+                        match self.wrap(e, axis, s) {
+                            Some(q) => {
+                                travelled += dda.t;
+                                shift += e - q;
+                                p = q;
+                                skip = None;
+                                continue 'restart;
+                            }
+                            None => {
+                                end = Some(if d.z > 0.0 { Hit::Escape } else { Hit::Lost });
+                                break 'restart;
+                            }
+                        }
+                    }
+                }
+            }
+        }
+        if let Some((c, q, path, sh)) = coll {
+            ph.path = path;
+            ph.shift = sh;
+            return (Hit::Volume { c, p: q }, None);
+        }
+        match end {
+            Some(hit) => (hit, ret),
+            // The forced walk stopped at τ > 30 before the free path ran out (probability
+            // e^{−30}): the flight goes on from its start with the same free path.
+            None => (self.fly_to(ph, g_cur, tau_star0, rng, out), None),
+        }
+    }
+
+    /// Debug builds: the first flight's return geometry and transmittance (distance `l0 + u`
+    /// along the ray, direction −Ω, optical depth `τ_r + k_r u`) against the point's actual
+    /// vector to the receiver and the shadow ray they replace (relative 1e-9).
+    #[cfg(debug_assertions)]
+    fn check_first_flight_return(
+        &self,
+        ph: &Photon,
+        (at, shift, l0): (DVec3, DVec3, f64),
+        d: DVec3,
+        (tau_ret, kr, u): (f64, f64, f64),
+    ) {
+        let Some(rx) = &self.receiver else { return };
+        let m = at + d * u + shift;
+        let v = rx.position - m;
+        let r = v.length();
+        debug_assert!(
+            (r - (l0 + u)).abs() <= 1e-9 * r.max(1.0),
+            "first-flight distance {} vs {r}",
+            l0 + u
+        );
+        let mut ray = [0.0];
+        self.transmittance_to_receiver(ph, at + d * u, v / r, r, None, &mut ray);
+        let t = return_transmittance(tau_ret + kr * u);
+        debug_assert!(
+            (ray[0] - t).abs() <= 1e-9 * ray[0].max(t) + 1e-25,
+            "first-flight return transmittance {t:e} vs shadow ray {:e}",
+            ray[0]
+        );
     }
 
     /// Forced (expected-value) peel-off along the whole coming flight (Ray-Carlo K points per
@@ -1631,6 +1975,90 @@ fn turbid_peel_phase(
     s.iter().any(|&x| x > 0.0)
 }
 
+/// Most strata of one vegetation segment in [`bin_first_order`] (a 1 m cell spans ~7 bins of
+/// 1 ns; longer segments group consecutive bins per stratum).
+const MAX_FIRST_ORDER_STRATA: f64 = 32.0;
+
+/// Bins the forced first-order return of a vegetation segment of a LiDAR first flight
+/// ([`Ctx::first_flight`]): energy density `base · e^{−αu}/(l0 + u)²` J m⁻¹ over the distance
+/// `u ∈ [0, ell]` from the segment start, `l0` the distance from the receiver at `u = 0`
+/// (recorded at path `2(l0 + u)`), `α > 0` m⁻¹. Strata: the digitiser bins (before the gate,
+/// after it, and groups of `kb` bins beyond [`MAX_FIRST_ORDER_STRATA`]); in each `[a, b]` the
+/// exact mass `e^{−αa}(1 − e^{−α(b−a)})/α` times `1/(l0 + u)²` at `u` drawn with density
+/// `∝ e^{−αu}` on `[a, b]` (inverse CDF). The whole strata of a segment share one uniform (the
+/// same offset from their start: each point still has its stratum's density, so every bin's
+/// estimate stays unbiased; only the two end strata draw their own). Unbiased for every bin.
+fn bin_first_order(
+    wave: &mut crate::lidar::waveform::WaveformBinner,
+    l0: f64,
+    ell: f64,
+    alpha: f64,
+    base: f64,
+    rng: &mut Xoshiro256PlusPlus,
+) {
+    let h = 0.5 * wave.bin_len_m(); // one bin, in distance along the ray
+    let n = wave.n_bins() as f64;
+    // Bin coordinate of the segment's ends.
+    let x0 = (2.0 * l0 - wave.bin_start_path_m(0)) / (2.0 * h);
+    let x1 = x0 + ell / h;
+    if !(x0.is_finite() && x1.is_finite() && alpha > 0.0 && ell > 0.0) {
+        return;
+    }
+    let kb = ((x1.min(n) - x0.max(0.0)) / MAX_FIRST_ORDER_STRATA)
+        .ceil()
+        .max(1.0);
+    // Whole strata: width kb·h, shared offset.
+    let em_full = (-alpha * kb * h).exp_m1();
+    let off_full = -(rng.next_f64() * em_full).ln_1p() / alpha;
+    let mut xa = x0;
+    let mut ea = 1.0; // e^{−α a}
+    let mut a = 0.0;
+    // Strata: ≤ MAX_FIRST_ORDER_STRATA + 2 (+ rounding steps); the cap only guards the loop.
+    for _ in 0..(2 * MAX_FIRST_ORDER_STRATA as usize + 8) {
+        if a >= ell {
+            break;
+        }
+        let in_gate = (0.0..n).contains(&xa);
+        let grid_edge = ((xa / kb).floor() + 1.0) * kb;
+        let edge = if xa < 0.0 {
+            0.0
+        } else if xa >= n {
+            f64::INFINITY
+        } else {
+            grid_edge.min(n)
+        };
+        let xb = edge.min(x1);
+        let b = if xb >= x1 {
+            ell
+        } else {
+            ((xb - x0) * h).min(ell)
+        };
+        if !(b > a) {
+            // Rounding at an edge: step past it.
+            xa = xb.max(xa) + f64::EPSILON * xa.abs().max(1.0);
+            continue;
+        }
+        let whole = in_gate && a > 0.0 && xb < x1 && edge == xa + kb;
+        let (em, u) = if whole {
+            (em_full, a + off_full)
+        } else {
+            let em = (-alpha * (b - a)).exp_m1(); // e^{−α(b−a)} − 1 ≤ 0
+            (em, a - (rng.next_f64() * em).ln_1p() / alpha)
+        };
+        let mass = ea * -em / alpha;
+        let r = l0 + u.clamp(a, b);
+        let e = base * mass / (r * r);
+        if in_gate && kb == 1.0 {
+            wave.add_first_order_at(xa as usize, e);
+        } else {
+            wave.add(2.0 * r, e, 1);
+        }
+        ea *= 1.0 + em;
+        a = b;
+        xa = xb;
+    }
+}
+
 /// Transmittance `e^{−τ}` of a return optical depth τ, zero beyond τ = 69.1 (e^{−69.1} < 1e-30,
 /// the cut of [`Ctx::transmittance`]).
 #[inline]
@@ -1949,24 +2377,38 @@ fn trace_photon(
         // Receiver mode: first flight only (a smooth first-order waveform); later orders use
         // the collision estimator (one receiver trace per event instead of one per crossing).
         ph.ret = None;
-        let walk_end = if (ctx.receiver.is_some() && ph.order == 0)
-            || (ctx.receiver.is_none() && forced_fluid && !inp.views.is_empty())
+        let hit = if ctx.stratified
+            && ph.order == 0
+            && ph.direct
+            && nb == 1
+            && inp.fluid.is_none()
+            && ctx.receiver.is_some()
         {
-            ctx.forced_peel(ph, g_cur, rng, out, scratch, tr)
+            // One walk: collision and stratified first-order return (`Ctx::first_flight`).
+            let (hit, ret) = ctx.first_flight(ph, g_cur, rng, out, scratch, tr);
+            ph.ret = ret.map(|t| Small::from_elem(return_transmittance(t), 1));
+            hit
         } else {
-            None
-        };
-        let hit = ctx.fly(ph, g_cur, rng, out);
-        // First flight ending on the surface its forced walk ended on: the collision peel-off
-        // reuses the walk's return transmittance (see `Ctx::forced_peel`).
-        ph.ret = match (&hit, walk_end) {
-            (Hit::Facet { f, .. }, Some((Some(g), tau))) if *f == g => {
-                Some(Small::from_fn(tau.len(), |b| return_transmittance(tau[b])))
-            }
-            (Hit::Ground { .. }, Some((None, tau))) => {
-                Some(Small::from_fn(tau.len(), |b| return_transmittance(tau[b])))
-            }
-            _ => None,
+            let walk_end = if (ctx.receiver.is_some() && ph.order == 0)
+                || (ctx.receiver.is_none() && forced_fluid && !inp.views.is_empty())
+            {
+                ctx.forced_peel(ph, g_cur, rng, out, scratch, tr)
+            } else {
+                None
+            };
+            let hit = ctx.fly(ph, g_cur, rng, out);
+            // First flight ending on the surface its forced walk ended on: the collision
+            // peel-off reuses the walk's return transmittance (see `Ctx::forced_peel`).
+            ph.ret = match (&hit, walk_end) {
+                (Hit::Facet { f, .. }, Some((Some(g), tau))) if *f == g => {
+                    Some(Small::from_fn(tau.len(), |b| return_transmittance(tau[b])))
+                }
+                (Hit::Ground { .. }, Some((None, tau))) => {
+                    Some(Small::from_fn(tau.len(), |b| return_transmittance(tau[b])))
+                }
+                _ => None,
+            };
+            hit
         };
         match hit {
             Hit::Escape => {
@@ -2341,6 +2783,22 @@ fn trace_photon(
         if wmax <= 0.0 || !wmax.is_finite() {
             return;
         }
+        // Receiver mode: Russian roulette into multiple scattering after the first interaction
+        // (its first-order return is already recorded), survival `continue_prob`.
+        if ph.order == 1 && ctx.continue_prob < 1.0 {
+            let q = ctx.continue_prob;
+            if rng.next_f64() < q {
+                for b in 0..nb {
+                    out.roulette[off + b] -= ph.w[b] * (1.0 / q - 1.0);
+                    ph.w[b] /= q;
+                }
+            } else {
+                for b in 0..nb {
+                    out.roulette[off + b] += ph.w[b];
+                }
+                return;
+            }
+        }
         if ph.order > inp.params.max_order {
             for b in 0..nb {
                 out.lost[off + b] += ph.w[b];
@@ -2463,6 +2921,11 @@ pub struct Beam {
     pub gate_m: (f64, f64),
     /// Digitiser bin, ns.
     pub bin_ns: f64,
+    /// Estimator of the tracking.
+    pub estimator: LidarEstimator,
+    /// `Stratified`: expected number of beam rays per pulse continued past their first
+    /// interaction into multiple scattering (≥ `photons`: all).
+    pub scattering_photons: u32,
 }
 
 /// Result of one pulse.
@@ -2511,6 +2974,13 @@ fn run_pulse(base: &Ctx, beam: &Beam, pl: &Pulse) -> PulseResult {
             aperture_m2: beam.aperture_m2,
         }),
         max_path: beam.gate_m.1,
+        stratified: beam.estimator == LidarEstimator::Stratified,
+        continue_prob: match beam.estimator {
+            LidarEstimator::Stratified if beam.photons > 0 => {
+                (beam.scattering_photons as f64 / beam.photons as f64).clamp(0.0, 1.0)
+            }
+            _ => 1.0,
+        },
         ..base.clone()
     };
     let binner =
@@ -2545,10 +3015,26 @@ fn run_pulse(base: &Ctx, beam: &Beam, pl: &Pulse) -> PulseResult {
             q[a] >= spec.origin[a] && q[a] <= spec.origin[a] + spec.n[a] as f64 * spec.cell[a]
         })
     };
-    for _ in 0..beam.photons {
-        let [dx, dy] = beam
-            .footprint
-            .sample_footprint_point(rng.next_f64(), rng.next_f64());
+    // Stratified: beam rays on the R2 lattice (Roberts 2018: additive recurrence with the
+    // plastic number φ₂, low discrepancy for every count) shifted by one uniform per axis
+    // (Cranley & Patterson 1976), so each ray is uniform on the unit square (unbiased) while
+    // the set covers the footprint evenly.
+    const PHI2: f64 = 1.324_717_957_244_746;
+    let lattice = ctx.stratified.then(|| {
+        (
+            [1.0 / PHI2, 1.0 / (PHI2 * PHI2)],
+            [rng.next_f64(), rng.next_f64()],
+        )
+    });
+    for i in 0..beam.photons {
+        let (u1, u2) = match lattice {
+            Some((a, s)) => (
+                (s[0] + i as f64 * a[0]).fract(),
+                (s[1] + i as f64 * a[1]).fract(),
+            ),
+            None => (rng.next_f64(), rng.next_f64()),
+        };
+        let [dx, dy] = beam.footprint.sample_footprint_point(u1, u2);
         let d = (pl.axis * beam.reference_range_m + e1 * dx + e2 * dy).normalize();
         // Entry point: the emitter itself inside the grid (terrestrial), else the top plane.
         let (start, s) = if inside(pl.emitter) {

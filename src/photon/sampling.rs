@@ -1028,6 +1028,9 @@ pub struct LeafSampler {
     table_sin: AliasTable,
     mass_cos: f64,
     mass_sin: f64,
+    /// `∫ f(θ_L) cos²θ_L dθ_L / ∫ f dθ_L` (tanh–sinh on the LAD's pieces, ~1e-13): the second
+    /// moment of the normal's vertical component, for [`LeafSampler::mean_abs_cos`].
+    mean_cos2: f64,
 }
 
 /// Hard cap of rejection trials per normal (never reached for valid LADs: the acceptance
@@ -1103,6 +1106,12 @@ impl LeafSampler {
         let table_sin = AliasTable::new(&ws)?;
         let mass_cos = wc.iter().sum();
         let mass_sin = ws.iter().sum();
+        let total = lad.total();
+        let mean_cos2 = if total > 0.0 {
+            (lad.integrate(0.0, FRAC_PI_2, &[], |t| t.cos() * t.cos()) / total).clamp(0.0, 1.0)
+        } else {
+            1.0 / 3.0
+        };
         Ok(Self {
             density,
             pieces,
@@ -1110,7 +1119,21 @@ impl LeafSampler {
             table_sin,
             mass_cos,
             mass_sin,
+            mean_cos2,
         })
+    }
+
+    /// `E[|Ω'·Ω_L|]` over the normals [`Self::sample_normal`] draws for a photon along Ω' with
+    /// direction cosine `mu` (density `f(θ_L)|Ω'·Ω_L|/G(μ')`, azimuth uniform), given `g` =
+    /// G(μ'): `M₂(μ')/G(μ')` with `M₂ = μ'² ⟨cos²θ_L⟩ + ½(1 − μ'²)⟨sin²θ_L⟩` (the azimuth mean
+    /// of `(Ω'·Ω_L)²`, physics.md §3.2–3.3). Times ρ_L/π it is the exact-backscatter peel-off
+    /// intensity `Γ(Ω' → −Ω')/(π G)` per unit intercepted weight of a bi-Lambertian leaf
+    /// (spherical LAD: ⟨cos²⟩ = 1/3, G = ½, giving 2ρ_L/(3π) = Γ_π/(πG) with Γ_π = ρ_L/3),
+    /// the expectation of the one-leaf estimate `ρ_L|Ω_v·Ω_L|/π` at `Ω_v = −Ω'`. Dimensionless.
+    pub fn mean_abs_cos(&self, mu: f64, g: f64) -> f64 {
+        let m2 = (mu * mu).min(1.0);
+        let second = m2 * self.mean_cos2 + 0.5 * (1.0 - m2) * (1.0 - self.mean_cos2);
+        if g > 0.0 { second / g } else { 0.0 }
     }
 
     /// Number of envelope pieces.

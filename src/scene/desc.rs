@@ -854,8 +854,11 @@ fn default_aperture() -> f64 {
 fn default_bin_ns() -> f64 {
     1.0
 }
+/// Default photons (beam rays) per LiDAR pulse (see [`LidarDesc::photons_per_pulse`]).
+pub const DEFAULT_LIDAR_PHOTONS: u32 = 600;
+
 fn default_lidar_photons() -> u32 {
-    1000
+    DEFAULT_LIDAR_PHOTONS
 }
 fn default_lidar_order() -> u32 {
     100
@@ -901,7 +904,9 @@ pub struct LidarDesc {
     /// Digitiser bin, ns (default 1).
     #[serde(default = "default_bin_ns")]
     pub bin_ns: f64,
-    /// Photons per pulse (default 1000).
+    /// Photons (beam rays) per pulse (default 600: with the `Stratified` estimator, the
+    /// waveform error of the former default, 1000 photons of the `Legacy` estimator, on the
+    /// forest ALS bench, at 0.62× its instructions; README, LiDAR speed).
     #[serde(default = "default_lidar_photons")]
     pub photons_per_pulse: u32,
     /// Scattering orders traced (default 100).
@@ -927,6 +932,31 @@ pub struct LidarDesc {
     /// the discrete directions, default) or `Continuous` (exact phase functions).
     #[serde(default)]
     pub sampler: LidarSampler,
+    /// Estimator of the photon tracking (default `Stratified`; see [`LidarEstimator`]).
+    #[serde(default)]
+    pub estimator: LidarEstimator,
+    /// `Stratified` estimator: how many of the `photons_per_pulse` beam rays go on, on average,
+    /// past their first interaction into multiple scattering (Russian roulette with survival
+    /// `scattering/photons`, weights divided by it: unbiased). Default: all of them; at most
+    /// `photons_per_pulse`. Ignored by `Legacy`.
+    #[serde(default)]
+    pub scattering_photons_per_pulse: Option<u32>,
+}
+
+/// Estimator of a LiDAR's photon tracking (physics.md §9.2; DART 5 paper §4).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+pub enum LidarEstimator {
+    /// Beam rays on a randomly shifted low-discrepancy (R2) lattice over the footprint; the
+    /// first flight is walked once, sampling its collision and the expected-value first-order
+    /// return together, the latter integrated bin by bin (one stratified point per digitiser
+    /// bin of each crossed vegetation cell, exact-backscatter leaf intensity); later orders use
+    /// the collision estimator for `scattering_photons_per_pulse` of the rays.
+    #[default]
+    Stratified,
+    /// The estimator before 2026-11-26: independent beam rays, one forced point per crossed
+    /// vegetation cell (one-leaf intensity with a sampled normal), a second walk of the first
+    /// flight for its collision, every photon continued. Kept as the reference of the tests.
+    Legacy,
 }
 
 /// Scattering-direction sampling of a LiDAR's photon tracking (DART 5 paper §4).

@@ -1022,6 +1022,14 @@ fn validate_lidar(
     if l.max_order == 0 {
         return Err(src.invalid(f("max_order"), "must be at least 1"));
     }
+    if let Some(n) = l.scattering_photons_per_pulse
+        && (n == 0 || n > l.photons_per_pulse)
+    {
+        return Err(src.invalid(
+            f("scattering_photons_per_pulse"),
+            "must be between 1 and photons_per_pulse (every order ≥ 2 needs photons)",
+        ));
+    }
     match &l.platform {
         LidarPlatform::Airborne {
             altitude_m,

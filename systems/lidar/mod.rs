@@ -190,8 +190,10 @@ pub fn run_lidars(
         params.max_order = l.max_order;
         params.skip_empty = run.as_ref().is_none_or(|r| r.skip_empty);
         // One forced peel-off point per crossing of a turbid or fluid cell (see
-        // `PhotonParams::fluid_peel_points`): at 1000 photons per pulse the first-order
-        // waveform is already smooth, and each point costs a trace to the receiver.
+        // `PhotonParams::fluid_peel_points`) where the first flight is not integrated bin by
+        // bin (`Legacy` estimator, flights through a facet, fluids): at hundreds of photons
+        // per pulse the first-order waveform is already smooth, and each point costs a trace
+        // to the receiver.
         params.fluid_peel_points = 1;
         let input = PhotonInput {
             spec: &spec,
