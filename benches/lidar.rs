@@ -236,8 +236,8 @@ fn digest(r: &LidarRun, name: &str, dump: Option<&mut std::fs::File>) -> u64 {
     h
 }
 
-/// Runs the scene with one LiDAR and returns its products.
-fn run_products(mut d: SceneDesc, l: LidarDesc, opt: &Options) -> LidarRun {
+/// Runs the scene with one LiDAR (its products in the `LidarProducts` resource).
+fn simulate(mut d: SceneDesc, l: LidarDesc, opt: &Options) -> Simulation {
     d.lidars = Some(vec![l]);
     let mut sim = Simulation::from_desc(
         &d,
@@ -253,25 +253,16 @@ fn run_products(mut d: SceneDesc, l: LidarDesc, opt: &Options) -> LidarRun {
     )
     .unwrap();
     sim.run(None).unwrap();
-    sim.resource::<LidarProducts>().0[0].clone()
+    sim
 }
 
-fn run(mut d: SceneDesc, l: LidarDesc, name: &str, opt: &mut Options) -> Outcome {
-    d.lidars = Some(vec![l]);
-    let mut sim = Simulation::from_desc(
-        &d,
-        &SceneSource::generated(),
-        RunSettings {
-            solver: Solver::MonteCarlo {
-                photons: 64,
-                sampler: SamplerKind::Continuous,
-            },
-            skip_empty: !opt.no_skip,
-            ..Default::default()
-        },
-    )
-    .unwrap();
-    sim.run(None).unwrap();
+/// Runs the scene with one LiDAR and returns its products.
+fn run_products(d: SceneDesc, l: LidarDesc, opt: &Options) -> LidarRun {
+    simulate(d, l, opt).resource::<LidarProducts>().0[0].clone()
+}
+
+fn run(d: SceneDesc, l: LidarDesc, name: &str, opt: &mut Options) -> Outcome {
+    let sim = simulate(d, l, opt);
     let r = &sim.resource::<LidarProducts>().0[0];
     if opt.digest || opt.dump.is_some() {
         let h = digest(r, name, opt.dump.as_mut());

@@ -892,6 +892,28 @@ impl Ctx<'_> {
         })
     }
 
+    /// The tracked turbid material of cell `c` whose share of the extinction `Σ_m G_m u_m`
+    /// (m⁻¹, `g_cur` = G per tracked material along the flight) contains `r` ∈ [0, k_v):
+    /// (material id, tracked-material index); the last one when rounding leaves `r` beyond the
+    /// sum; `None` when the cell holds no tracked material.
+    #[inline]
+    fn pick_turbid(&self, c: usize, g_cur: &[f64], mut r: f64) -> Option<(usize, usize)> {
+        let mut mid = None;
+        for e in self.inp.grid.turbid_of(c) {
+            let tm = self.tur_mat[e.material as usize];
+            if tm == u32::MAX {
+                continue;
+            }
+            let k = g_cur[tm as usize] * e.density as f64;
+            mid = Some((e.material as usize, tm as usize));
+            if r < k {
+                break;
+            }
+            r -= k;
+        }
+        mid
+    }
+
     /// Extinction of the return path of a first-order LiDAR photon in cell `c` (m⁻¹): turbid
     /// materials without a leaf size only (see [`Ctx::forced_peel`]); `g_cur` holds G of the
     /// flight, equal to G of the reversed direction.
@@ -1383,20 +1405,7 @@ impl Ctx<'_> {
                                 // One forced point with a shadow ray (see above).
                                 let norm = -(-kv * ell).exp_m1();
                                 let u = -(1.0 - rng.next_f64() * norm).ln() / kv;
-                                let mut rr = rng.next_f64() * kv;
-                                let mut mid = None;
-                                for e in self.inp.grid.turbid_of(c) {
-                                    let tm = self.tur_mat[e.material as usize];
-                                    if tm == u32::MAX {
-                                        continue;
-                                    }
-                                    let k = g_cur[tm as usize] * e.density as f64;
-                                    mid = Some((e.material as usize, tm as usize));
-                                    if rr < k {
-                                        break;
-                                    }
-                                    rr -= k;
-                                }
+                                let mid = self.pick_turbid(c, g_cur, rng.next_f64() * kv);
                                 if let Some((mid, tm)) = mid
                                     && let PhotonOptics::Turbid {
                                         sampler,
@@ -1703,20 +1712,7 @@ impl Ctx<'_> {
                                     *x = (-tau[b] - sig(b) * u).exp() * norm / k_pts as f64;
                                 }
                                 // Material in proportion to its extinction.
-                                let mut r = rng.next_f64() * kv;
-                                let mut mid = None;
-                                for e in self.inp.grid.turbid_of(c) {
-                                    let tm = self.tur_mat[e.material as usize];
-                                    if tm == u32::MAX {
-                                        continue;
-                                    }
-                                    let k = g_cur[tm as usize] * e.density as f64;
-                                    mid = Some((e.material as usize, tm as usize));
-                                    if r < k {
-                                        break;
-                                    }
-                                    r -= k;
-                                }
+                                let mid = self.pick_turbid(c, g_cur, rng.next_f64() * kv);
                                 let Some((mid, tm)) = mid else { continue };
                                 let PhotonOptics::Turbid {
                                     sampler,
