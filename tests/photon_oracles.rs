@@ -835,3 +835,54 @@ fn disk_canopy_albedo_converges_to_monte_carlo_with_directions() {
         "2000 directions: error {last}"
     );
 }
+
+/// Monte Carlo has no length scale of its own either (see the Radiative stage's
+/// `huge_and_tiny_scenes_give_the_products_of_the_metre_scene`): a building with walls in cell
+/// faces and a turbid crown, scaled by exact powers of two (2⁻¹⁰ ≈ 1 mm and 2¹³ ≈ 8 km cells,
+/// u_f ∝ 1/s), follows the same photon paths with the same seed, so every product matches the
+/// metre scene to 1e-9 relative (summation rounding only).
+#[test]
+fn huge_and_tiny_scenes_follow_the_photon_paths_of_the_metre_scene() {
+    let make = |s: f64| {
+        let mut d = base_scene((6.0 * s, 6.0 * s), (s, s, s), BoundaryMode::Repetitive);
+        d.objects.push(flat_ground());
+        d.optics.insert("wall".into(), lambertian(0.3));
+        d.objects
+            .push(box_building((1.0 * s, 1.5 * s, 3.5 * s, 4.0 * s), 2.5 * s));
+        d.objects.push(ObjectDesc::TurbidPlot(TurbidPlotDesc {
+            footprint: FootprintDesc::Box((4.0 * s, 0.0, 6.0 * s, 3.0 * s)),
+            bottom_m: 0.0,
+            top_m: 2.0 * s,
+            foliage: FoliageDesc::Lai(2.0),
+            optics: "veg".into(),
+        }));
+        d.grid.height_m = Some(4.0 * s);
+        d
+    };
+    let p1 = run_mc(&make(1.0), 20_000, SamplerKind::Continuous);
+    assert_closes(&p1, "1 m");
+    for s in [2f64.powi(-10), 2f64.powi(13)] {
+        let p = run_mc(&make(s), 20_000, SamplerKind::Continuous);
+        assert_closes(&p, &format!("×{s}"));
+        let close = |a: f64, b: f64| (a - b).abs() <= 1e-9 * a.abs().max(b.abs()).max(1e-12);
+        for (b1, b) in p1.bands.iter().zip(&p.bands) {
+            for (name, x1, x) in [
+                ("albedo", b1.albedo, b.albedo),
+                ("fabs", b1.fabs, b.fabs),
+                ("ftran", b1.ftran, b.ftran),
+            ] {
+                assert!(close(x1, x), "×{s}: {name} {x} against {x1} at 1 m");
+            }
+            for (e1, e) in b1.brf.iter().zip(&b.brf) {
+                assert!(
+                    close(e1.brf, e.brf),
+                    "×{s}: BRF {} against {} at 1 m (view {}°, {}°)",
+                    e.brf,
+                    e1.brf,
+                    e.zenith_deg,
+                    e.azimuth_deg
+                );
+            }
+        }
+    }
+}

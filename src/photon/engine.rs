@@ -861,6 +861,7 @@ impl Ctx<'_> {
         skip: Option<u32>,
     ) -> Option<(u32, f64)> {
         let grid = self.inp.grid;
+        let tol = self.inp.spec.hit_tolerance();
         let mut hit: Option<(u32, f64)> = None;
         for &f in grid.facets_of(c) {
             if Some(f) == skip {
@@ -868,8 +869,8 @@ impl Ctx<'_> {
             }
             let fa = &self.inp.facets[f as usize];
             if let Some(t) = intersect(&fa.v, o, d)
-                && t >= t0 - 1e-12
-                && t <= t1 + 1e-12
+                && t >= t0 - tol
+                && t <= t1 + tol
                 && hit.is_none_or(|h| t < h.1)
             {
                 let n = (fa.v[1] - fa.v[0]).cross(fa.v[2] - fa.v[0]);
@@ -884,11 +885,12 @@ impl Ctx<'_> {
     /// True if the segment `[t0, t1]` of the ray from `o` along `d` in cell `c` crosses a
     /// one-sided facet from behind (not a hit for this ray, but one for the reversed ray).
     fn facet_behind(&self, c: usize, o: DVec3, d: DVec3, t0: f64, t1: f64) -> bool {
+        let tol = self.inp.spec.hit_tolerance();
         self.inp.grid.facets_of(c).iter().any(|&f| {
             let fa = &self.inp.facets[f as usize];
             !fa.two_sided
                 && (fa.v[1] - fa.v[0]).cross(fa.v[2] - fa.v[0]).dot(d) >= 0.0
-                && intersect(&fa.v, o, d).is_some_and(|t| t >= t0 - 1e-12 && t <= t1 + 1e-12)
+                && intersect(&fa.v, o, d).is_some_and(|t| t >= t0 - tol && t <= t1 + tol)
         })
     }
 

@@ -1682,6 +1682,7 @@ impl Ctx<'_> {
         };
         let min_ray = self.min_ray * self.ray_factor[dir] * out.ray_scale;
         let off = self.subfaces == TurbidSubfaces::Off;
+        let t_tol = spec.hit_tolerance();
         // Distance travelled from the ray's origin to the current restart point, m.
         let mut s_base = 0.0;
         let hb = HalfBarycentres::get();
@@ -1719,8 +1720,8 @@ impl Ctx<'_> {
                             }
                             let fa = &self.inp.facets[f as usize];
                             if let Some(t) = intersect(&fa.v, o, d)
-                                && t >= t0 - 1e-12
-                                && t <= t1 + 1e-12
+                                && t >= t0 - t_tol
+                                && t <= t1 + t_tol
                                 && hit.is_none_or(|h| t < h.2)
                             {
                                 let n = (fa.v[1] - fa.v[0]).cross(fa.v[2] - fa.v[0]);

@@ -69,6 +69,19 @@ impl GridSpec {
     pub fn top(&self) -> f64 {
         self.origin.z + self.n[2] as f64 * self.cell.z
     }
+
+    /// Slack, metres, by which a facet hit may lie outside the cell segment `[t0, t1]` of a ray
+    /// and still count (a facet lying in a cell face is hit at `t1` of one cell and `t0` of the
+    /// next, each rounded). It scales with the scene: 1e-12 of the largest cell side, and at least
+    /// 8 ulps of the largest coordinate of the grid box (the rounding of a hit distance computed
+    /// from points that far from 0). A fixed 1e-12 m lost the hits on walls in cell faces of
+    /// 10-km scenes (`huge_and_tiny_scenes_give_the_products_of_the_metre_scene`); for metre
+    /// cells in scenes under ~500 m it is 1e-12 m, as before.
+    pub fn hit_tolerance(&self) -> f64 {
+        let far = self.origin.abs()
+            + DVec3::new(self.n[0] as f64, self.n[1] as f64, self.n[2] as f64) * self.cell;
+        (1e-12 * self.cell.max_element()).max(8.0 * f64::EPSILON * far.max_element())
+    }
 }
 
 /// Turbid content of one cell for one material.
