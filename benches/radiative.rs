@@ -13,7 +13,8 @@
 //! (DART 5 paper §3.2, Figure 7; default: the preset's), `--exit-grouping` merges a turbid
 //! cell's scattered rays per exit sub-face (Figure 7c), `--ray-threshold X` sets the ray-power
 //! threshold, `--cells 0.5,0.25` the turbid-layer cell sizes; `-- --no-skip` turns empty-space
-//! skipping off (every cell visited)).
+//! skipping off (every cell visited), `-- --no-batch` the batched 4-ray walk (rays one at a
+//! time)).
 //!
 //! Throughput columns: `Mcross/s/core` is visited cell crossings (empty cells jumped over by
 //! empty-space skipping are not counted; the forest line prints them apart) / (wall time of
@@ -47,6 +48,8 @@ fn run_timed(
             preset: Some(preset),
             // `--no-skip`: every cell visited (empty-space skipping off), for comparisons.
             skip_empty: !std::env::args().any(|a| a == "--no-skip"),
+            // `--no-batch`: the one-ray-at-a-time walk, for comparisons.
+            batch_walk: !std::env::args().any(|a| a == "--no-batch"),
             ..Default::default()
         },
     )

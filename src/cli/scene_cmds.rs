@@ -132,6 +132,7 @@ impl SceneOpts {
             },
             image_oversampling: self.image_oversampling,
             skip_empty: true,
+            batch_walk: true,
         }
     }
 

@@ -18,6 +18,8 @@
 
 use crate::resources::grid::GridSpec;
 use glam::DVec3;
+#[cfg(target_arch = "x86_64")]
+use pulp::{cast, f64x4, i64x4, m64, m64x4, x86::V3};
 
 /// `⌊x⌋` as an integer, by truncation and a correction for negative non-integers (no libm
 /// call). Exact for |x| < 2⁶³; NaN gives 0 (Rust's saturating `as`), like `x.floor() as i64`.
@@ -362,6 +364,241 @@ impl Dda {
     }
 }
 
+/// Four [`Dda`] traversals side by side (one per lane, structure of arrays), for the batched
+/// walk: the per-crossing step runs on all four lanes at once without a branch per axis (the
+/// axes reached at the lane's segment end are masks; the cell indices are kept as exact
+/// integer-valued doubles), and does to each lane exactly what [`Dda::step_at`] does to one
+/// traversal (the same boundary expressions of the integer indices, so the same bits). The
+/// rare events (grid exits, wraps, empty-space skips) go through a [`Dda`] taken out of the
+/// lane ([`Dda4::lane`]) and put back ([`Dda4::set_lane`]).
+#[derive(Debug, Clone, Default)]
+pub struct Dda4 {
+    /// Cell index per axis and lane (integer-valued).
+    cell: [[f64; 4]; 3],
+    /// Step per axis and lane (−1, 0 or 1).
+    step: [[f64; 4]; 3],
+    t_max: [[f64; 4]; 3],
+    /// Distance at which each lane's current segment starts.
+    pub t: [f64; 4],
+    /// Each lane's origin per axis (see [`Dda::origin`]).
+    pub origin: [[f64; 4]; 3],
+    /// Each lane's unit direction per axis.
+    pub dir: [[f64; 4]; 3],
+    inv: [[f64; 4]; 3],
+    b_base: [[f64; 4]; 3],
+    /// Linear index of each lane's cell.
+    pub lin: [i64; 4],
+    dlin: [[i64; 4]; 3],
+    /// Grid cell size and cell counts per axis (the same for every lane).
+    size: [f64; 3],
+    n: [f64; 3],
+    n_int: [i64; 3],
+    stride: [i64; 3],
+}
+
+impl Dda4 {
+    /// Puts traversal `d` into lane `l` (every lane walks the same grid).
+    #[inline]
+    pub fn set_lane(&mut self, l: usize, d: &Dda) {
+        for a in 0..3 {
+            self.cell[a][l] = d.cell[a] as f64;
+            self.step[a][l] = d.step[a] as f64;
+            self.t_max[a][l] = d.t_max[a];
+            self.origin[a][l] = d.origin[a];
+            self.dir[a][l] = d.dir[a];
+            self.inv[a][l] = d.inv[a];
+            self.b_base[a][l] = d.b_base[a];
+            self.dlin[a][l] = d.dlin[a];
+            self.size[a] = d.size[a];
+            self.n[a] = d.n[a] as f64;
+            self.n_int[a] = d.n[a];
+            self.stride[a] = d.stride[a];
+        }
+        self.t[l] = d.t;
+        self.lin[l] = d.lin;
+    }
+
+    /// [`Dda::new`] written straight into lane `l` (the same operations, so the same state as
+    /// `set_lane(l, &Dda::new(spec, p, d)?)`); false, with the lane left to be refilled or
+    /// parked, if `p` is outside the grid box.
+    #[inline]
+    pub fn start(&mut self, l: usize, spec: &GridSpec, p: DVec3, d: DVec3) -> bool {
+        let n = [spec.n[0] as i64, spec.n[1] as i64, spec.n[2] as i64];
+        let mut cell = [0i64; 3];
+        for a in 0..3 {
+            let (size, lo) = (spec.cell[a], spec.origin[a]);
+            let rel = (p[a] - lo) / size;
+            if !(rel >= -1e-9 && rel <= n[a] as f64 + 1e-9) {
+                return false;
+            }
+            let mut idx = floor_i64(rel);
+            // On a boundary: take the cell the ray enters.
+            if rel == idx as f64 && d[a] < 0.0 {
+                idx -= 1;
+            }
+            idx = idx.clamp(0, n[a] - 1);
+            cell[a] = idx;
+            let inv = 1.0 / d[a];
+            let (up, down) = (d[a] > 0.0, d[a] < 0.0);
+            let t_max = if up || down {
+                ((lo + (idx + up as i64) as f64 * size) - p[a]) * inv
+            } else {
+                f64::INFINITY
+            };
+            let step = up as i64 - down as i64;
+            self.cell[a][l] = idx as f64;
+            self.step[a][l] = step as f64;
+            self.t_max[a][l] = t_max.max(0.0);
+            self.origin[a][l] = p[a];
+            self.dir[a][l] = d[a];
+            self.inv[a][l] = inv;
+            self.b_base[a][l] = lo + up as i64 as f64 * size;
+            self.size[a] = size;
+            self.n[a] = n[a] as f64;
+            self.n_int[a] = n[a];
+        }
+        self.stride = [1, n[0], n[0] * n[1]];
+        for a in 0..3 {
+            self.dlin[a][l] = self.step[a][l] as i64 * self.stride[a];
+        }
+        self.t[l] = 0.0;
+        self.lin[l] = cell[0] + n[0] * (cell[1] + n[1] * cell[2]);
+        true
+    }
+
+    /// Parks lane `l` on cell 0 (an idle lane: [`Dda4::step_at`] leaves it alone when it is
+    /// not stepped, and its cell record can be read).
+    #[inline]
+    pub fn park(&mut self, l: usize) {
+        self.lin[l] = 0;
+    }
+
+    /// The traversal of lane `l`.
+    #[inline]
+    pub fn lane(&self, l: usize) -> Dda {
+        let step: [i64; 3] = std::array::from_fn(|a| self.step[a][l] as i64);
+        Dda {
+            cell: std::array::from_fn(|a| self.cell[a][l] as i64),
+            step,
+            t_max: std::array::from_fn(|a| self.t_max[a][l]),
+            t: self.t[l],
+            origin: DVec3::new(self.origin[0][l], self.origin[1][l], self.origin[2][l]),
+            dir: DVec3::new(self.dir[0][l], self.dir[1][l], self.dir[2][l]),
+            inv: DVec3::new(self.inv[0][l], self.inv[1][l], self.inv[2][l]),
+            size: DVec3::from(self.size),
+            n: self.n_int,
+            lin: self.lin[l],
+            dlin: std::array::from_fn(|a| self.dlin[a][l]),
+            stride: self.stride,
+            b_base: std::array::from_fn(|a| self.b_base[a][l]),
+        }
+    }
+
+    /// [`Dda::exit_kind`] of lane `l`.
+    #[inline]
+    pub fn exit_kind(&self, l: usize) -> Exit {
+        let c = |a: usize| self.cell[a][l];
+        let out = |a: usize| c(a) < 0.0 || c(a) >= self.n[a];
+        if c(2) >= self.n[2] {
+            Exit::Top
+        } else if c(2) < 0.0 {
+            Exit::Bottom
+        } else if out(0) {
+            Exit::Side(0, self.step[0][l] as i64)
+        } else if out(1) {
+            Exit::Side(1, self.step[1][l] as i64)
+        } else {
+            Exit::Inside
+        }
+    }
+
+    /// [`Dda::point`] of lane `l` at its segment start `t`.
+    #[inline]
+    pub fn point(&self, l: usize) -> DVec3 {
+        let v = |f: &[[f64; 4]; 3]| DVec3::new(f[0][l], f[1][l], f[2][l]);
+        v(&self.origin) + v(&self.dir) * self.t[l]
+    }
+
+    /// [`Dda::wrap_sides`] of lane `l` (the same operations).
+    #[inline]
+    pub fn wrap_sides(&mut self, l: usize) -> u32 {
+        self.wrap_axis(l, 0) + self.wrap_axis(l, 1)
+    }
+
+    #[inline(always)]
+    fn wrap_axis(&mut self, l: usize, a: usize) -> u32 {
+        let idx = self.cell[a][l] as i64;
+        let n = self.n_int[a];
+        if idx >= 0 && idx < n {
+            return 0;
+        }
+        let back = if idx < 0 { n } else { -n };
+        let idx = idx + back;
+        self.cell[a][l] = idx as f64;
+        self.lin[l] += back * self.stride[a];
+        self.origin[a][l] += back as f64 * self.size[a];
+        let bt =
+            (self.b_base[a][l] + idx as f64 * self.size[a] - self.origin[a][l]) * self.inv[a][l];
+        self.t_max[a][l] = bt.max(self.t[l]);
+        1
+    }
+
+    /// Per lane, the distance at which the ray leaves the current cell ([`Dda::t_exit`]: the
+    /// same comparisons, `vminpd(b, a)` being `if b < a { b } else { a }`).
+    #[cfg(target_arch = "x86_64")]
+    #[inline(always)]
+    pub fn t_exit(&self, simd: V3) -> f64x4 {
+        let tm = &self.t_max;
+        let m01 = simd.min_f64x4(cast(tm[1]), cast(tm[0]));
+        simd.min_f64x4(cast(tm[2]), m01)
+    }
+
+    /// [`Dda::step_at`] on every lane of `go` (`te` = [`Dda4::t_exit`]); the other lanes are
+    /// left as they are. Returns the lanes stepped out of the grid; such a lane is then read
+    /// with [`Dda4::lane`] ([`Dda::exit_kind`], [`Dda::wrap_sides`]).
+    #[cfg(target_arch = "x86_64")]
+    #[inline(always)]
+    pub fn step_at(&mut self, simd: V3, te: f64x4, go: m64x4) -> m64x4 {
+        let zero = simd.splat_f64x4(0.0);
+        let mut outside = simd.splat_m64x4(m64::new(false));
+        for a in 0..3 {
+            let t_max: f64x4 = cast(self.t_max[a]);
+            let m = simd.and_m64x4(go, simd.cmp_le_f64x4(t_max, te));
+            let c = simd.add_f64x4(
+                cast(self.cell[a]),
+                simd.select_f64x4(m, cast(self.step[a]), zero),
+            );
+            self.cell[a] = cast(c);
+            let dlin: i64x4 = cast(self.dlin[a]);
+            let lin = simd.wrapping_add_i64x4(
+                cast(self.lin),
+                simd.select_i64x4(m, dlin, simd.splat_i64x4(0)),
+            );
+            self.lin = cast(lin);
+            let inside_a = simd.and_m64x4(
+                simd.cmp_ge_f64x4(c, zero),
+                simd.cmp_lt_f64x4(c, simd.splat_f64x4(self.n[a])),
+            );
+            outside = simd.or_m64x4(outside, simd.andnot_m64x4(inside_a, m));
+            // Dda::boundary_t of the new index (the value of an axis that left the grid is
+            // never read: the lane is taken out).
+            let bt = simd.mul_f64x4(
+                simd.sub_f64x4(
+                    simd.add_f64x4(
+                        cast(self.b_base[a]),
+                        simd.mul_f64x4(c, simd.splat_f64x4(self.size[a])),
+                    ),
+                    cast(self.origin[a]),
+                ),
+                cast(self.inv[a]),
+            );
+            self.t_max[a] = cast(simd.select_f64x4(m, bt, t_max));
+        }
+        self.t = cast(simd.select_f64x4(go, te, cast(self.t)));
+        outside
+    }
+}
+
 /// Empty-space skipping: per cell, the chessboard (Chebyshev, L∞) distance in cells to the
 /// nearest occupied cell (`occupied(c)`, linear index), capped at 255; 0 for an occupied cell.
 /// A cell at distance r has every cell within Chebyshev distance r − 1 (a box of (2r − 1)³
@@ -465,6 +702,88 @@ pub fn skip_field(
 mod tests {
     use super::*;
     use crate::scene::desc::BoundaryMode;
+
+    /// Four lanes of [`Dda4`] started and stepped side by side visit the same cells with the
+    /// same segment ends (bits) as four [`Dda`] walks, through wraps, on rays started on cell
+    /// faces, edges and vertices, along axes and along cell diagonals (ties), until each lane
+    /// leaves through the top or the bottom.
+    #[cfg(target_arch = "x86_64")]
+    #[test]
+    fn four_lanes_walk_like_four_traversals() {
+        let Some(simd) = V3::try_new() else {
+            return;
+        };
+        let s = spec();
+        let mut seed = 0x2545_f491_4f6c_dd1du64;
+        let mut rnd = || {
+            seed ^= seed << 13;
+            seed ^= seed >> 7;
+            seed ^= seed << 17;
+            (seed >> 11) as f64 / (1u64 << 53) as f64
+        };
+        let mut rays: Vec<(DVec3, DVec3)> = Vec::new();
+        for i in 0..400 {
+            // Every third start on a grid node (faces, edges, vertices), the others anywhere.
+            let snap = |v: f64, c: f64| if i % 3 == 0 { (v / c).round() * c } else { v };
+            let p = DVec3::new(
+                snap(4.0 * rnd(), 1.0),
+                snap(6.0 * rnd(), 2.0),
+                10.0 + snap(rnd(), 0.5),
+            );
+            let d = match i % 5 {
+                0 => DVec3::new(1.0, 2.0, 0.5 * if i % 2 == 0 { 1.0 } else { -1.0 }),
+                1 => DVec3::new(0.0, 0.0, -1.0),
+                2 => DVec3::new(1.0, 0.0, 1.0),
+                _ => DVec3::new(rnd() - 0.5, rnd() - 0.5, rnd() - 0.5),
+            }
+            .normalize();
+            rays.push((p, d));
+        }
+        for quad in rays.chunks(4) {
+            let mut lanes = Dda4::default();
+            let mut one: Vec<Option<Dda>> = Vec::new();
+            let mut go = [false; 4];
+            for (l, &(p, d)) in quad.iter().enumerate() {
+                let a = Dda::new(&s, p, d);
+                assert_eq!(lanes.start(l, &s, p, d), a.is_some());
+                go[l] = a.is_some();
+                one.push(a);
+            }
+            for _ in 0..200 {
+                let te: [f64; 4] = cast(lanes.t_exit(simd));
+                let mask = m64x4(
+                    m64::new(go[0]),
+                    m64::new(go[1]),
+                    m64::new(go[2]),
+                    m64::new(go[3]),
+                );
+                let out: [u64; 4] = cast(lanes.step_at(simd, cast(te), mask));
+                for l in 0..4 {
+                    let Some(d) = one[l].as_mut().filter(|_| go[l]) else {
+                        continue;
+                    };
+                    assert_eq!(te[l].to_bits(), d.t_exit().to_bits());
+                    let inside = d.step_at(te[l]);
+                    assert_eq!(inside, out[l] == 0);
+                    if !inside {
+                        let e = d.exit_kind();
+                        assert_eq!(lanes.exit_kind(l), e);
+                        assert_eq!(lanes.point(l), d.point(d.t));
+                        if let Exit::Side(..) = e {
+                            assert_eq!(lanes.wrap_sides(l), d.wrap_sides());
+                        } else {
+                            go[l] = false;
+                            continue;
+                        }
+                    }
+                    assert_eq!(lanes.lin[l], d.lin);
+                    assert_eq!(lanes.t[l].to_bits(), d.t.to_bits());
+                    let back = lanes.lane(l);
+                    assert_eq!((back.cell, back.t_max), (d.cell, d.t_max));
+                }
+            }
+        }
+    }
 
     fn spec() -> GridSpec {
         GridSpec {

@@ -59,6 +59,8 @@
 //!   and chunk results are merged in chunk order, so products are bit-identical on any number
 //!   of threads.
 
+mod batch;
+
 use super::dda::{Dda, Exit, floor_i64, skip_field};
 use super::fastmath::{HalfBarycentres, attenuation};
 use super::images::ImageGrid;
@@ -137,6 +139,11 @@ pub struct TrackingParams {
     /// With `Faces` / `Subfaces`: a turbid cell's scattered rays are followed to the cell's
     /// exit and merged per (exit face or sub-face, direction) (DART 5 paper Figure 7c).
     pub turbid_exit_grouping: bool,
+    /// The lean tracker's rays queued per chunk and walked four at a time (see the `batch`
+    /// module of the engine): the same rays, each with the same operations, so the products
+    /// agree to rounding (only the summation order of the rays' contributions changes). Off:
+    /// one ray at a time (kept for the equality tests and for measuring).
+    pub batch_walk: bool,
 }
 
 impl TrackingParams {
@@ -156,6 +163,7 @@ impl TrackingParams {
             skip_empty: true,
             turbid_subfaces: TurbidSubfaces::Off,
             turbid_exit_grouping: false,
+            batch_walk: true,
         }
     }
     /// Fast look: 10 iterations, threshold 1e-2.
@@ -836,6 +844,9 @@ struct ChunkOut {
     /// Factor on the ray-power threshold of the ray being traced (1; a turbid incident store's
     /// share of its entry's power while the store emits, see [`emit_turbid_records`]).
     ray_scale: f64,
+    /// Rays waiting for the batched walk ([`Ctx::queue`], walked by [`Ctx::flush`] before the
+    /// chunk ends).
+    queue: Vec<batch::Queued>,
 }
 
 /// Mutable per-iteration element stores.
@@ -1036,6 +1047,9 @@ struct Ctx<'a> {
     simple: bool,
     /// Per cell, for [`Ctx::trace_simple`]: its turbid entry (density 0: none).
     scells: Vec<SimpleCell>,
+    /// The lean tracker's rays go through the batched walk (see [`TrackingParams::batch_walk`]):
+    /// [`Ctx::simple`], `turbid_subfaces: Off` and 1, 2 or 4 channels.
+    batch: bool,
     /// Per cell, for [`Ctx::trace_w`]: 0 for a cell with a tracked turbid entry or a facet, 1
     /// for an empty cell crossed one by one, else its chessboard distance r in cells to the
     /// nearest such cell ([`skip_field`]; no r when [`TrackingParams::skip_empty`] is off): a
@@ -1634,6 +1648,10 @@ impl Ctx<'_> {
         pw: &mut [f64],
         out: &mut ChunkOut,
     ) {
+        if !HS && self.batch && matches!(out.tur.as_deref(), Some(TurAcc::Dense { .. })) {
+            self.queue(p, dir, pw, out);
+            return;
+        }
         let mut tur = out.tur.take().expect("accumulator");
         let simple = !HS && self.simple;
         match (self.w, simple) {
@@ -2685,6 +2703,11 @@ pub fn run(inp: &RadiativeInput) -> RadiativeResult {
         hs_dir,
         image_grid: ImageGrid::new(spec, inp.image_oversampling),
         simple,
+        batch: simple
+            && inp.params.batch_walk
+            && inp.params.turbid_subfaces == TurbidSubfaces::Off
+            && matches!(w, 1 | 2 | 4)
+            && batch::available(),
         scells,
         skip,
         subfaces: inp.params.turbid_subfaces,
@@ -2781,6 +2804,7 @@ pub fn run(inp: &RadiativeInput) -> RadiativeResult {
                     }
                 }
             }
+            ctx.flush(&mut out);
             out.kernel_seconds += t_kernel.elapsed().as_secs_f64();
             out
         })
@@ -2804,6 +2828,7 @@ pub fn run(inp: &RadiativeInput) -> RadiativeResult {
                         add(&mut out.lost, &pw);
                     }
                 }
+                ctx.flush(&mut out);
                 out
             })
             .collect::<Vec<_>>(),
@@ -3064,6 +3089,7 @@ fn merge(
     let ns = ctx.n_slots;
     let mut scratch = super::images::SpreadScratch::default();
     for out in outs {
+        debug_assert!(out.queue.is_empty(), "every queued ray walked");
         res.rays += out.rays;
         res.crossings += out.crossings;
         res.skipped += out.skipped;
@@ -3561,6 +3587,10 @@ fn emit(
                 }
                 out.kernel_seconds += t_kernel.elapsed().as_secs_f64();
             }
+            // The rays still queued.
+            let t_kernel = std::time::Instant::now();
+            ctx.flush(&mut out);
+            out.kernel_seconds += t_kernel.elapsed().as_secs_f64();
             out
         })
         .collect()

@@ -3,6 +3,8 @@
 //! [`attenuation`] `(1 − e^{−x}, e^{−x})`, and the tabulated interception points
 //! [`half_barycentres`] (physics.md §3.6). They exist because the libm calls (`exp_m1`,
 //! `ln`) were a third of the kernel's instructions; each is tested against the libm form.
+#[cfg(target_arch = "x86_64")]
+use pulp::{cast, f64x4, u64x4, x86::V3};
 
 /// `2^{j/128}`, j = 0..127, correctly rounded (computed with 60-digit decimals).
 const EXP2_TABLE: [f64; 128] = [
@@ -201,6 +203,73 @@ pub fn attenuation(x: f64) -> (f64, f64) {
     }
 }
 
+/// [`attenuation`] of four optical paths at once (AVX2), the same bits per lane: the series
+/// and the exponential ([`exp_normal`]'s operations lane-wise, the table read lane by lane,
+/// `2^m` built from the exponent bits) are both computed and the result selected (no branch
+/// on x); only lanes with x ≥ 708 (`f64::exp`, e^{−x} subnormal) take the scalar form.
+#[cfg(target_arch = "x86_64")]
+#[inline(always)]
+pub fn attenuation_x4(simd: V3, x: f64x4) -> (f64x4, f64x4) {
+    let sp = |v: f64| simd.splat_f64x4(v);
+    let (add, sub, mul) = (
+        |a, b| simd.add_f64x4(a, b),
+        |a, b| simd.sub_f64x4(a, b),
+        |a, b| simd.mul_f64x4(a, b),
+    );
+    // Series of 1 − e^{−x} to x⁷ (as in `attenuation`).
+    let mut f = sub(sp(1.0 / 720.0), mul(x, sp(1.0 / 5040.0)));
+    f = sub(sp(1.0 / 120.0), mul(x, f));
+    f = sub(sp(1.0 / 24.0), mul(x, f));
+    f = sub(sp(1.0 / 6.0), mul(x, f));
+    f = sub(sp(1.0 / 2.0), mul(x, f));
+    f = sub(sp(1.0), mul(x, f));
+    f = mul(x, f);
+    // e^{−x} (exp_normal of −x; lanes with x ≥ 708 computed at 0 and replaced below).
+    let xe = simd.select_f64x4(simd.cmp_lt_f64x4(x, sp(708.0)), x, sp(0.0));
+    let y: f64x4 = cast(simd.xor_f64x4(xe, sp(-0.0)));
+    let z = mul(y, sp(INV_LN2_N));
+    let shifted = add(z, sp(SHIFT));
+    let kf = sub(shifted, sp(SHIFT));
+    let k: u64x4 = simd.wrapping_sub_u64x4(cast(shifted), simd.splat_u64x4(SHIFT.to_bits()));
+    let r = sub(sub(y, mul(kf, sp(LN2_N_HI))), mul(kf, sp(LN2_N_LO)));
+    let mut p = add(sp(1.0 / 24.0), mul(r, sp(1.0 / 120.0)));
+    p = add(sp(1.0 / 6.0), mul(r, p));
+    p = add(sp(0.5), mul(r, p));
+    p = add(r, mul(mul(r, r), p));
+    let ka: [u64; 4] = cast(k);
+    let t: f64x4 = cast([
+        EXP2_TABLE[(ka[0] & 127) as usize],
+        EXP2_TABLE[(ka[1] & 127) as usize],
+        EXP2_TABLE[(ka[2] & 127) as usize],
+        EXP2_TABLE[(ka[3] & 127) as usize],
+    ]);
+    // 2^m with m = k >> 7 (arithmetic): k ≥ −708·128/ln 2 − 1 > −1023·128 for x < 708, so
+    // the logical shift of k + 1023·128 gives m + 1023.
+    let biased = simd.wrapping_add_u64x4(k, simd.splat_u64x4(1023 << 7));
+    let scale: f64x4 = cast(simd.shl_const_u64x4::<52>(simd.shr_const_u64x4::<7>(biased)));
+    let e = mul(add(t, mul(t, p)), scale);
+    let small = simd.cmp_lt_f64x4(x, sp(1.0 / 32.0));
+    let mut frac = simd.select_f64x4(small, f, sub(sp(1.0), e));
+    let mut tr = simd.select_f64x4(small, sub(sp(1.0), f), e);
+    if simd
+        .avx
+        ._mm256_movemask_pd(cast(simd.cmp_not_lt_f64x4(x, sp(708.0))))
+        != 0
+    {
+        let xa: [f64; 4] = cast(x);
+        let mut fa: [f64; 4] = cast(frac);
+        let mut ta: [f64; 4] = cast(tr);
+        for l in 0..4 {
+            if !(xa[l] < 708.0) {
+                (fa[l], ta[l]) = attenuation(xa[l]);
+            }
+        }
+        frac = cast(fa);
+        tr = cast(ta);
+    }
+    (frac, tr)
+}
+
 /// Mantissa bits of x that index [`HalfBarycentres`]: 2⁵ = 32 bins per octave.
 const HB_BITS: u32 = 5;
 /// Tabulated range of x = kℓ: [2⁻¹⁴, 2⁶).
@@ -289,6 +358,40 @@ impl HalfBarycentres {
             ell * (c[1] + t * (c[3] + t * (c[5] + t * c[7]))),
         )
     }
+
+    /// [`HalfBarycentres::eval`] of four segments at once (AVX2), the same bits per lane: the
+    /// three forms (series, cubic piece, dense limit) are computed on every lane and the result
+    /// selected (no branch on x; the bin index is masked into the table for any x).
+    #[cfg(target_arch = "x86_64")]
+    #[inline(always)]
+    pub fn eval_x4(&self, simd: V3, x: f64x4, ell: f64x4) -> (f64x4, f64x4) {
+        let first = HB_X0.to_bits() >> (52 - HB_BITS);
+        let (xa, ella): ([f64; 4], [f64; 4]) = (cast(x), cast(ell));
+        let mut a = [0.0; 4];
+        let mut b = [0.0; 4];
+        for l in 0..4 {
+            let bits = xa[l].to_bits();
+            let c = &self.bins
+                [((bits >> (52 - HB_BITS)).wrapping_sub(first)) as usize & (HB_ALLOC - 1)];
+            let t = xa[l] - f64::from_bits(bits & !((1u64 << (52 - HB_BITS)) - 1));
+            a[l] = ella[l] * (c[0] + t * (c[2] + t * (c[4] + t * c[6])));
+            b[l] = ella[l] * (c[1] + t * (c[3] + t * (c[5] + t * c[7])));
+        }
+        let sp = |v: f64| simd.splat_f64x4(v);
+        let l2 = std::f64::consts::LN_2;
+        let u = simd.div_f64x4(ell, x);
+        let big = simd.cmp_ge_f64x4(x, sp(HB_X1));
+        let a = simd.select_f64x4(big, simd.mul_f64x4(sp(1.0 - l2), u), cast(a));
+        let b = simd.select_f64x4(big, simd.mul_f64x4(sp(1.0 + l2), u), cast(b));
+        let small = simd.cmp_lt_f64x4(x, sp(HB_X0));
+        let x12 = simd.div_f64x4(x, sp(12.0));
+        let sa = simd.mul_f64x4(ell, simd.sub_f64x4(sp(0.25), x12));
+        let sb = simd.mul_f64x4(ell, simd.sub_f64x4(sp(0.75), x12));
+        (
+            simd.select_f64x4(small, sa, a),
+            simd.select_f64x4(small, sb, b),
+        )
+    }
 }
 
 /// Monomial coefficients `c0 + c1 t + c2 t² + c3 t³` of the cubic through (t_i, y_i) (Newton
@@ -368,6 +471,67 @@ mod tests {
         assert_eq!(exp(f64::INFINITY), f64::INFINITY);
         assert!(exp(f64::NAN).is_nan());
         assert!(worst <= 2, "worst {worst} ulp");
+    }
+
+    /// The lane-wise forms of the batched walk give the scalar forms' bits on every lane, on a
+    /// dense sweep of x over [0, 800] (0, tiny, 2⁻¹⁴ and 1/32 and 64 and 708 ± 1 ulp, the
+    /// table's bin edges) with unequal segment lengths per lane.
+    #[cfg(target_arch = "x86_64")]
+    #[test]
+    fn lane_forms_are_bit_identical_to_the_scalar_forms() {
+        let Some(simd) = V3::try_new() else {
+            return;
+        };
+        let mut xs = vec![
+            0.0,
+            1e-300,
+            1e-20,
+            1e-9,
+            1.0 / 16384.0,
+            1.0 / 32.0,
+            64.0,
+            700.0,
+        ];
+        xs.extend([708.0, 709.0, 745.0, 800.0, f64::MIN_POSITIVE]);
+        for x in xs.clone() {
+            xs.push(f64::from_bits(x.to_bits() + 1));
+            if x > 0.0 {
+                xs.push(f64::from_bits(x.to_bits() - 1));
+            }
+        }
+        xs.extend((0..200_000).map(|i| 1e-6 * (8e8f64).powf(i as f64 / 199_999.0)));
+        while xs.len() % 4 != 0 {
+            xs.push(0.5);
+        }
+        let hb = HalfBarycentres::get();
+        for (n, c) in xs.chunks(4).enumerate() {
+            let x = [c[0], c[1], c[2], c[3]];
+            let ell = [0.2, 0.7 + n as f64 * 1e-6, 1.0, 0.013];
+            let (f, t): ([f64; 4], [f64; 4]) = {
+                let (f, t) = attenuation_x4(simd, cast(x));
+                (cast(f), cast(t))
+            };
+            let (s1, s2): ([f64; 4], [f64; 4]) = {
+                let (a, b) = hb.eval_x4(simd, cast(x), cast(ell));
+                (cast(a), cast(b))
+            };
+            for l in 0..4 {
+                let (fs, ts) = attenuation(x[l]);
+                assert_eq!(
+                    (f[l].to_bits(), t[l].to_bits()),
+                    (fs.to_bits(), ts.to_bits()),
+                    "x {}",
+                    x[l]
+                );
+                let (a, b) = hb.eval(x[l], ell[l]);
+                assert_eq!(
+                    (s1[l].to_bits(), s2[l].to_bits()),
+                    (a.to_bits(), b.to_bits()),
+                    "x {}",
+                    x[l]
+                );
+            }
+        }
     }
 
     #[test]

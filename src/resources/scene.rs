@@ -85,6 +85,10 @@ pub struct RunSettings {
     /// bit, see [`crate::radiative::dda::Dda::skip_to`]). Off: every cell is visited (kept for
     /// the equality tests and for measuring).
     pub skip_empty: bool,
+    /// The flux tracker's batched 4-ray walk (default on; products agree with the one-ray walk
+    /// to rounding, see [`crate::radiative::engine::TrackingParams::batch_walk`]). Off: one ray
+    /// at a time (kept for the equality tests and for measuring).
+    pub batch_walk: bool,
 }
 
 /// Passive solver.
@@ -125,6 +129,7 @@ impl Default for RunSettings {
             solver: Solver::FluxTracking,
             image_oversampling: None,
             skip_empty: true,
+            batch_walk: true,
         }
     }
 }
