@@ -632,9 +632,10 @@ struct Ctx<'a> {
     /// Receiver mode: per-column vertical optical-depth sums for the return transmittance of
     /// peel-offs whose ray to the receiver stays in one grid column ([`ColumnDepth`]).
     columns: Option<std::sync::Arc<ColumnDepth>>,
-    /// Receiver mode: expected-value multiple-scattering return along every flight past the
-    /// first ([`Ctx::scatter_flight`]) with the stop factor `c` ≥ 1 (0: off, the collision
-    /// estimator).
+    /// Receiver mode ([`LidarEstimator::ExpectedValue`]): expected-value multiple-scattering
+    /// return along every flight past the first ([`Ctx::scatter_flight`]) with the stop factor
+    /// `c` ≥ 1, and expected-value first-order ground return in [`Ctx::first_flight`] (0: off,
+    /// the collision estimator).
     ms_stop: f64,
 }
 
@@ -756,6 +757,11 @@ struct Photon {
     /// Receiver mode: transmittance back to the receiver of the current event, when the
     /// forced walk of the first flight already computed it (see [`Ctx::forced_peel`]).
     ret: Option<Bands>,
+    /// Receiver mode: the walk of the current flight reached the Lambertian flat ground and
+    /// scored its return with the expected value ([`Ctx::first_flight`] and
+    /// [`Ctx::scatter_flight`] of [`LidarEstimator::ExpectedValue`]), so the ground collision
+    /// of this flight is not peeled off.
+    ground_scored: bool,
 }
 
 impl<'a> Ctx<'a> {
@@ -1363,6 +1369,13 @@ impl Ctx<'_> {
     /// A cell where the flight crosses a one-sided facet from behind (a hit for the return)
     /// switches the rest of the walk to one forced point per segment with a shadow ray.
     ///
+    /// [`LidarEstimator::ExpectedValue`]: when the walk reaches a Lambertian flat ground (no
+    /// facet crossed from behind), the ground's first-order return is scored there with the
+    /// probability `e^{−τ_g}` of reaching it: `w e^{−τ_g} (ρ_g μ_r/π) T_ret A (Ω·axis)/r²` J
+    /// (μ_r the cosine of the return direction, T_ret from the walk), and the ground collision
+    /// of the flight is not peeled off (`Photon::ground_scored`): an unbiased expected value
+    /// that removes the 0-or-1 noise of the ground return under the crowns.
+    ///
     /// Returns the hit (the photon's path, shift and position updated as [`Ctx::fly`] does)
     /// and, when the flight ends on a surface with no volume collision before it, the return
     /// optical depth there (for the surface's own collision peel-off).
@@ -1569,6 +1582,32 @@ impl Ctx<'_> {
                         ph.path = path0 + travelled + dda.t;
                         ph.shift = shift;
                         let q = dda.point(dda.t);
+                        // `ExpectedValue`: the walk reached a Lambertian ground, whose
+                        // first-order return is scored with the probability e^{−τ} of getting
+                        // there (w e^{−τ} ρ_g μ/π T_ret A cos/r², the return transmittance from
+                        // the walk) instead of at the ground collision only.
+                        if self.ms_stop > 0.0
+                            && exact
+                            && let Some(rg) = self.lambert_ground()
+                        {
+                            let fac = (-tau).exp() * rg / PI;
+                            let t_ret = [return_transmittance(tau_ret)];
+                            self.peel_receiver(
+                                &rx,
+                                ph,
+                                (q, shift, ph.path),
+                                None,
+                                Some(&t_ret),
+                                out,
+                                scratch,
+                                tr,
+                                |_, ov, s| {
+                                    s[0] = fac * ov.z;
+                                    s[0] > 0.0
+                                },
+                            );
+                            ph.ground_scored = true;
+                        }
                         end = Some(if self.inp.flat_ground.is_some() {
                             ret = exact.then_some(tau_ret);
                             Hit::Ground { p: q }
@@ -1662,13 +1701,7 @@ impl Ctx<'_> {
         let d = ph.d;
         let path0 = ph.path;
         let discrete = self.inp.params.sampler.is_discrete();
-        let lambert_ground =
-            self.inp
-                .flat_ground
-                .and_then(|g| match &self.inp.optics[g as usize] {
-                    PhotonOptics::Lambert { r, .. } => Some(r[0]),
-                    _ => None,
-                });
+        let lambert_ground = self.lambert_ground();
         let mut tau = 0.0;
         let mut p = ph.p;
         let mut skip = ph.skip_facet;
@@ -1844,6 +1877,7 @@ impl Ctx<'_> {
                                     s[0] > 0.0
                                 },
                             );
+                            ph.ground_scored = true;
                         }
                         if coll.is_none() {
                             ph.path = at_path;
@@ -2255,6 +2289,16 @@ impl Ctx<'_> {
             return;
         }
         self.transmittance(p, u, r, &g, &hs, skip, tr);
+    }
+
+    /// Reflectance of the flat ground when it is Lambertian (band 0), else `None`.
+    fn lambert_ground(&self) -> Option<f64> {
+        self.inp
+            .flat_ground
+            .and_then(|g| match &self.inp.optics[g as usize] {
+                PhotonOptics::Lambert { r, .. } => r.first().copied(),
+                _ => None,
+            })
     }
 
     /// Return transmittance from the wrapped point `p` along the unit vector `u` to a receiver
@@ -2696,6 +2740,7 @@ fn run_batch(ctx: &Ctx, batch: u64, n: u64, source: &[f64]) -> BatchOut {
         skip_facet: None,
         direct: false,
         ret: None,
+        ground_scored: false,
     };
     let n_dirs = ctx.omega.len();
     let discrete = inp.params.sampler.is_discrete();
@@ -2801,6 +2846,7 @@ fn trace_photon(
         // Receiver mode: first flight only (a smooth first-order waveform); later orders use
         // the collision estimator (one receiver trace per event instead of one per crossing).
         ph.ret = None;
+        ph.ground_scored = false;
         // Receiver mode past the first scattering: expected-value return along the flight
         // (`Ctx::scatter_flight`); its turbid and Lambertian-ground collisions are not peeled.
         let ms_forced = ctx.ms_stop >= 1.0
@@ -3163,9 +3209,10 @@ fn trace_photon(
                 let gid = inp.flat_ground.expect("flat ground") as usize;
                 match &inp.optics[gid] {
                     PhotonOptics::Lambert { r, .. } => {
-                        // (Scored by the walk of an expected-value flight: `ms_forced`.)
+                        // (Scored by the walk of an expected-value flight.)
+                        let scored = ph.ground_scored;
                         ctx.peel(ph, p, None, true, out, scratch, tr, |_, ov, s| {
-                            if ms_forced {
+                            if scored {
                                 return false;
                             }
                             let c = ov.z;
@@ -3533,6 +3580,7 @@ fn run_pulse(base: &Ctx, beam: &Beam, pl: &Pulse) -> PulseResult {
             skip_facet: None,
             direct: true,
             ret: None,
+            ground_scored: false,
         };
         // Discrete mode: the pulse keeps its exact direction (its first scattering uses the
         // rows of the sector that contains it); later orders follow the discrete directions.
