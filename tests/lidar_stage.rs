@@ -574,7 +574,8 @@ fn reused_first_flight_return_transmittance_matches_the_shadow_ray() {
 /// forced Lambertian-ground score) against the legacy one (independent rays, one forced point
 /// per cell, every photon continued, collision estimator past the first flight) on the turbid
 /// layer over Lambertian soil, spherical and erectophile leaves, independent and correlated
-/// gaps, with the discrete and (spherical leaves) the continuous sampler: 24 pulses at the
+/// gaps, with the discrete and (spherical leaves) the continuous sampler, and (expected value,
+/// spherical, discrete) with a Lambertian box under part of the footprint: 24 pulses at the
 /// same place (each its own random stream) per estimator give the mean and standard error of
 /// the first-order energy, the multiple-scattering energy and the first-order and total
 /// energy of each bin above 5 % of the peak; every mean must agree within 4.5 combined
@@ -583,10 +584,11 @@ fn reused_first_flight_return_transmittance_matches_the_shadow_ray() {
 #[test]
 fn stratified_estimator_agrees_with_the_legacy_one() {
     let n_pulses = 24;
-    for (lad_desc, leaf, sampler) in [
-        (LadDesc::Spherical, 0.0, LidarSampler::Discrete),
-        (LadDesc::Erectophile, 0.05, LidarSampler::Discrete),
-        (LadDesc::Spherical, 0.0, LidarSampler::Continuous),
+    for (lad_desc, leaf, sampler, building) in [
+        (LadDesc::Spherical, 0.0, LidarSampler::Discrete, false),
+        (LadDesc::Erectophile, 0.05, LidarSampler::Discrete, false),
+        (LadDesc::Spherical, 0.0, LidarSampler::Continuous, false),
+        (LadDesc::Spherical, 0.0, LidarSampler::Discrete, true),
     ] {
         let waveforms = |estimator: LidarEstimator, scattering: Option<u32>| {
             let mut l = lidar(
@@ -605,6 +607,12 @@ fn stratified_estimator_agrees_with_the_legacy_one() {
             {
                 *leaf_size_m = leaf;
                 *lad = lad_desc.clone();
+            }
+            if building {
+                // A Lambertian box (roof at 1.2 m inside the layer) under part of the footprint:
+                // first-order facet returns (the expected value of `ExpectedValue`).
+                d.optics.insert("wall".into(), lambertian(0.4));
+                d.objects.push(box_building((1.8, 1.7, 2.6, 2.5), 1.2));
             }
             let runs = run(&d, None);
             runs[0]
@@ -648,7 +656,9 @@ fn stratified_estimator_agrees_with_the_legacy_one() {
             (LidarEstimator::ExpectedValue, None),
             (LidarEstimator::ExpectedValue, Some(500)),
         ] {
-            if sampler == LidarSampler::Continuous && estimator == LidarEstimator::Stratified {
+            if (sampler == LidarSampler::Continuous || building)
+                && estimator == LidarEstimator::Stratified
+            {
                 continue;
             }
             let strat = waveforms(estimator, scattering);
@@ -674,7 +684,7 @@ fn stratified_estimator_agrees_with_the_legacy_one() {
                 compared += 1;
                 assert!(
                     z < 4.5,
-                    "{lad_desc:?} leaf {leaf} {sampler:?} {estimator:?} scattering {scattering:?}: quantity {i}: {:e} ± {:e} vs legacy {:e} ± {:e} ({z:.1} σ)",
+                    "{lad_desc:?} leaf {leaf} {sampler:?} building {building} {estimator:?} scattering {scattering:?}: quantity {i}: {:e} ± {:e} vs legacy {:e} ± {:e} ({z:.1} σ)",
                     mb[i],
                     sb[i],
                     ma[i],
@@ -683,7 +693,7 @@ fn stratified_estimator_agrees_with_the_legacy_one() {
             }
             let rel = |i: usize| mb[i] / ma[i] - 1.0;
             eprintln!(
-                "{lad_desc:?} leaf {leaf} {sampler:?} {estimator:?} scattering {scattering:?}: {compared} quantities, worst {worst:.2} σ; first order {:+.3} % (SE {:.3} % vs {:.3} %), multiple scattering {:+.2} % (SE {:.2} % vs {:.2} %)",
+                "{lad_desc:?} leaf {leaf} {sampler:?} building {building} {estimator:?} scattering {scattering:?}: {compared} quantities, worst {worst:.2} σ; first order {:+.3} % (SE {:.3} % vs {:.3} %), multiple scattering {:+.2} % (SE {:.2} % vs {:.2} %)",
                 100.0 * rel(0),
                 100.0 * sb[0] / mb[0],
                 100.0 * sa[0] / ma[0],

@@ -757,11 +757,11 @@ struct Photon {
     /// Receiver mode: transmittance back to the receiver of the current event, when the
     /// forced walk of the first flight already computed it (see [`Ctx::forced_peel`]).
     ret: Option<Bands>,
-    /// Receiver mode: the walk of the current flight reached the Lambertian flat ground and
-    /// scored its return with the expected value ([`Ctx::first_flight`] and
-    /// [`Ctx::scatter_flight`] of [`LidarEstimator::ExpectedValue`]), so the ground collision
-    /// of this flight is not peeled off.
-    ground_scored: bool,
+    /// Receiver mode: the walk of the current flight reached the Lambertian flat ground (or,
+    /// first flight, a Lambertian facet) and scored its return with the expected value
+    /// ([`Ctx::first_flight`] and [`Ctx::scatter_flight`] of [`LidarEstimator::ExpectedValue`]),
+    /// so the surface collision of this flight is not peeled off.
+    surface_scored: bool,
 }
 
 impl<'a> Ctx<'a> {
@@ -1373,8 +1373,11 @@ impl Ctx<'_> {
     /// facet crossed from behind), the ground's first-order return is scored there with the
     /// probability `e^{−τ_g}` of reaching it: `w e^{−τ_g} (ρ_g μ_r/π) T_ret A (Ω·axis)/r²` J
     /// (μ_r the cosine of the return direction, T_ret from the walk), and the ground collision
-    /// of the flight is not peeled off (`Photon::ground_scored`): an unbiased expected value
-    /// that removes the 0-or-1 noise of the ground return under the crowns.
+    /// of the flight is not peeled off (`Photon::surface_scored`): an unbiased expected value
+    /// that removes the 0-or-1 noise of the ground return under the crowns. A Lambertian facet
+    /// that ends the walk is scored the same way with its collision peel-off (reflected
+    /// `(1 − t_d) ρ |n·u|/π` on the incidence side, `(1 − t_d) τ |n·u|/π` beyond, t_d the direct
+    /// transmittance).
     ///
     /// Returns the hit (the photon's path, shift and position updated as [`Ctx::fly`] does)
     /// and, when the flight ends on a surface with no volume collision before it, the return
@@ -1551,6 +1554,41 @@ impl Ctx<'_> {
                         }
                     }
                     if let Some((f, th)) = fhit {
+                        // `ExpectedValue`: a Lambertian facet's first-order return, scored with
+                        // the probability e^{−τ} of reaching it (as the ground below).
+                        if self.ms_stop > 0.0 && exact {
+                            let fa = &self.inp.facets[f as usize];
+                            if let PhotonOptics::Lambert { r, t, t_dir } =
+                                &self.inp.optics[fa.material as usize]
+                            {
+                                // The facet collision's peel-off (`trace_photon`), band 0.
+                                let n = (fa.v[1] - fa.v[0]).cross(fa.v[2] - fa.v[0]).normalize();
+                                let n_in = if n.dot(d) < 0.0 { n } else { -n };
+                                let mu = n.dot(d).abs().max(1e-6);
+                                let td = t_dir.first().copied().unwrap_or(0.0);
+                                let through = if td > 0.0 { td.powf(1.0 / mu) } else { 0.0 };
+                                let pr = (1.0 - through) * r.first().copied().unwrap_or(0.0);
+                                let pt = (1.0 - through) * t.first().copied().unwrap_or(0.0);
+                                let fac = (-tau).exp() / PI;
+                                let t_ret = [return_transmittance(tau_ret)];
+                                self.peel_receiver(
+                                    &rx,
+                                    ph,
+                                    (dda.point(th), shift, path0 + travelled + th),
+                                    Some(f),
+                                    Some(&t_ret),
+                                    out,
+                                    scratch,
+                                    tr,
+                                    |_, ov, s| {
+                                        let c = n_in.dot(ov);
+                                        s[0] = fac * if c > 0.0 { pr } else { pt } * c.abs();
+                                        s[0] > 0.0
+                                    },
+                                );
+                                ph.surface_scored = true;
+                            }
+                        }
                         if coll.is_none() {
                             ph.path = path0 + travelled + th;
                             ph.shift = shift;
@@ -1606,7 +1644,7 @@ impl Ctx<'_> {
                                     s[0] > 0.0
                                 },
                             );
-                            ph.ground_scored = true;
+                            ph.surface_scored = true;
                         }
                         end = Some(if self.inp.flat_ground.is_some() {
                             ret = exact.then_some(tau_ret);
@@ -1877,7 +1915,7 @@ impl Ctx<'_> {
                                     s[0] > 0.0
                                 },
                             );
-                            ph.ground_scored = true;
+                            ph.surface_scored = true;
                         }
                         if coll.is_none() {
                             ph.path = at_path;
@@ -2740,7 +2778,7 @@ fn run_batch(ctx: &Ctx, batch: u64, n: u64, source: &[f64]) -> BatchOut {
         skip_facet: None,
         direct: false,
         ret: None,
-        ground_scored: false,
+        surface_scored: false,
     };
     let n_dirs = ctx.omega.len();
     let discrete = inp.params.sampler.is_discrete();
@@ -2846,7 +2884,7 @@ fn trace_photon(
         // Receiver mode: first flight only (a smooth first-order waveform); later orders use
         // the collision estimator (one receiver trace per event instead of one per crossing).
         ph.ret = None;
-        ph.ground_scored = false;
+        ph.surface_scored = false;
         // Receiver mode past the first scattering: expected-value return along the flight
         // (`Ctx::scatter_flight`); its turbid and Lambertian-ground collisions are not peeled.
         let ms_forced = ctx.ms_stop >= 1.0
@@ -3118,7 +3156,9 @@ fn trace_photon(
                                 it[off + b] += ph.w[b] * (1.0 - pd[b]);
                             }
                         }
-                        // Peel-off: reflected ρ|n·v|/π on the incidence side, τ|n·v|/π beyond.
+                        // Peel-off: reflected ρ|n·v|/π on the incidence side, τ|n·v|/π beyond
+                        // (unless the flight's walk scored it: `Photon::surface_scored`).
+                        let scored = ph.surface_scored;
                         ctx.peel(
                             ph,
                             p,
@@ -3128,6 +3168,9 @@ fn trace_photon(
                             scratch,
                             tr,
                             |_, ov, s| {
+                                if scored {
+                                    return false;
+                                }
                                 let c = n_in.dot(ov);
                                 let mut any = false;
                                 for b in 0..nbx {
@@ -3210,7 +3253,7 @@ fn trace_photon(
                 match &inp.optics[gid] {
                     PhotonOptics::Lambert { r, .. } => {
                         // (Scored by the walk of an expected-value flight.)
-                        let scored = ph.ground_scored;
+                        let scored = ph.surface_scored;
                         ctx.peel(ph, p, None, true, out, scratch, tr, |_, ov, s| {
                             if scored {
                                 return false;
@@ -3580,7 +3623,7 @@ fn run_pulse(base: &Ctx, beam: &Beam, pl: &Pulse) -> PulseResult {
             skip_facet: None,
             direct: true,
             ret: None,
-            ground_scored: false,
+            surface_scored: false,
         };
         // Discrete mode: the pulse keeps its exact direction (its first scattering uses the
         // rows of the sector that contains it); later orders follow the discrete directions.

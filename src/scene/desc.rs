@@ -907,9 +907,8 @@ pub struct LidarDesc {
     /// Photons (beam rays) per pulse (default 90: with the `ExpectedValue` estimator, the
     /// waveform error of the former defaults, 600 photons of `Stratified` and 1000 of `Legacy`,
     /// on the forest ALS bench, at 1/5 and 1/8 of their instructions; README, LiDAR speed).
-    /// Tuned on that forest, whose ground is flat: first-order returns of facets (buildings,
-    /// trunks, facet terrain) still use the collision estimator, so scenes dominated by them
-    /// need more photons for the same error.
+    /// Tuned on that forest (flat ground); scenes whose returns differ in kind (e.g. BRDF
+    /// surfaces, which keep the collision estimator) may need another count for that error.
     #[serde(default = "default_lidar_photons")]
     pub photons_per_pulse: u32,
     /// Scattering orders traced (default 100).
@@ -950,8 +949,8 @@ pub struct LidarDesc {
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
 pub enum LidarEstimator {
     /// `Stratified` for the first flight, whose walk also scores the first-order return of a
-    /// Lambertian flat ground it reaches with its transmittance e^{−τ} (instead of at the ground
-    /// collision only); every later flight is walked once for its collision and the
+    /// Lambertian flat ground it reaches, or a Lambertian facet it ends on, with its
+    /// transmittance e^{−τ} (instead of at the surface collision only); every later flight is walked once for its collision and the
     /// expected-value return toward the receiver along it (one point per crossed vegetation
     /// cell, the walk going on past the collision to twice its optical depth, a Lambertian
     /// ground reached scored the same way), instead of the collision estimator. On the forest
