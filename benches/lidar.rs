@@ -3,7 +3,7 @@
 //! Options (after `--`): `--quick`; `--pulses N` (pulses of every forest row and of the urban
 //! scan, rounded up to a square grid); `--row NAME` (run one row only: `legacy-peak`,
 //! `continuous-gauss`, `discrete-gauss`, `discrete-peak`, `continuous-peak` or `urban`;
-//! repeatable); `--estimator legacy|stratified`, `--photons N`, `--scattering N` (estimator,
+//! repeatable); `--estimator legacy|stratified|expected`, `--photons N`, `--scattering N` (estimator,
 //! beam rays and rays continued into multiple scattering of the forest rows, e.g. under
 //! callgrind; the estimator also of the urban scan); `--no-skip` (empty-space skipping off: every cell visited, for comparisons);
 //! `--digest` (print an FNV-1a hash of every product of each row — raw and convolved
@@ -17,13 +17,13 @@
 //! same waveforms).
 //!
 //! `--error` runs the speed-against-error study instead of the speed rows (see
-//! `error_study`): `--setting EST:PHOTONS[:SCATTERING]` (repeatable; default `legacy:1000` and
-//! `stratified:600`), `--reps R` realizations per setting (default 4), `--ref-photons N`
+//! `error_study`): `--setting EST:PHOTONS[:SCATTERING]` (repeatable; default `legacy:1000`,
+//! `stratified:600` and `expected` at the default photons), `--reps R` realizations per setting (default 4), `--ref-photons N`
 //! (reference photons per pulse, default 1e5), `--ref-cache FILE` (reuse the reference).
 //!
 //! 1. ALS on the 40 m forest (24 trees, 1 m cells): pulses per second per core at the default
-//!    photons per pulse (600, `Stratified` estimator; row `legacy-peak`: 1000 photons of the
-//!    `Legacy` estimator, the former default at the same waveform error), multiple scattering
+//!    photons per pulse (340, `ExpectedValue` estimator; row `legacy-peak`: 1000 photons of the
+//!    `Legacy` estimator, an earlier default at the same waveform error), multiple scattering
 //!    (orders ≤ 100), nadir, 0.3 m footprints, for the continuous and discrete (Ray-Carlo)
 //!    samplers and both returns methods, with the mean waveform energy and return count per
 //!    pulse next to each speed.
@@ -89,7 +89,7 @@ struct Options {
     fit_study: Option<std::fs::File>,
     /// `--no-skip`: empty-space skipping off (every cell visited), for comparisons.
     no_skip: bool,
-    /// `--estimator legacy|stratified` for the forest speed rows (default: the scene default).
+    /// `--estimator legacy|stratified|expected` for the forest speed rows (default: the scene default).
     estimator: Option<LidarEstimator>,
     /// `--photons N`: beam rays per pulse of the forest speed rows (default 1000).
     photons: Option<u32>,
@@ -384,7 +384,7 @@ fn main() {
     let n = opt.pulses.unwrap_or(if quick { 200 } else { 2000 });
     let side = ((n as f64).sqrt().ceil() as u32).max(2);
     println!(
-        "ALS forest 40 m, multiple scattering (100 orders), {threads} threads; photons/pulse: {} (stratified estimator, the default) or 1000 (legacy row)",
+        "ALS forest 40 m, multiple scattering (100 orders), {threads} threads; photons/pulse: {} (expected-value estimator, the default) or 1000 (legacy row)",
         opt.photons.unwrap_or(DEFAULT_LIDAR_PHOTONS)
     );
     println!(
@@ -505,7 +505,8 @@ fn parse_estimator(v: &str) -> LidarEstimator {
     match v {
         "legacy" => LidarEstimator::Legacy,
         "stratified" => LidarEstimator::Stratified,
-        _ => panic!("estimator `{v}`: legacy or stratified"),
+        "expected" => LidarEstimator::ExpectedValue,
+        _ => panic!("estimator `{v}`: legacy, stratified or expected"),
     }
 }
 
@@ -641,7 +642,8 @@ fn error_study(f: &SceneDesc, opt: &mut Options) {
     let settings = if opt.settings.is_empty() {
         vec![
             (LidarEstimator::Legacy, 1000, None),
-            (LidarEstimator::Stratified, DEFAULT_LIDAR_PHOTONS, None),
+            (LidarEstimator::Stratified, 600, None),
+            (LidarEstimator::ExpectedValue, DEFAULT_LIDAR_PHOTONS, None),
         ]
     } else {
         opt.settings.clone()
@@ -653,7 +655,10 @@ fn error_study(f: &SceneDesc, opt: &mut Options) {
         "error study: 64 forest pulses × {reps} realizations; mean over pulses of the relative L2 error of the convolved (raw) waveform: total, first order, multiple scattering; mean |energy error|"
     );
     println!(
-        "{:>11} {:>7} {:>7} {:>8} {:>13} {:>16} {:>16} {:>16} {:>8}",
+        "pulses/s/core at 1 %: the speed scaled to a total error of 1 % by error ∝ 1/√cost, (1 %/error)² × pulses/s/core (wall time: noisy on a loaded host; callgrind instruction counts in the README)"
+    );
+    println!(
+        "{:>13} {:>7} {:>7} {:>8} {:>13} {:>16} {:>16} {:>16} {:>8} {:>10}",
         "estimator",
         "photons",
         "scatter",
@@ -662,7 +667,8 @@ fn error_study(f: &SceneDesc, opt: &mut Options) {
         "total",
         "first",
         "multiple",
-        "energy"
+        "energy",
+        "at 1 %"
     );
     for (est, photons, scattering) in settings {
         let mut conv = [0.0; 4];
@@ -698,20 +704,22 @@ fn error_study(f: &SceneDesc, opt: &mut Options) {
             energy: 0.0,
             returns: 0.0,
         };
+        let rate = r.pulses as f64 / r.seconds / threads;
         println!(
-            "{:>11} {:>7} {:>7} {:>8.2} {:>13.0} {:>7.2} % ({:>4.1}) {:>7.2} % ({:>4.1}) {:>7.2} % ({:>4.1}) {:>6.2} %",
+            "{:>13} {:>7} {:>7} {:>8.2} {:>13.0} {:>7.2} % ({:>4.1}) {:>7.2} % ({:>4.1}) {:>7.2} % ({:>4.1}) {:>6.2} % {:>10.0}",
             format!("{est:?}"),
             photons,
             scattering.map_or("all".to_string(), |s| s.to_string()),
             r.seconds,
-            r.pulses as f64 / r.seconds / threads,
+            rate,
             100.0 * conv[0],
             100.0 * raw[0],
             100.0 * conv[1],
             100.0 * raw[1],
             100.0 * conv[2],
             100.0 * raw[2],
-            100.0 * conv[3]
+            100.0 * conv[3],
+            rate / (100.0 * conv[0]).powi(2)
         );
         println!("    total error per realization (%): {}", per_rep.join(" "));
     }

@@ -260,6 +260,8 @@ fn lidar_waveforms_are_bit_identical_on_1_2_and_8_threads() {
         300,
     );
     for (estimator, scattering) in [
+        (LidarEstimator::ExpectedValue, None),
+        (LidarEstimator::ExpectedValue, Some(100)),
         (LidarEstimator::Stratified, None),
         (LidarEstimator::Stratified, Some(100)),
         (LidarEstimator::Legacy, None),
@@ -566,19 +568,28 @@ fn reused_first_flight_return_transmittance_matches_the_shadow_ray() {
     }
 }
 
-/// The stratified estimator (the default: lattice beam rays, one walk per first flight, first
-/// order integrated bin by bin, Russian roulette into multiple scattering) against the legacy
-/// one (independent rays, one forced point per cell, every photon continued) on the turbid
-/// layer, spherical and erectophile leaves, independent and correlated gaps: 24 pulses at the
+/// The stratified estimator (lattice beam rays, one walk per first flight, first order
+/// integrated bin by bin, Russian roulette into multiple scattering) and the expected-value one
+/// (the default: the same, plus the expected-value return along every later flight and the
+/// forced Lambertian-ground score) against the legacy one (independent rays, one forced point
+/// per cell, every photon continued, collision estimator past the first flight) on the turbid
+/// layer over Lambertian soil, spherical and erectophile leaves, independent and correlated
+/// gaps, with the discrete and (spherical leaves) the continuous sampler, and (expected value,
+/// spherical, discrete) with a Lambertian box under part of the footprint: 24 pulses at the
 /// same place (each its own random stream) per estimator give the mean and standard error of
 /// the first-order energy, the multiple-scattering energy and the first-order and total
 /// energy of each bin above 5 % of the peak; every mean must agree within 4.5 combined
-/// standard errors (two-sided p ≈ 7e-6 per comparison, ~100 comparisons) and, for the
-/// energies, within 2 % (first order) and 5 % (multiple scattering).
+/// standard errors (two-sided p ≈ 7e-6 per comparison, ~100 comparisons per pair) and, for
+/// the energies, within 2 % (first order) and 5 % (multiple scattering).
 #[test]
 fn stratified_estimator_agrees_with_the_legacy_one() {
     let n_pulses = 24;
-    for (lad_desc, leaf) in [(LadDesc::Spherical, 0.0), (LadDesc::Erectophile, 0.05)] {
+    for (lad_desc, leaf, sampler, building) in [
+        (LadDesc::Spherical, 0.0, LidarSampler::Discrete, false),
+        (LadDesc::Erectophile, 0.05, LidarSampler::Discrete, false),
+        (LadDesc::Spherical, 0.0, LidarSampler::Continuous, false),
+        (LadDesc::Spherical, 0.0, LidarSampler::Discrete, true),
+    ] {
         let waveforms = |estimator: LidarEstimator, scattering: Option<u32>| {
             let mut l = lidar(
                 "cmp",
@@ -586,6 +597,7 @@ fn stratified_estimator_agrees_with_the_legacy_one() {
                 PulsePattern::List(vec![(2.0, 2.0); n_pulses]),
                 2000,
             );
+            l.sampler = sampler;
             l.estimator = estimator;
             l.scattering_photons_per_pulse = scattering;
             let mut d = scene(2.0, 0.3, l);
@@ -595,6 +607,12 @@ fn stratified_estimator_agrees_with_the_legacy_one() {
             {
                 *leaf_size_m = leaf;
                 *lad = lad_desc.clone();
+            }
+            if building {
+                // A Lambertian box (roof at 1.2 m inside the layer) under part of the footprint:
+                // first-order facet returns (the expected value of `ExpectedValue`).
+                d.optics.insert("wall".into(), lambertian(0.4));
+                d.objects.push(box_building((1.8, 1.7, 2.6, 2.5), 1.2));
             }
             let runs = run(&d, None);
             runs[0]
@@ -632,8 +650,18 @@ fn stratified_estimator_agrees_with_the_legacy_one() {
             (mean, se)
         };
         let legacy = waveforms(LidarEstimator::Legacy, None);
-        for scattering in [None, Some(500)] {
-            let strat = waveforms(LidarEstimator::Stratified, scattering);
+        for (estimator, scattering) in [
+            (LidarEstimator::Stratified, None),
+            (LidarEstimator::Stratified, Some(500)),
+            (LidarEstimator::ExpectedValue, None),
+            (LidarEstimator::ExpectedValue, Some(500)),
+        ] {
+            if (sampler == LidarSampler::Continuous || building)
+                && estimator == LidarEstimator::Stratified
+            {
+                continue;
+            }
+            let strat = waveforms(estimator, scattering);
             // Every pulse on one axis: the union of their (trimmed) bins.
             let all = || legacy.iter().chain(&strat);
             let dt = legacy[0].dt_ns;
@@ -656,7 +684,7 @@ fn stratified_estimator_agrees_with_the_legacy_one() {
                 compared += 1;
                 assert!(
                     z < 4.5,
-                    "{lad_desc:?} leaf {leaf} scattering {scattering:?}: quantity {i}: stratified {:e} ± {:e} vs legacy {:e} ± {:e} ({z:.1} σ)",
+                    "{lad_desc:?} leaf {leaf} {sampler:?} building {building} {estimator:?} scattering {scattering:?}: quantity {i}: {:e} ± {:e} vs legacy {:e} ± {:e} ({z:.1} σ)",
                     mb[i],
                     sb[i],
                     ma[i],
@@ -665,7 +693,7 @@ fn stratified_estimator_agrees_with_the_legacy_one() {
             }
             let rel = |i: usize| mb[i] / ma[i] - 1.0;
             eprintln!(
-                "{lad_desc:?} leaf {leaf} scattering {scattering:?}: {compared} quantities, worst {worst:.2} σ; first order {:+.3} % (SE {:.3} % vs {:.3} %), multiple scattering {:+.2} % (SE {:.2} % vs {:.2} %)",
+                "{lad_desc:?} leaf {leaf} {sampler:?} building {building} {estimator:?} scattering {scattering:?}: {compared} quantities, worst {worst:.2} σ; first order {:+.3} % (SE {:.3} % vs {:.3} %), multiple scattering {:+.2} % (SE {:.2} % vs {:.2} %)",
                 100.0 * rel(0),
                 100.0 * sb[0] / mb[0],
                 100.0 * sa[0] / ma[0],
@@ -676,5 +704,98 @@ fn stratified_estimator_agrees_with_the_legacy_one() {
             assert!(compared >= 10, "{compared} quantities compared");
             assert!(rel(0).abs() < 0.02 && rel(1).abs() < 0.05);
         }
+    }
+}
+
+/// The return transmittance from the per-column optical-depth sums (`ColumnDepth`, used by
+/// every receiver peel-off whose straight ray to the receiver stays in one grid column and meets
+/// no facet) on a 20 m forest (1 m cells, trunk facets under the crowns, repetitive sides),
+/// nadir and 20° oblique pulses, every estimator: debug builds compare each column value with
+/// the shadow walk it replaces (relative 1e-9 + 1e-25, `Ctx::transmittance_to_receiver`), and
+/// here the column sums must have been used. With 1e-13 J photon packets (pulse energy
+/// 1e-13 J × photons) every waveform bin is finite and the waveforms equal those of the 1 J
+/// pulse scaled by the energy ratio (relative 1e-9: same random streams, the estimators are
+/// linear in the weight), so no weight underflows into NaN or a cut.
+#[test]
+fn column_return_transmittance_matches_the_shadow_ray() {
+    use lumenscape::scene::generators::forest::{ForestParams, forest};
+    let photons = 150;
+    for estimator in [
+        LidarEstimator::ExpectedValue,
+        LidarEstimator::Stratified,
+        LidarEstimator::Legacy,
+    ] {
+        for zenith in [0.0, 20.0] {
+            let before = column_returns();
+            let waveforms = |energy: f64| {
+                let mut d = forest(&ForestParams {
+                    size_m: 20.0,
+                    ..Default::default()
+                });
+                let mut l = lidar(
+                    "col",
+                    800.0,
+                    PulsePattern::List(vec![(5.0, 5.0), (10.3, 9.7), (14.5, 6.2)]),
+                    photons,
+                );
+                l.band = "nir".into();
+                l.estimator = estimator;
+                l.pulse_energy_j = energy;
+                if let LidarPlatform::Airborne {
+                    view_zenith_deg, ..
+                } = &mut l.platform
+                {
+                    *view_zenith_deg = zenith;
+                }
+                d.lidars = Some(vec![l]);
+                run(&d, None)[0]
+                    .pulses
+                    .iter()
+                    .map(|p| p.raw.clone())
+                    .collect::<Vec<Waveform>>()
+            };
+            let unit = waveforms(1.0);
+            let tiny = waveforms(1e-13 * photons as f64);
+            let scale = 1e-13 * photons as f64;
+            let mut energy = 0.0;
+            for (a, b) in unit.iter().zip(&tiny) {
+                assert_eq!(a.total.len(), b.total.len());
+                for (x, y) in a
+                    .total
+                    .iter()
+                    .zip(&b.total)
+                    .chain(a.first_order.iter().zip(&b.first_order))
+                {
+                    assert!(x.is_finite() && y.is_finite());
+                    assert!(
+                        (y - x * scale).abs() <= 1e-9 * (x * scale).abs() + 1e-300,
+                        "{estimator:?} {zenith}°: {y:e} vs {:e}",
+                        x * scale
+                    );
+                }
+                energy += a.total_energy_j();
+            }
+            assert!(energy > 0.0, "{estimator:?} {zenith}°: no return");
+            let used = column_returns() - before;
+            eprintln!(
+                "{estimator:?} {zenith}°: {used} column return transmittances (with other tests running)"
+            );
+            assert!(
+                used > 0,
+                "{estimator:?} {zenith}°: the column sums were never used"
+            );
+        }
+    }
+}
+
+/// Column return transmittances taken so far in this process (debug builds count them).
+fn column_returns() -> u64 {
+    #[cfg(debug_assertions)]
+    {
+        lumenscape::photon::engine::COLUMN_RETURNS.load(std::sync::atomic::Ordering::Relaxed)
+    }
+    #[cfg(not(debug_assertions))]
+    {
+        1 << 40
     }
 }
