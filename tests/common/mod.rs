@@ -248,3 +248,41 @@ pub fn no_hotspot(d: &mut SceneDesc) {
         }
     }
 }
+
+/// Asserts that `p` has the products of the reference run `p1` (albedo, fabs, ftran and every
+/// BRF of every band) to `tol` relative (floor 1e-12 absolute on values near 0).
+#[allow(dead_code)]
+pub fn assert_same_products(
+    p1: &lumenscape::radiative::products::RadiativeProducts,
+    p: &lumenscape::radiative::products::RadiativeProducts,
+    tol: f64,
+    what: &str,
+) {
+    let close = |a: f64, b: f64| (a - b).abs() <= tol * a.abs().max(b.abs()).max(1e-12);
+    assert_eq!(p1.bands.len(), p.bands.len(), "{what}: band count");
+    for (b1, b) in p1.bands.iter().zip(&p.bands) {
+        for (name, x1, x) in [
+            ("albedo", b1.albedo, b.albedo),
+            ("fabs", b1.fabs, b.fabs),
+            ("ftran", b1.ftran, b.ftran),
+        ] {
+            assert!(
+                close(x1, x),
+                "{what} band {}: {name} {x} against {x1} (tolerance {tol:e})",
+                b.band
+            );
+        }
+        assert_eq!(b1.brf.len(), b.brf.len(), "{what}: BRF count");
+        for (e1, e) in b1.brf.iter().zip(&b.brf) {
+            assert!(
+                close(e1.brf, e.brf),
+                "{what} band {}: BRF {} against {} (view {}°, {}°; tolerance {tol:e})",
+                b.band,
+                e.brf,
+                e1.brf,
+                e.zenith_deg,
+                e.azimuth_deg
+            );
+        }
+    }
+}
