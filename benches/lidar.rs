@@ -75,6 +75,7 @@ fn lidar(pulses: PulsePattern, photons: u32) -> LidarDesc {
         sampler: LidarSampler::Discrete,
         estimator: Default::default(),
         scattering_photons_per_pulse: None,
+        fusion: false,
     }
 }
 
