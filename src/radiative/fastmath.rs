@@ -388,8 +388,9 @@ impl HalfBarycentres {
             lo[l] = [r[0], r[1], r[2], r[3]];
             hi[l] = [r[4], r[5], r[6], r[7]];
         }
-        let [c0a, c1a, c0b, c1b] = transpose_rows(simd, lo);
-        let [c2a, c3a, c2b, c3b] = transpose_rows(simd, hi);
+        // Rows [c0₁, c0₂, c1₁, c1₂] of lanes 0..3 → [c0₁ of each lane], [c0₂ …], [c1₁ …], [c1₂ …].
+        let [c0a, c0b, c1a, c1b] = transpose4(simd, lo.map(cast));
+        let [c2a, c2b, c3a, c3b] = transpose4(simd, hi.map(cast));
         let a = horner(simd, ell, t, [c0a, c1a, c2a, c3a]);
         let b = horner(simd, ell, t, [c0b, c1b, c2b, c3b]);
         let sp = |v: f64| simd.splat_f64x4(v);
@@ -418,11 +419,11 @@ fn horner(simd: V3, ell: f64x4, t: f64x4, c: [f64x4; 4]) -> f64x4 {
     simd.mul_f64x4(ell, simd.add_f64x4(c[0], simd.mul_f64x4(t, p)))
 }
 
-/// Four interleaved coefficient rows `[c0₁, c0₂, c1₁, c1₂]` (one per lane) as one vector per
-/// coefficient: `[c0₁ of lanes 0..3, c1₁ …, c0₂ …, c1₂ …]` (a 4 × 4 transpose, 8 shuffles).
+/// The 4 × 4 transpose of four vectors (8 shuffles): element i of output j is element j of
+/// input i.
 #[cfg(target_arch = "x86_64")]
 #[inline(always)]
-fn transpose_rows(simd: V3, r: [[f64; 4]; 4]) -> [f64x4; 4] {
+pub fn transpose4(simd: V3, r: [f64x4; 4]) -> [f64x4; 4] {
     let avx = simd.avx;
     let a01 = avx._mm256_unpacklo_pd(cast(r[0]), cast(r[1]));
     let a23 = avx._mm256_unpacklo_pd(cast(r[2]), cast(r[3]));
@@ -430,8 +431,8 @@ fn transpose_rows(simd: V3, r: [[f64; 4]; 4]) -> [f64x4; 4] {
     let b23 = avx._mm256_unpackhi_pd(cast(r[2]), cast(r[3]));
     [
         cast(avx._mm256_permute2f128_pd::<0x20>(a01, a23)),
-        cast(avx._mm256_permute2f128_pd::<0x31>(a01, a23)),
         cast(avx._mm256_permute2f128_pd::<0x20>(b01, b23)),
+        cast(avx._mm256_permute2f128_pd::<0x31>(a01, a23)),
         cast(avx._mm256_permute2f128_pd::<0x31>(b01, b23)),
     ]
 }

@@ -25,7 +25,7 @@ use super::{DenseView, add};
 #[cfg(target_arch = "x86_64")]
 use crate::radiative::dda::{Dda4, Exit};
 #[cfg(target_arch = "x86_64")]
-use crate::radiative::fastmath::{HalfBarycentres, attenuation_x4};
+use crate::radiative::fastmath::{HalfBarycentres, attenuation_x4, transpose4};
 #[cfg(target_arch = "x86_64")]
 use crate::scene::desc::BoundaryMode;
 use glam::DVec3;
@@ -72,6 +72,32 @@ impl Ctx<'_> {
             foot: out.foot,
         };
         q.pw[..self.w].copy_from_slice(&pw[..self.w]);
+        out.queue.push(q);
+        if out.queue.len() >= FLUSH_AT {
+            self.flush(out);
+        }
+    }
+
+    /// [`Ctx::queue`] of a ray of powers `v[ch] · share` (W, the products `send` forms).
+    #[inline]
+    pub(super) fn queue_scaled(
+        &self,
+        p: DVec3,
+        dir: usize,
+        v: &[f64],
+        share: f64,
+        out: &mut ChunkOut,
+    ) {
+        let mut q = Queued {
+            p,
+            dir: dir as u32,
+            pw: [0.0; 4],
+            ray_scale: out.ray_scale,
+            foot: out.foot,
+        };
+        for (a, b) in q.pw.iter_mut().zip(&v[..self.w]) {
+            *a = b * share;
+        }
         out.queue.push(q);
         if out.queue.len() >= FLUSH_AT {
             self.flush(out);
@@ -261,6 +287,17 @@ impl Ctx<'_> {
                 gain[c] = cast(simd.mul_f64x4(pwc, frac));
                 ln.pw[c] = cast(simd.select_f64x4(hit_m, simd.mul_f64x4(pwc, tr), pwc));
             }
+            // The weighted interception points lane-wise (`p · wt`, the scalar walk's products),
+            // then one row per lane: [p1x, p1y, p1z, p2x] · wt and [p2y · wt, p2z · wt, wt, 0].
+            let wtv: f64x4 = cast(wt);
+            let pw_pt = |v: [f64; 4]| simd.mul_f64x4(cast(v), wtv);
+            let rows_a: [[f64; 4]; 4] = transpose4(
+                simd,
+                [pw_pt(p1[0]), pw_pt(p1[1]), pw_pt(p1[2]), pw_pt(p2[0])],
+            )
+            .map(cast);
+            let rows_b: [[f64; 4]; 4] =
+                transpose4(simd, [pw_pt(p2[1]), pw_pt(p2[2]), wtv, zero]).map(cast);
             // Interceptions booked lane by lane (a fixed order).
             for l in 0..4 {
                 if hit & (1 << l) == 0 {
@@ -277,13 +314,12 @@ impl Ctx<'_> {
                     r[c] += gain[c][l];
                 }
                 let q: &mut [f64; 7] = (&mut pts[e * 7..e * 7 + 7]).try_into().expect("7");
-                q[0] += p1[0][l] * wt[l];
-                q[1] += p1[1][l] * wt[l];
-                q[2] += p1[2][l] * wt[l];
-                q[3] += p2[0][l] * wt[l];
-                q[4] += p2[1][l] * wt[l];
-                q[5] += p2[2][l] * wt[l];
-                q[6] += wt[l];
+                for i in 0..4 {
+                    q[i] += rows_a[l][i];
+                }
+                for i in 0..3 {
+                    q[4 + i] += rows_b[l][i];
+                }
             }
             // The channel sum in channel order (as `pw.iter().sum()`).
             let mut psum: f64x4 = cast(ln.pw[0]);
