@@ -1351,9 +1351,9 @@ impl Ctx<'_> {
     /// `ph.direct`, one band, no fluid; [`LidarEstimator::Stratified`] and
     /// [`LidarEstimator::ExpectedValue`]): the collision is
     /// sampled as [`Ctx::fly`] does (same free path, cells, facet and exit rules, so the same
-    /// hit distribution), and along the same walk the expected-value (forced) first-order
-    /// return of the whole flight is binned (DART 5 paper §4 forced peel-off, physics.md
-    /// §9.2, §9.6).
+    /// hit distribution: [`Ctx::walk_flight`]), and along the same walk the expected-value
+    /// (forced) first-order return of the whole flight is binned ([`FirstOrderScore`]; DART 5
+    /// paper §4 forced peel-off, physics.md §9.2, §9.6).
     ///
     /// Every point of this flight lies on the ray from the monostatic receiver, so the return
     /// direction is −Ω, at the distance L walked from the emitter, recorded at path 2L, with
@@ -1394,15 +1394,12 @@ impl Ctx<'_> {
         scratch: &mut [f64],
         tr: &mut [f64],
     ) -> (Hit, Option<f64>) {
-        let spec = self.inp.spec;
         let Some(rx) = self.receiver else {
             return (self.fly(ph, g_cur, rng, out), None);
         };
-        let tau_star0 = -(1.0 - rng.next_f64()).ln();
-        let mut tau_star = tau_star0;
+        let tau_star = -(1.0 - rng.next_f64()).ln();
         let d = ph.d;
         let cos_rx = d.dot(rx.axis);
-        let in_fov = cos_rx >= rx.cos_fov;
         // Exact-backscatter intensity per unit intercepted weight, per turbid material.
         let back: PerMaterial<f64> = Small::from_fn(self.tur_ids.len(), |tm| {
             match &self.inp.optics[self.tur_ids[tm] as usize] {
@@ -1412,11 +1409,106 @@ impl Ctx<'_> {
                 _ => 0.0,
             }
         });
-        let w = ph.w[0];
+        let mut score = FirstOrderScore {
+            rx,
+            d,
+            cos_rx,
+            in_fov: cos_rx >= rx.cos_fov,
+            back,
+            w: ph.w[0],
+            g_cur,
+            tau_ret: 0.0,
+            exact: true,
+            kr: 0.0,
+            kf: 0.0,
+        };
+        let mut io = FlightIo {
+            rng,
+            out,
+            scratch,
+            tr,
+        };
+        self.walk_flight(ph, g_cur, tau_star, &mut io, &mut score)
+    }
+
+    /// A LiDAR flight past the first scattering (receiver mode, `ph.order ≥ 1`, one band, no
+    /// fluid; `ms_stop = c ≥ 1`): the collision is sampled as [`Ctx::fly`] does (same free path
+    /// τ*, cells, facet and exit rules, so the same hit distribution: [`Ctx::walk_flight`])
+    /// and, along the same walk, the single-scattering return of the flight toward the
+    /// receiver is integrated instead of being taken at the collision only ([`ScatterScore`];
+    /// expected-value estimator, DART 5 paper §4 forced peel-off applied to every order;
+    /// physics.md §9.2).
+    ///
+    /// The walk goes on past the collision up to the optical depth `c τ*` (or the first facet,
+    /// the ground, the top or an isolated side): a point at depth τ(u) is reached with
+    /// probability `Q(u) = e^{−τ(u)/c}`, so the return density
+    /// `w e^{−τ(u)} Σ_m k_m f_m T_ret A (u_r·axis)/r²` J m⁻¹ (k_m = G_m u_{f,m} m⁻¹, f_m the leaf
+    /// intensity per unit intercepted weight toward the receiver, sr⁻¹, T_ret the return
+    /// transmittance, A the aperture m², r the distance m) is scored divided by Q: weight
+    /// `e^{−(1−1/c)τ}`. Unbiased for any c ≥ 1 (c = 1: the track-length estimator, c = ∞: the
+    /// expected value along the whole ray, cut at (1 − 1/c)τ > 30, e^{−30} ≈ 1e-13). One point
+    /// per crossed vegetation cell, drawn with density ∝ e^{−(1−1/c)k_v u}, carries the
+    /// segment's exact mass; its material is drawn in proportion to k_m. A Lambertian flat
+    /// ground reached by the walk is scored the same way (`w e^{−(1−1/c)τ_g} ρ_g μ/π T_ret A
+    /// cos/r²`). The turbid and ground collisions of such a flight are then not peeled off.
+    /// Discrete sampler: `f_m` is the Phase-stage row of the flight's direction toward the
+    /// receiver's sector (T/ΔΩ), as the collision peel-off uses.
+    #[allow(clippy::too_many_arguments)]
+    fn scatter_flight(
+        &self,
+        ph: &mut Photon,
+        g_cur: &[f64],
+        rng: &mut Xoshiro256PlusPlus,
+        out: &mut BatchOut,
+        scratch: &mut [f64],
+        tr: &mut [f64],
+    ) -> Hit {
+        let Some(rx) = self.receiver else {
+            return self.fly(ph, g_cur, rng, out);
+        };
+        let tau_star = -(1.0 - rng.next_f64()).ln();
+        let mut score = ScatterScore {
+            rx,
+            d: ph.d,
+            g_cur,
+            discrete: self.inp.params.sampler.is_discrete(),
+            lambert_ground: self.lambert_ground(),
+            tau_stop: self.ms_stop * tau_star,
+            keep: 1.0 - 1.0 / self.ms_stop,
+        };
+        let mut io = FlightIo {
+            rng,
+            out,
+            scratch,
+            tr,
+        };
+        self.walk_flight(ph, g_cur, tau_star, &mut io, &mut score).0
+    }
+
+    /// The walk of a LiDAR flight shared by [`Ctx::first_flight`] and [`Ctx::scatter_flight`]:
+    /// the collision at the free optical path `tau_star` is sampled as [`Ctx::fly_to`] does
+    /// (same cells, facet, exit and wrap rules, so the same hit), while `score` integrates the
+    /// flight's return toward the receiver over every vegetation segment walked
+    /// ([`FlightScore::segment`]) and at the facet or flat ground that ends the walk. The walk
+    /// goes on past the collision until `score` stops it ([`FlightScore::stop`]), a facet, the
+    /// ground, the top or an isolated side. A stop before the collision (the forced estimate
+    /// cut at a large optical depth) flies the photon again from its start with the same free
+    /// path ([`Ctx::fly_to`]). Returns the hit (the photon's path, shift and position updated
+    /// as [`Ctx::fly`] does) and, when the flight ends on a surface with no collision before
+    /// it, [`FlightScore::surface_ret`].
+    fn walk_flight<S: FlightScore>(
+        &self,
+        ph: &mut Photon,
+        g_cur: &[f64],
+        tau_star: f64,
+        io: &mut FlightIo,
+        score: &mut S,
+    ) -> (Hit, Option<f64>) {
+        let spec = self.inp.spec;
+        let d = ph.d;
         let path0 = ph.path;
-        let mut tau: f64 = 0.0;
-        let mut tau_ret: f64 = 0.0;
-        let mut exact = true;
+        let mut left = tau_star;
+        let mut tau = 0.0;
         let mut p = ph.p;
         let mut skip = ph.skip_facet;
         let mut shift = ph.shift;
@@ -1424,7 +1516,7 @@ impl Ctx<'_> {
         let mut travelled = 0.0;
         // The sampled collision: (cell, point, path, shift).
         let mut coll: Option<(usize, DVec3, f64, DVec3)> = None;
-        // How the walk ended when no collision came first (None: fall back to `fly_to`).
+        // How the walk ended when no collision came first (None: stopped, fly again).
         let end: Option<Hit>;
         let mut ret = None;
         'restart: loop {
@@ -1433,12 +1525,12 @@ impl Ctx<'_> {
                 break 'restart;
             };
             loop {
-                out.crossings += 1;
+                io.out.crossings += 1;
                 let c = dda.index();
                 let r = self.empty[c];
                 let exit = if r != 0 {
                     if r > 1 {
-                        fly_skip(&mut dda, r, &mut out.skipped)
+                        fly_skip(&mut dda, r, &mut io.out.skipped)
                     } else {
                         dda.advance()
                     }
@@ -1455,155 +1547,45 @@ impl Ctx<'_> {
                     if let Some((_, th)) = fhit {
                         t1 = th.max(t0);
                     }
-                    if exact && has_facets && self.facet_behind(c, dda.point(0.0), d, t0, t1) {
-                        exact = false;
-                    }
+                    let kv = score.cell(self, c, &dda, (t0, t1), has_facets);
                     let ell = t1 - t0;
-                    // Extinction (m⁻¹): vegetation k_v, return k_r (materials without a leaf
-                    // size), and Σ k_m f_m (m⁻¹ sr⁻¹), in one pass over the cell's entries.
-                    let (mut kv, mut kr, mut kf) = (0.0, 0.0, 0.0);
-                    for e in self.inp.grid.turbid_of(c) {
-                        let tm = self.tur_mat[e.material as usize];
-                        if tm != u32::MAX {
-                            let k = g_cur[tm as usize] * e.density as f64;
-                            kv += k;
-                            kf += k * back[tm as usize];
-                            // hs_leaf ≥ 0 (validated): no leaf size means 0.
-                            if self.hs_leaf[tm as usize] <= 0.0 {
-                                kr += k;
-                            }
-                        }
-                    }
                     if ell > 0.0 && kv > 0.0 {
+                        let dt = ell * kv;
                         if coll.is_none() {
-                            let dt = ell * kv;
-                            if dt >= tau_star {
-                                let t = t0 + tau_star / kv;
+                            if dt >= left {
+                                let t = t0 + left / kv;
                                 coll = Some((c, dda.point(t), path0 + travelled + t, shift));
                             } else {
-                                tau_star -= dt;
+                                left -= dt;
                             }
                         }
-                        if in_fov {
-                            let l0 = path0 + travelled + t0;
-                            if exact {
-                                let base = w
-                                    * (-tau).exp()
-                                    * return_transmittance(tau_ret)
-                                    * kf
-                                    * rx.aperture_m2
-                                    * cos_rx;
-                                if base > 0.0 {
-                                    #[cfg(debug_assertions)]
-                                    self.check_first_flight_return(
-                                        ph,
-                                        (dda.point(t0), shift, l0),
-                                        d,
-                                        (tau_ret, kr, 0.5 * ell),
-                                    );
-                                    if let Some(wave) = out.wave.as_mut() {
-                                        bin_first_order(wave, l0, ell, kv + kr, base, rng);
-                                    }
-                                }
-                            } else {
-                                // One forced point with a shadow ray (see above).
-                                let norm = -(-kv * ell).exp_m1();
-                                let u = -(1.0 - rng.next_f64() * norm).ln() / kv;
-                                let mid = self.pick_turbid(c, g_cur, rng.next_f64() * kv);
-                                if let Some((mid, tm)) = mid
-                                    && let PhotonOptics::Turbid {
-                                        sampler,
-                                        kernel,
-                                        rho,
-                                        tau: tl,
-                                        ..
-                                    } = &self.inp.optics[mid]
-                                {
-                                    let g_in = g_cur[tm].max(1e-12);
-                                    let closed = kernel.is_closed_form();
-                                    let n = if closed {
-                                        DVec3::Z
-                                    } else {
-                                        sampler.sample_normal(d, rng)
-                                    };
-                                    let fac = (-tau).exp() * norm;
-                                    let at = dda.point(t0 + u);
-                                    self.peel_receiver(
-                                        &rx,
-                                        ph,
-                                        (at, shift, l0 + u),
-                                        None,
-                                        None,
-                                        out,
-                                        scratch,
-                                        tr,
-                                        |_, ov, s| {
-                                            if !turbid_peel_phase(
-                                                kernel, closed, n, d, ov, g_in, rho, tl, s,
-                                            ) {
-                                                return false;
-                                            }
-                                            s[0] *= fac;
-                                            true
-                                        },
-                                    );
-                                }
-                            }
-                        }
-                        tau += kv * ell;
-                        if exact {
-                            tau_ret += kr * ell;
-                        }
+                        let seg = Segment {
+                            c,
+                            dda: &dda,
+                            t0,
+                            ell,
+                            kv,
+                            tau,
+                            l0: path0 + travelled + t0,
+                            shift,
+                        };
+                        score.segment(self, ph, io, &seg);
+                        tau += dt;
                     }
                     if let Some((f, th)) = fhit {
-                        // `ExpectedValue`: a Lambertian facet's first-order return, scored with
-                        // the probability e^{−τ} of reaching it (as the ground below).
-                        if self.ms_stop > 0.0 && exact {
-                            let fa = &self.inp.facets[f as usize];
-                            if let PhotonOptics::Lambert { r, t, t_dir } =
-                                &self.inp.optics[fa.material as usize]
-                            {
-                                // The facet collision's peel-off (`trace_photon`), band 0.
-                                let n = (fa.v[1] - fa.v[0]).cross(fa.v[2] - fa.v[0]).normalize();
-                                let n_in = if n.dot(d) < 0.0 { n } else { -n };
-                                let mu = n.dot(d).abs().max(1e-6);
-                                let td = t_dir.first().copied().unwrap_or(0.0);
-                                let through = if td > 0.0 { td.powf(1.0 / mu) } else { 0.0 };
-                                let pr = (1.0 - through) * r.first().copied().unwrap_or(0.0);
-                                let pt = (1.0 - through) * t.first().copied().unwrap_or(0.0);
-                                let fac = (-tau).exp() / PI;
-                                let t_ret = [return_transmittance(tau_ret)];
-                                self.peel_receiver(
-                                    &rx,
-                                    ph,
-                                    (dda.point(th), shift, path0 + travelled + th),
-                                    Some(f),
-                                    Some(&t_ret),
-                                    out,
-                                    scratch,
-                                    tr,
-                                    |_, ov, s| {
-                                        let c = n_in.dot(ov);
-                                        s[0] = fac * if c > 0.0 { pr } else { pt } * c.abs();
-                                        s[0] > 0.0
-                                    },
-                                );
-                                ph.surface_scored = true;
-                            }
+                        let at = (dda.point(th), shift, path0 + travelled + th);
+                        if score.facet(self, ph, io, f, at, tau) {
+                            ph.surface_scored = true;
                         }
                         if coll.is_none() {
-                            ph.path = path0 + travelled + th;
+                            ph.path = at.2;
                             ph.shift = shift;
-                            ret = exact.then_some(tau_ret);
+                            ret = score.surface_ret();
                         }
-                        end = Some(Hit::Facet {
-                            f,
-                            p: dda.point(th),
-                        });
+                        end = Some(Hit::Facet { f, p: at.0 });
                         break 'restart;
                     }
-                    if tau > 30.0 {
-                        // e^{−30} ≈ 1e-13: the forced estimate stops (as `forced_peel`).
+                    if score.stop(tau, coll.is_some()) {
                         end = None;
                         break 'restart;
                     }
@@ -1612,45 +1594,26 @@ impl Ctx<'_> {
                 match exit {
                     Exit::Inside => {}
                     Exit::Top => {
-                        ph.path = path0 + travelled + dda.t;
-                        ph.p = dda.point(dda.t);
-                        ph.shift = shift;
+                        if coll.is_none() {
+                            ph.path = path0 + travelled + dda.t;
+                            ph.p = dda.point(dda.t);
+                            ph.shift = shift;
+                        }
                         end = Some(Hit::Escape);
                         break 'restart;
                     }
                     Exit::Bottom => {
-                        ph.path = path0 + travelled + dda.t;
-                        ph.shift = shift;
-                        let q = dda.point(dda.t);
-                        // `ExpectedValue`: the walk reached a Lambertian ground, whose
-                        // first-order return is scored with the probability e^{−τ} of getting
-                        // there (w e^{−τ} ρ_g μ/π T_ret A cos/r², the return transmittance from
-                        // the walk) instead of at the ground collision only.
-                        if self.ms_stop > 0.0
-                            && exact
-                            && let Some(rg) = self.lambert_ground()
-                        {
-                            let fac = (-tau).exp() * rg / PI;
-                            let t_ret = [return_transmittance(tau_ret)];
-                            self.peel_receiver(
-                                &rx,
-                                ph,
-                                (q, shift, ph.path),
-                                None,
-                                Some(&t_ret),
-                                out,
-                                scratch,
-                                tr,
-                                |_, ov, s| {
-                                    s[0] = fac * ov.z;
-                                    s[0] > 0.0
-                                },
-                            );
+                        let at = (dda.point(dda.t), shift, path0 + travelled + dda.t);
+                        if score.ground(self, ph, io, at, tau) {
                             ph.surface_scored = true;
                         }
+                        if coll.is_none() {
+                            ph.path = at.2;
+                            ph.shift = shift;
+                        }
                         end = Some(if self.inp.flat_ground.is_some() {
-                            ret = exact.then_some(tau_ret);
-                            Hit::Ground { p: q }
+                            ret = score.surface_ret();
+                            Hit::Ground { p: at.0 }
                         } else {
                             Hit::Lost
                         });
@@ -1693,277 +1656,10 @@ impl Ctx<'_> {
         }
         match end {
             Some(hit) => (hit, ret),
-            // The forced walk stopped at τ > 30 before the free path ran out (probability
-            // e^{−30}): the flight goes on from its start with the same free path.
-            None => (self.fly_to(ph, g_cur, tau_star0, rng, out), None),
+            // Stopped before the free path ran out (the first flight's forced walk at τ > 30,
+            // probability e^{−30}): the flight goes on from its start with the same free path.
+            None => (self.fly_to(ph, g_cur, tau_star, io.rng, io.out), None),
         }
-    }
-
-    /// A LiDAR flight past the first scattering (receiver mode, `ph.order ≥ 1`, one band, no
-    /// fluid; `ms_stop = c ≥ 1`): the collision is sampled as [`Ctx::fly`] does (same free path
-    /// τ*, cells, facet and exit rules, so the same hit distribution) and, along the same walk,
-    /// the single-scattering return of the flight toward the receiver is integrated instead of
-    /// being taken at the collision only (expected-value estimator, DART 5 paper §4 forced
-    /// peel-off applied to every order; physics.md §9.2).
-    ///
-    /// The walk goes on past the collision up to the optical depth `c τ*` (or the first facet,
-    /// the ground, the top or an isolated side): a point at depth τ(u) is reached with
-    /// probability `Q(u) = e^{−τ(u)/c}`, so the return density
-    /// `w e^{−τ(u)} Σ_m k_m f_m T_ret A (u_r·axis)/r²` J m⁻¹ (k_m = G_m u_{f,m} m⁻¹, f_m the leaf
-    /// intensity per unit intercepted weight toward the receiver, sr⁻¹, T_ret the return
-    /// transmittance, A the aperture m², r the distance m) is scored divided by Q: weight
-    /// `e^{−(1−1/c)τ}`. Unbiased for any c ≥ 1 (c = 1: the track-length estimator, c = ∞: the
-    /// expected value along the whole ray, cut at (1 − 1/c)τ > 30, e^{−30} ≈ 1e-13). One point
-    /// per crossed vegetation cell, drawn with density ∝ e^{−(1−1/c)k_v u}, carries the
-    /// segment's exact mass; its material is drawn in proportion to k_m. A Lambertian flat
-    /// ground reached by the walk is scored the same way (`w e^{−(1−1/c)τ_g} ρ_g μ/π T_ret A
-    /// cos/r²`). The turbid and ground collisions of such a flight are then not peeled off.
-    /// Discrete sampler: `f_m` is the Phase-stage row of the flight's direction toward the
-    /// receiver's sector (T/ΔΩ), as the collision peel-off uses.
-    #[allow(clippy::too_many_arguments)]
-    fn scatter_flight(
-        &self,
-        ph: &mut Photon,
-        g_cur: &[f64],
-        rng: &mut Xoshiro256PlusPlus,
-        out: &mut BatchOut,
-        scratch: &mut [f64],
-        tr: &mut [f64],
-    ) -> Hit {
-        let spec = self.inp.spec;
-        let Some(rx) = self.receiver else {
-            return self.fly(ph, g_cur, rng, out);
-        };
-        let tau_star = -(1.0 - rng.next_f64()).ln();
-        let mut left = tau_star;
-        let tau_stop = self.ms_stop * tau_star;
-        let keep = 1.0 - 1.0 / self.ms_stop;
-        let d = ph.d;
-        let path0 = ph.path;
-        let discrete = self.inp.params.sampler.is_discrete();
-        let lambert_ground = self.lambert_ground();
-        let mut tau = 0.0;
-        let mut p = ph.p;
-        let mut skip = ph.skip_facet;
-        let mut shift = ph.shift;
-        let mut crossings = 0u32;
-        let mut travelled = 0.0;
-        let mut coll: Option<(usize, DVec3, f64, DVec3)> = None;
-        let mut end = Hit::Lost;
-        'restart: loop {
-            let Some(mut dda) = Dda::new(spec, p, d) else {
-                break 'restart;
-            };
-            loop {
-                out.crossings += 1;
-                let c = dda.index();
-                let r = self.empty[c];
-                let exit = if r != 0 {
-                    if r > 1 {
-                        fly_skip(&mut dda, r, &mut out.skipped)
-                    } else {
-                        dda.advance()
-                    }
-                } else {
-                    let t0 = dda.t;
-                    let mut t1 = dda.t_exit();
-                    let fhit = if self.inp.grid.facet_start[c] < self.inp.grid.facet_start[c + 1] {
-                        self.facet_hit(c, dda.point(0.0), d, t0, t1, skip)
-                    } else {
-                        None
-                    };
-                    if let Some((_, th)) = fhit {
-                        t1 = th.max(t0);
-                    }
-                    let ell = t1 - t0;
-                    let kv = self.k_veg(c, g_cur);
-                    if ell > 0.0 && kv > 0.0 {
-                        let dt = ell * kv;
-                        if coll.is_none() {
-                            if dt >= left {
-                                let t = t0 + left / kv;
-                                coll = Some((c, dda.point(t), path0 + travelled + t, shift));
-                            } else {
-                                left -= dt;
-                            }
-                        }
-                        // Forced return over [t0, t0 + ℓ_f], ℓ_f up to the stop depth.
-                        let ell_f = if tau + dt > tau_stop {
-                            ((tau_stop - tau) / kv).clamp(0.0, ell)
-                        } else {
-                            ell
-                        };
-                        if ell_f > 0.0 {
-                            let beta = keep * kv;
-                            let v = rng.next_f64();
-                            let (u, mass) = if beta * ell_f > 1e-12 {
-                                let em = (-beta * ell_f).exp_m1();
-                                (-(v * em).ln_1p() / beta, -em / beta)
-                            } else {
-                                (v * ell_f, ell_f)
-                            };
-                            let fac = (-keep * tau).exp() * mass * kv;
-                            let mid = self.pick_turbid(c, g_cur, rng.next_f64() * kv);
-                            if let Some((mid, tm)) = mid
-                                && let PhotonOptics::Turbid {
-                                    sampler,
-                                    kernel,
-                                    rho,
-                                    tau: tl,
-                                    discrete: drows,
-                                    ..
-                                } = &self.inp.optics[mid]
-                            {
-                                let at = dda.point(t0 + u.min(ell_f));
-                                let at_path = path0 + travelled + t0 + u.min(ell_f);
-                                match drows {
-                                    Some(rows) if discrete => {
-                                        let row = ph.di.min(rows.samplers.len() - 1);
-                                        self.peel_receiver(
-                                            &rx,
-                                            ph,
-                                            (at, shift, at_path),
-                                            None,
-                                            None,
-                                            out,
-                                            scratch,
-                                            tr,
-                                            |_, ov, s| {
-                                                let m = self.inp.dirs.find_sector(ov);
-                                                let dom = self.inp.dirs.tiling()[m].solid_angle_sr;
-                                                s[0] =
-                                                    fac * rows.tables[0].get(row, m) as f64 / dom;
-                                                s[0] > 0.0
-                                            },
-                                        );
-                                    }
-                                    _ => {
-                                        let g_in = g_cur[tm].max(1e-12);
-                                        let closed = kernel.is_closed_form();
-                                        let n = if closed {
-                                            DVec3::Z
-                                        } else {
-                                            sampler.sample_normal(d, rng)
-                                        };
-                                        self.peel_receiver(
-                                            &rx,
-                                            ph,
-                                            (at, shift, at_path),
-                                            None,
-                                            None,
-                                            out,
-                                            scratch,
-                                            tr,
-                                            |_, ov, s| {
-                                                if !turbid_peel_phase(
-                                                    kernel, closed, n, d, ov, g_in, rho, tl, s,
-                                                ) {
-                                                    return false;
-                                                }
-                                                s[0] *= fac;
-                                                true
-                                            },
-                                        );
-                                    }
-                                }
-                            }
-                        }
-                        tau += dt;
-                    }
-                    if coll.is_some() && (tau >= tau_stop || keep * tau > 30.0) {
-                        break 'restart;
-                    }
-                    if let Some((f, th)) = fhit {
-                        if coll.is_none() {
-                            ph.path = path0 + travelled + th;
-                            ph.shift = shift;
-                            end = Hit::Facet {
-                                f,
-                                p: dda.point(th),
-                            };
-                        }
-                        break 'restart;
-                    }
-                    dda.advance()
-                };
-                match exit {
-                    Exit::Inside => {}
-                    Exit::Top => {
-                        if coll.is_none() {
-                            ph.path = path0 + travelled + dda.t;
-                            ph.p = dda.point(dda.t);
-                            ph.shift = shift;
-                            end = Hit::Escape;
-                        }
-                        break 'restart;
-                    }
-                    Exit::Bottom => {
-                        let q = dda.point(dda.t);
-                        let at_path = path0 + travelled + dda.t;
-                        if let Some(rg) = lambert_ground {
-                            // The walk reached the ground: Q = e^{−τ_g/c}.
-                            let fac = (-keep * tau).exp() * rg / PI;
-                            self.peel_receiver(
-                                &rx,
-                                ph,
-                                (q, shift, at_path),
-                                None,
-                                None,
-                                out,
-                                scratch,
-                                tr,
-                                |_, ov, s| {
-                                    s[0] = fac * ov.z;
-                                    s[0] > 0.0
-                                },
-                            );
-                            ph.surface_scored = true;
-                        }
-                        if coll.is_none() {
-                            ph.path = at_path;
-                            ph.shift = shift;
-                            if self.inp.flat_ground.is_some() {
-                                end = Hit::Ground { p: q };
-                            }
-                        }
-                        break 'restart;
-                    }
-                    Exit::Side(axis, s) => {
-                        if spec.boundary == BoundaryMode::Isolated {
-                            break 'restart;
-                        }
-                        crossings += 1;
-                        if crossings > self.inp.params.max_crossings
-                            || path0 + travelled + dda.t > self.max_path
-                        {
-                            break 'restart;
-                        }
-                        let e = dda.point(dda.t);
-                        match self.wrap(e, axis, s) {
-                            Some(q) => {
-                                travelled += dda.t;
-                                shift += e - q;
-                                p = q;
-                                skip = None;
-                                continue 'restart;
-                            }
-                            None => {
-                                if coll.is_none() && d.z > 0.0 {
-                                    end = Hit::Escape;
-                                }
-                                break 'restart;
-                            }
-                        }
-                    }
-                }
-            }
-        }
-        if let Some((c, q, path, sh)) = coll {
-            ph.path = path;
-            ph.shift = sh;
-            return Hit::Volume { c, p: q };
-        }
-        end
     }
 
     /// Debug builds: the first flight's return geometry and transmittance (distance `l0 + u`
@@ -2446,6 +2142,429 @@ impl Ctx<'_> {
                 out.summary[cbase + b] += x;
             }
         }
+    }
+}
+
+/// The random stream and outputs a flight's walk and its scoring share ([`Ctx::walk_flight`]).
+struct FlightIo<'x> {
+    rng: &'x mut Xoshiro256PlusPlus,
+    out: &'x mut BatchOut,
+    /// Peel-off intensity scratch (one band).
+    scratch: &'x mut [f64],
+    /// Return transmittance scratch (one band).
+    tr: &'x mut [f64],
+}
+
+impl FlightIo<'_> {
+    /// [`Ctx::peel_receiver`] of the point `at` = (point, shift, path) with these scratches.
+    #[allow(clippy::too_many_arguments)]
+    #[inline]
+    fn peel(
+        &mut self,
+        ctx: &Ctx,
+        rx: &Receiver,
+        ph: &Photon,
+        at: (DVec3, DVec3, f64),
+        skip: Option<u32>,
+        known: Option<&[f64]>,
+        f: impl FnMut(usize, DVec3, &mut [f64]) -> bool,
+    ) {
+        ctx.peel_receiver(rx, ph, at, skip, known, self.out, self.scratch, self.tr, f);
+    }
+
+    /// A forced turbid point at `at` of a flight along `d`, scored with `fac` times the leaf
+    /// intensity of `material` toward the receiver ([`turbid_peel_phase`]: the spherical closed
+    /// form, else the one-leaf estimate with a normal drawn here), `g_in` = G(d).
+    #[allow(clippy::too_many_arguments)]
+    #[inline]
+    fn peel_leaf(
+        &mut self,
+        ctx: &Ctx,
+        rx: &Receiver,
+        ph: &Photon,
+        at: (DVec3, DVec3, f64),
+        material: &PhotonOptics,
+        d: DVec3,
+        g_in: f64,
+        fac: f64,
+    ) {
+        let PhotonOptics::Turbid {
+            sampler,
+            kernel,
+            rho,
+            tau,
+            ..
+        } = material
+        else {
+            return;
+        };
+        let closed = kernel.is_closed_form();
+        let n = if closed {
+            DVec3::Z
+        } else {
+            sampler.sample_normal(d, self.rng)
+        };
+        self.peel(ctx, rx, ph, at, None, None, |_, ov, s| {
+            if !turbid_peel_phase(kernel, closed, n, d, ov, g_in, rho, tau, s) {
+                return false;
+            }
+            s[0] *= fac;
+            true
+        });
+    }
+
+    /// The Lambertian flat ground's return at `at` (reflectance factor `fac` = weight × ρ_g/π,
+    /// times μ toward the receiver), with the return transmittance `known` when given.
+    #[inline]
+    fn peel_ground(
+        &mut self,
+        ctx: &Ctx,
+        rx: &Receiver,
+        ph: &Photon,
+        at: (DVec3, DVec3, f64),
+        known: Option<&[f64]>,
+        fac: f64,
+    ) {
+        self.peel(ctx, rx, ph, at, None, known, |_, ov, s| {
+            s[0] = fac * ov.z;
+            s[0] > 0.0
+        });
+    }
+}
+
+/// One vegetation segment of a flight's walk ([`Ctx::walk_flight`]): the part
+/// `[t0, t0 + ell]` (m along the current DDA ray, ell > 0) of the flight inside cell `c`, with
+/// vegetation extinction `kv` > 0 (m⁻¹).
+struct Segment<'d> {
+    c: usize,
+    dda: &'d Dda,
+    t0: f64,
+    ell: f64,
+    kv: f64,
+    /// Optical depth walked before the segment.
+    tau: f64,
+    /// Path length from the emitter at `t0`, m.
+    l0: f64,
+    /// Unwrapped minus wrapped position, m.
+    shift: DVec3,
+}
+
+/// What a LiDAR flight scores toward the receiver along its walk ([`Ctx::walk_flight`]):
+/// [`FirstOrderScore`] (the first flight) and [`ScatterScore`] (later flights).
+trait FlightScore {
+    /// The vegetation extinction k_v (m⁻¹) of the non-empty cell `c` over `[t0, t1]` along the
+    /// walk's ray (`facets`: the cell holds facets), from which the walk samples the collision.
+    fn cell(&mut self, ctx: &Ctx, c: usize, dda: &Dda, t0t1: (f64, f64), facets: bool) -> f64;
+    /// Scores the return of a vegetation segment (after the collision sampling in it).
+    fn segment(&mut self, ctx: &Ctx, ph: &Photon, io: &mut FlightIo, seg: &Segment);
+    /// Scores the return of facet `f`, which ends the walk at `at` = (point, shift, path) after
+    /// the optical depth `tau`; whether it did (its collision is then not peeled off). Default:
+    /// not scored.
+    fn facet(
+        &mut self,
+        _ctx: &Ctx,
+        _ph: &Photon,
+        _io: &mut FlightIo,
+        _f: u32,
+        _at: (DVec3, DVec3, f64),
+        _tau: f64,
+    ) -> bool {
+        false
+    }
+    /// Scores the return of the flat ground (or bottom) that ends the walk at `at` after the
+    /// optical depth `tau`; whether it did.
+    fn ground(
+        &mut self,
+        ctx: &Ctx,
+        ph: &Photon,
+        io: &mut FlightIo,
+        at: (DVec3, DVec3, f64),
+        tau: f64,
+    ) -> bool;
+    /// Whether the walk stops after a cell at optical depth `tau` (`collided`: the collision
+    /// is already sampled).
+    fn stop(&self, tau: f64, collided: bool) -> bool;
+    /// The return optical depth of the surface that ends a flight with no collision before it
+    /// (for the surface's collision peel-off), when known (default: not).
+    fn surface_ret(&self) -> Option<f64> {
+        None
+    }
+}
+
+/// The first flight's scoring ([`Ctx::first_flight`]): the first-order return of the
+/// vegetation binned by digitiser bin, and with [`LidarEstimator::ExpectedValue`] the
+/// Lambertian ground or facet that ends the walk, with the return transmittance from the
+/// optical depth walked.
+struct FirstOrderScore<'g> {
+    rx: Receiver,
+    /// Flight direction.
+    d: DVec3,
+    /// Cosine of the flight to the receiver axis.
+    cos_rx: f64,
+    in_fov: bool,
+    /// Exact-backscatter intensity per unit intercepted weight per turbid material, sr⁻¹.
+    back: PerMaterial<f64>,
+    /// Photon weight, J.
+    w: f64,
+    g_cur: &'g [f64],
+    /// Return optical depth walked (materials without a leaf size).
+    tau_ret: f64,
+    /// No one-sided facet crossed from behind yet: the return is the flight reversed.
+    exact: bool,
+    /// Current cell: return extinction k_r (m⁻¹) and Σ k_m f_m (m⁻¹ sr⁻¹).
+    kr: f64,
+    kf: f64,
+}
+
+impl FlightScore for FirstOrderScore<'_> {
+    #[inline]
+    fn cell(&mut self, ctx: &Ctx, c: usize, dda: &Dda, (t0, t1): (f64, f64), facets: bool) -> f64 {
+        if self.exact && facets && ctx.facet_behind(c, dda.point(0.0), self.d, t0, t1) {
+            self.exact = false;
+        }
+        // Extinction (m⁻¹): vegetation k_v, return k_r (materials without a leaf size), and
+        // Σ k_m f_m (m⁻¹ sr⁻¹), in one pass over the cell's entries.
+        let (mut kv, mut kr, mut kf) = (0.0, 0.0, 0.0);
+        for e in ctx.inp.grid.turbid_of(c) {
+            let tm = ctx.tur_mat[e.material as usize];
+            if tm != u32::MAX {
+                let k = self.g_cur[tm as usize] * e.density as f64;
+                kv += k;
+                kf += k * self.back[tm as usize];
+                // hs_leaf ≥ 0 (validated): no leaf size means 0.
+                if ctx.hs_leaf[tm as usize] <= 0.0 {
+                    kr += k;
+                }
+            }
+        }
+        self.kr = kr;
+        self.kf = kf;
+        kv
+    }
+
+    #[inline]
+    fn segment(&mut self, ctx: &Ctx, ph: &Photon, io: &mut FlightIo, seg: &Segment) {
+        let &Segment {
+            c,
+            dda,
+            t0,
+            ell,
+            kv,
+            tau,
+            l0,
+            shift,
+        } = seg;
+        let (rx, d, g_cur) = (self.rx, self.d, self.g_cur);
+        if self.in_fov {
+            if self.exact {
+                let base = self.w
+                    * (-tau).exp()
+                    * return_transmittance(self.tau_ret)
+                    * self.kf
+                    * rx.aperture_m2
+                    * self.cos_rx;
+                if base > 0.0 {
+                    #[cfg(debug_assertions)]
+                    ctx.check_first_flight_return(
+                        ph,
+                        (dda.point(t0), shift, l0),
+                        d,
+                        (self.tau_ret, self.kr, 0.5 * ell),
+                    );
+                    if let Some(wave) = io.out.wave.as_mut() {
+                        bin_first_order(wave, l0, ell, kv + self.kr, base, io.rng);
+                    }
+                }
+            } else {
+                // One forced point with a shadow ray (see `Ctx::first_flight`).
+                let norm = -(-kv * ell).exp_m1();
+                let u = -(1.0 - io.rng.next_f64() * norm).ln() / kv;
+                if let Some((mid, tm)) = ctx.pick_turbid(c, g_cur, io.rng.next_f64() * kv) {
+                    let at = (dda.point(t0 + u), shift, l0 + u);
+                    let fac = (-tau).exp() * norm;
+                    let g_in = g_cur[tm].max(1e-12);
+                    io.peel_leaf(ctx, &rx, ph, at, &ctx.inp.optics[mid], d, g_in, fac);
+                }
+            }
+        }
+        if self.exact {
+            self.tau_ret += self.kr * ell;
+        }
+    }
+
+    #[inline]
+    fn facet(
+        &mut self,
+        ctx: &Ctx,
+        ph: &Photon,
+        io: &mut FlightIo,
+        f: u32,
+        at: (DVec3, DVec3, f64),
+        tau: f64,
+    ) -> bool {
+        // `ExpectedValue`: a Lambertian facet's first-order return, scored with the
+        // probability e^{−τ} of reaching it (as the ground below).
+        if !(ctx.ms_stop > 0.0 && self.exact) {
+            return false;
+        }
+        let fa = &ctx.inp.facets[f as usize];
+        let PhotonOptics::Lambert { r, t, t_dir } = &ctx.inp.optics[fa.material as usize] else {
+            return false;
+        };
+        // The facet collision's peel-off (`trace_photon`), band 0.
+        let d = self.d;
+        let n = (fa.v[1] - fa.v[0]).cross(fa.v[2] - fa.v[0]).normalize();
+        let n_in = if n.dot(d) < 0.0 { n } else { -n };
+        let mu = n.dot(d).abs().max(1e-6);
+        let td = t_dir.first().copied().unwrap_or(0.0);
+        let through = if td > 0.0 { td.powf(1.0 / mu) } else { 0.0 };
+        let pr = (1.0 - through) * r.first().copied().unwrap_or(0.0);
+        let pt = (1.0 - through) * t.first().copied().unwrap_or(0.0);
+        let fac = (-tau).exp() / PI;
+        let t_ret = [return_transmittance(self.tau_ret)];
+        io.peel(ctx, &self.rx, ph, at, Some(f), Some(&t_ret), |_, ov, s| {
+            let c = n_in.dot(ov);
+            s[0] = fac * if c > 0.0 { pr } else { pt } * c.abs();
+            s[0] > 0.0
+        });
+        true
+    }
+
+    #[inline]
+    fn ground(
+        &mut self,
+        ctx: &Ctx,
+        ph: &Photon,
+        io: &mut FlightIo,
+        at: (DVec3, DVec3, f64),
+        tau: f64,
+    ) -> bool {
+        // `ExpectedValue`: the walk reached a Lambertian ground, whose first-order return is
+        // scored with the probability e^{−τ} of getting there (w e^{−τ} ρ_g μ/π T_ret A
+        // cos/r², the return transmittance from the walk) instead of at the ground collision
+        // only.
+        if !(ctx.ms_stop > 0.0 && self.exact) {
+            return false;
+        }
+        let Some(rg) = ctx.lambert_ground() else {
+            return false;
+        };
+        let fac = (-tau).exp() * rg / PI;
+        let t_ret = [return_transmittance(self.tau_ret)];
+        io.peel_ground(ctx, &self.rx, ph, at, Some(&t_ret), fac);
+        true
+    }
+
+    #[inline]
+    fn stop(&self, tau: f64, _collided: bool) -> bool {
+        // e^{−30} ≈ 1e-13: the forced estimate stops (as `forced_peel`).
+        tau > 30.0
+    }
+
+    #[inline]
+    fn surface_ret(&self) -> Option<f64> {
+        self.exact.then_some(self.tau_ret)
+    }
+}
+
+/// The scoring of a flight past the first scattering ([`Ctx::scatter_flight`]): one forced
+/// point per vegetation segment up to the stop depth `c τ*`, and the Lambertian flat ground,
+/// weighted by `e^{−(1−1/c)τ}`.
+struct ScatterScore<'g> {
+    rx: Receiver,
+    /// Flight direction.
+    d: DVec3,
+    g_cur: &'g [f64],
+    /// Discrete (Ray-Carlo) sampler: the Phase-stage rows give the leaf intensity.
+    discrete: bool,
+    /// Reflectance of the flat ground when Lambertian.
+    lambert_ground: Option<f64>,
+    /// Stop depth `c τ*`.
+    tau_stop: f64,
+    /// `1 − 1/c`.
+    keep: f64,
+}
+
+impl FlightScore for ScatterScore<'_> {
+    #[inline]
+    fn cell(&mut self, ctx: &Ctx, c: usize, _dda: &Dda, _t0t1: (f64, f64), _facets: bool) -> f64 {
+        ctx.k_veg(c, self.g_cur)
+    }
+
+    #[inline]
+    fn segment(&mut self, ctx: &Ctx, ph: &Photon, io: &mut FlightIo, seg: &Segment) {
+        let &Segment {
+            c,
+            dda,
+            t0,
+            ell,
+            kv,
+            tau,
+            l0,
+            shift,
+        } = seg;
+        let (rx, d, g_cur, keep) = (self.rx, self.d, self.g_cur, self.keep);
+        // Forced return over [t0, t0 + ℓ_f], ℓ_f up to the stop depth.
+        let ell_f = if tau + ell * kv > self.tau_stop {
+            ((self.tau_stop - tau) / kv).clamp(0.0, ell)
+        } else {
+            ell
+        };
+        if ell_f <= 0.0 {
+            return;
+        }
+        let beta = keep * kv;
+        let v = io.rng.next_f64();
+        let (u, mass) = if beta * ell_f > 1e-12 {
+            let em = (-beta * ell_f).exp_m1();
+            (-(v * em).ln_1p() / beta, -em / beta)
+        } else {
+            (v * ell_f, ell_f)
+        };
+        let fac = (-keep * tau).exp() * mass * kv;
+        let Some((mid, tm)) = ctx.pick_turbid(c, g_cur, io.rng.next_f64() * kv) else {
+            return;
+        };
+        let material = &ctx.inp.optics[mid];
+        let at = (dda.point(t0 + u.min(ell_f)), shift, l0 + u.min(ell_f));
+        match material {
+            PhotonOptics::Turbid {
+                discrete: Some(rows),
+                ..
+            } if self.discrete => {
+                let row = ph.di.min(rows.samplers.len() - 1);
+                io.peel(ctx, &rx, ph, at, None, None, |_, ov, s| {
+                    let m = ctx.inp.dirs.find_sector(ov);
+                    let dom = ctx.inp.dirs.tiling()[m].solid_angle_sr;
+                    s[0] = fac * rows.tables[0].get(row, m) as f64 / dom;
+                    s[0] > 0.0
+                });
+            }
+            _ => io.peel_leaf(ctx, &rx, ph, at, material, d, g_cur[tm].max(1e-12), fac),
+        }
+    }
+
+    #[inline]
+    fn ground(
+        &mut self,
+        ctx: &Ctx,
+        ph: &Photon,
+        io: &mut FlightIo,
+        at: (DVec3, DVec3, f64),
+        tau: f64,
+    ) -> bool {
+        let Some(rg) = self.lambert_ground else {
+            return false;
+        };
+        // The walk reached the ground: Q = e^{−τ_g/c}.
+        let fac = (-self.keep * tau).exp() * rg / PI;
+        io.peel_ground(ctx, &self.rx, ph, at, None, fac);
+        true
+    }
+
+    #[inline]
+    fn stop(&self, tau: f64, collided: bool) -> bool {
+        collided && (tau >= self.tau_stop || self.keep * tau > 30.0)
     }
 }
 
