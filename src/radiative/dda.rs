@@ -419,50 +419,75 @@ impl Dda4 {
     }
 
     /// [`Dda::new`] written straight into lane `l` (the same operations, so the same state as
-    /// `set_lane(l, &Dda::new(spec, p, d)?)`); false, with the lane left to be refilled or
-    /// parked, if `p` is outside the grid box.
-    #[inline]
-    pub fn start(&mut self, l: usize, spec: &GridSpec, p: DVec3, d: DVec3) -> bool {
+    /// `set_lane(l, &Dda::new(spec, p, d)?)`), the three axes side by side in one vector
+    /// (`⌊rel⌋` by `vroundpd`, equal to [`floor_i64`] on the grid's range); false, with the
+    /// lane left to be refilled or parked, if `p` is outside the grid box.
+    #[cfg(target_arch = "x86_64")]
+    #[inline(always)]
+    pub fn start(&mut self, simd: V3, l: usize, spec: &GridSpec, p: DVec3, d: DVec3) -> bool {
+        let sp = |v: f64| simd.splat_f64x4(v);
+        let zero = sp(0.0);
+        // Axes x, y, z in lanes 0..2 (lane 3 is padding, never read).
+        let v3 = |v: DVec3, pad: f64| -> f64x4 { cast([v.x, v.y, v.z, pad]) };
         let n = [spec.n[0] as i64, spec.n[1] as i64, spec.n[2] as i64];
-        let mut cell = [0i64; 3];
+        let n_f: f64x4 = cast([n[0] as f64, n[1] as f64, n[2] as f64, 1.0]);
+        let size = v3(spec.cell, 1.0);
+        let lo = v3(spec.origin, 0.0);
+        let pv = v3(p, 0.0);
+        let dv = v3(d, 1.0);
+        let rel = simd.div_f64x4(simd.sub_f64x4(pv, lo), size);
+        // `rel >= −1e-9 && rel <= n + 1e-9` on every axis (false for NaN).
+        let ok = simd.and_m64x4(
+            simd.cmp_ge_f64x4(rel, sp(-1e-9)),
+            simd.cmp_le_f64x4(rel, simd.add_f64x4(n_f, sp(1e-9))),
+        );
+        if simd.avx._mm256_movemask_pd(cast(ok)) & 7 != 7 {
+            return false;
+        }
+        let fl: f64x4 = cast(simd.avx._mm256_floor_pd(cast(rel)));
+        // On a boundary: take the cell the ray enters.
+        let enter_below = simd.and_m64x4(simd.cmp_eq_f64x4(rel, fl), simd.cmp_lt_f64x4(dv, zero));
+        let idx = simd.select_f64x4(enter_below, simd.sub_f64x4(fl, sp(1.0)), fl);
+        // clamp(0, n − 1)
+        let idx = simd.min_f64x4(simd.max_f64x4(idx, zero), simd.sub_f64x4(n_f, sp(1.0)));
+        let inv = simd.div_f64x4(sp(1.0), dv);
+        let up = simd.cmp_gt_f64x4(dv, zero);
+        let down = simd.cmp_lt_f64x4(dv, zero);
+        let upf = simd.select_f64x4(up, sp(1.0), zero);
+        let t_max = simd.select_f64x4(
+            simd.or_m64x4(up, down),
+            simd.mul_f64x4(
+                simd.sub_f64x4(
+                    simd.add_f64x4(lo, simd.mul_f64x4(simd.add_f64x4(idx, upf), size)),
+                    pv,
+                ),
+                inv,
+            ),
+            sp(f64::INFINITY),
+        );
+        // `t_max.max(0.0)` (t_max is never NaN).
+        let t_max = simd.max_f64x4(t_max, zero);
+        let step = simd.sub_f64x4(upf, simd.select_f64x4(down, sp(1.0), zero));
+        let b_base = simd.add_f64x4(lo, simd.mul_f64x4(upf, size));
+        let (idx, step, t_max, inv, b_base): ([f64; 4], [f64; 4], [f64; 4], [f64; 4], [f64; 4]) =
+            (cast(idx), cast(step), cast(t_max), cast(inv), cast(b_base));
+        self.stride = [1, n[0], n[0] * n[1]];
         for a in 0..3 {
-            let (size, lo) = (spec.cell[a], spec.origin[a]);
-            let rel = (p[a] - lo) / size;
-            if !(rel >= -1e-9 && rel <= n[a] as f64 + 1e-9) {
-                return false;
-            }
-            let mut idx = floor_i64(rel);
-            // On a boundary: take the cell the ray enters.
-            if rel == idx as f64 && d[a] < 0.0 {
-                idx -= 1;
-            }
-            idx = idx.clamp(0, n[a] - 1);
-            cell[a] = idx;
-            let inv = 1.0 / d[a];
-            let (up, down) = (d[a] > 0.0, d[a] < 0.0);
-            let t_max = if up || down {
-                ((lo + (idx + up as i64) as f64 * size) - p[a]) * inv
-            } else {
-                f64::INFINITY
-            };
-            let step = up as i64 - down as i64;
-            self.cell[a][l] = idx as f64;
-            self.step[a][l] = step as f64;
-            self.t_max[a][l] = t_max.max(0.0);
+            self.cell[a][l] = idx[a];
+            self.step[a][l] = step[a];
+            self.t_max[a][l] = t_max[a];
             self.origin[a][l] = p[a];
             self.dir[a][l] = d[a];
-            self.inv[a][l] = inv;
-            self.b_base[a][l] = lo + up as i64 as f64 * size;
-            self.size[a] = size;
+            self.inv[a][l] = inv[a];
+            self.b_base[a][l] = b_base[a];
+            self.dlin[a][l] = step[a] as i64 * self.stride[a];
+            self.size[a] = spec.cell[a];
             self.n[a] = n[a] as f64;
             self.n_int[a] = n[a];
         }
-        self.stride = [1, n[0], n[0] * n[1]];
-        for a in 0..3 {
-            self.dlin[a][l] = self.step[a][l] as i64 * self.stride[a];
-        }
         self.t[l] = 0.0;
-        self.lin[l] = cell[0] + n[0] * (cell[1] + n[1] * cell[2]);
+        let c = |a: usize| idx[a] as i64;
+        self.lin[l] = c(0) + n[0] * (c(1) + n[1] * c(2));
         true
     }
 
@@ -596,6 +621,67 @@ impl Dda4 {
         }
         self.t = cast(simd.select_f64x4(go, te, cast(self.t)));
         outside
+    }
+
+    /// Lanes whose cell lies below or above the grid (they left through the bottom or the
+    /// top; [`Dda::exit_kind`] reports those before a side).
+    #[cfg(target_arch = "x86_64")]
+    #[inline(always)]
+    pub fn z_outside(&self, simd: V3) -> m64x4 {
+        let c: f64x4 = cast(self.cell[2]);
+        simd.or_m64x4(
+            simd.cmp_lt_f64x4(c, simd.splat_f64x4(0.0)),
+            simd.cmp_ge_f64x4(c, simd.splat_f64x4(self.n[2])),
+        )
+    }
+
+    /// [`Dda4::wrap_sides`] on every lane of `m` at once (lanes that left the grid through a
+    /// side only, repetitive boundary without an altitude offset): per side axis that left the
+    /// grid, the cell moved by one period, the linear index, the origin shifted by one period
+    /// and the exit distance recomputed and clamped to `t` — the same operations as
+    /// [`Dda::wrap_sides`], so the same bits. Returns the number of axes wrapped per lane.
+    #[cfg(target_arch = "x86_64")]
+    #[inline(always)]
+    pub fn wrap_sides_x4(&mut self, simd: V3, m: m64x4) -> f64x4 {
+        let sp = |v: f64| simd.splat_f64x4(v);
+        let zero = sp(0.0);
+        let t: f64x4 = cast(self.t);
+        let mut count = zero;
+        for a in 0..2 {
+            let c: f64x4 = cast(self.cell[a]);
+            let n = sp(self.n[a]);
+            let below = simd.and_m64x4(m, simd.cmp_lt_f64x4(c, zero));
+            let above = simd.and_m64x4(m, simd.cmp_ge_f64x4(c, n));
+            let w = simd.or_m64x4(below, above);
+            // back = ±n cells (exact in doubles), ±n · stride in the linear index, ±n · size in
+            // metres (`back as f64 * size` in the scalar form).
+            let back = simd.select_f64x4(below, n, simd.select_f64x4(above, sp(-self.n[a]), zero));
+            let c = simd.add_f64x4(c, back);
+            self.cell[a] = cast(c);
+            let nl = self.n_int[a] * self.stride[a];
+            let dl = simd.select_i64x4(
+                below,
+                simd.splat_i64x4(nl),
+                simd.select_i64x4(above, simd.splat_i64x4(-nl), simd.splat_i64x4(0)),
+            );
+            self.lin = cast(simd.wrapping_add_i64x4(cast(self.lin), dl));
+            let period = self.n_int[a] as f64 * self.size[a];
+            let o0: f64x4 = cast(self.origin[a]);
+            let o1 = simd.add_f64x4(o0, simd.select_f64x4(below, sp(period), sp(-period)));
+            let o = simd.select_f64x4(w, o1, o0);
+            self.origin[a] = cast(o);
+            let bt = simd.mul_f64x4(
+                simd.sub_f64x4(
+                    simd.add_f64x4(cast(self.b_base[a]), simd.mul_f64x4(c, sp(self.size[a]))),
+                    o,
+                ),
+                cast(self.inv[a]),
+            );
+            // `bt.max(t)`: bt is never NaN (the axis steps, so 1/d is finite).
+            self.t_max[a] = cast(simd.select_f64x4(w, simd.max_f64x4(bt, t), cast(self.t_max[a])));
+            count = simd.add_f64x4(count, simd.select_f64x4(w, sp(1.0), zero));
+        }
+        count
     }
 }
 
@@ -739,13 +825,16 @@ mod tests {
             .normalize();
             rays.push((p, d));
         }
-        for quad in rays.chunks(4) {
+        for (qi, quad) in rays.chunks(4).enumerate() {
+            // Odd quads wrap their side exits lane-wise (`wrap_sides_x4`), even ones lane by
+            // lane (`wrap_sides`).
+            let vector_wrap = qi % 2 == 1;
             let mut lanes = Dda4::default();
             let mut one: Vec<Option<Dda>> = Vec::new();
             let mut go = [false; 4];
             for (l, &(p, d)) in quad.iter().enumerate() {
                 let a = Dda::new(&s, p, d);
-                assert_eq!(lanes.start(l, &s, p, d), a.is_some());
+                assert_eq!(lanes.start(simd, l, &s, p, d), a.is_some());
                 go[l] = a.is_some();
                 one.push(a);
             }
@@ -758,6 +847,20 @@ mod tests {
                     m64::new(go[3]),
                 );
                 let out: [u64; 4] = cast(lanes.step_at(simd, cast(te), mask));
+                let mut wrapped = [0.0; 4];
+                if vector_wrap {
+                    // The lanes that left through a side only.
+                    let z_out: [u64; 4] = cast(lanes.z_outside(simd));
+                    let side: [bool; 4] =
+                        std::array::from_fn(|l| go[l] && out[l] != 0 && z_out[l] == 0);
+                    let side_m = m64x4(
+                        m64::new(side[0]),
+                        m64::new(side[1]),
+                        m64::new(side[2]),
+                        m64::new(side[3]),
+                    );
+                    wrapped = cast(lanes.wrap_sides_x4(simd, side_m));
+                }
                 for l in 0..4 {
                     let Some(d) = one[l].as_mut().filter(|_| go[l]) else {
                         continue;
@@ -767,11 +870,21 @@ mod tests {
                     assert_eq!(inside, out[l] == 0);
                     if !inside {
                         let e = d.exit_kind();
-                        assert_eq!(lanes.exit_kind(l), e);
-                        assert_eq!(lanes.point(l), d.point(d.t));
+                        if !vector_wrap || !matches!(e, Exit::Side(..)) {
+                            assert_eq!(lanes.exit_kind(l), e);
+                            assert_eq!(lanes.point(l), d.point(d.t));
+                        }
                         if let Exit::Side(..) = e {
-                            assert_eq!(lanes.wrap_sides(l), d.wrap_sides());
+                            let n = d.wrap_sides();
+                            if vector_wrap {
+                                assert_eq!(wrapped[l], n as f64);
+                            } else {
+                                assert_eq!(lanes.exit_kind(l), e);
+                                assert_eq!(lanes.wrap_sides(l), n);
+                            }
+                            assert_eq!(lanes.point(l), d.point(d.t));
                         } else {
+                            assert_eq!(wrapped[l], 0.0);
                             go[l] = false;
                             continue;
                         }
@@ -780,6 +893,10 @@ mod tests {
                     assert_eq!(lanes.t[l].to_bits(), d.t.to_bits());
                     let back = lanes.lane(l);
                     assert_eq!((back.cell, back.t_max), (d.cell, d.t_max));
+                    assert_eq!(back.origin, d.origin);
+                    if inside {
+                        assert_eq!(wrapped[l], 0.0);
+                    }
                 }
             }
         }

@@ -3534,6 +3534,9 @@ fn emit(
                     (spec.cell.x / d, spec.cell.y / d)
                 };
                 let t_kernel = std::time::Instant::now();
+                // Rays without the hotspot go to the batched walk's queue (see
+                // `Ctx::trace_any`).
+                let queued = ctx.batch && matches!(out.tur.as_deref(), Some(TurAcc::Dense { .. }));
                 for j in 0..n_dirs {
                     let v = &outgoing[j * w..(j + 1) * w];
                     if v.iter().all(|&x| x == 0.0) {
@@ -3542,18 +3545,15 @@ fn emit(
                     if split {
                         // Two-point quadrature of the interception distribution: half the power
                         // from the barycentre of each half of the intercepted energy.
+                        let hs_j = hs && ctx.hs_dir[j];
                         for o in [origin_up, origin_dn] {
-                            send(
-                                ctx,
-                                o,
-                                j,
-                                None,
-                                v,
-                                0.5,
-                                hs && ctx.hs_dir[j],
-                                &mut pw,
-                                &mut out,
-                            );
+                            if !hs_j && queued {
+                                // What `send` does for this ray (powers v · 0.5, then
+                                // `Ctx::queue`).
+                                ctx.queue_scaled(o, j, v, 0.5, &mut out);
+                            } else {
+                                send(ctx, o, j, None, v, 0.5, hs_j, &mut pw, &mut out);
+                            }
                         }
                         continue;
                     }
@@ -3764,6 +3764,8 @@ fn emit_turbid_records(
             barycentre(&tr.pts[r * 8..r * 8 + 8])
         };
         let t_kernel = std::time::Instant::now();
+        // Rays without the hotspot go to the batched walk's queue (see `Ctx::trace_any`).
+        let queued = ctx.batch && matches!(out.tur.as_deref(), Some(TurAcc::Dense { .. }));
         for j in 0..n_dirs {
             let v = &sc.outgoing[j * w..(j + 1) * w];
             if v.iter().all(|&x| x == 0.0) {
@@ -3790,6 +3792,9 @@ fn emit_turbid_records(
             for o in [o_up, o_dn] {
                 if group && !hs_j {
                     ctx.to_exit(cell, o, j, v, 0.5, &mut sc.ex, pw, out);
+                } else if !hs_j && queued {
+                    // What `send` does for this ray (powers v · 0.5, then `Ctx::queue`).
+                    ctx.queue_scaled(o, j, v, 0.5, out);
                 } else {
                     send(ctx, o, j, None, v, 0.5, hs_j, pw, out);
                 }

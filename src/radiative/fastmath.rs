@@ -361,28 +361,44 @@ impl HalfBarycentres {
 
     /// [`HalfBarycentres::eval`] of four segments at once (AVX2), the same bits per lane: the
     /// three forms (series, cubic piece, dense limit) are computed on every lane and the result
-    /// selected (no branch on x; the bin index is masked into the table for any x).
+    /// selected (no branch on x; the bin index is masked into the table for any x). The four
+    /// bins' coefficient rows are read as two 4-wide loads each and transposed into one vector
+    /// per coefficient (16 shuffles), so the two Horner evaluations run lane-wise (the same
+    /// operations in the same order as [`HalfBarycentres::eval`]).
     #[cfg(target_arch = "x86_64")]
     #[inline(always)]
     pub fn eval_x4(&self, simd: V3, x: f64x4, ell: f64x4) -> (f64x4, f64x4) {
         let first = HB_X0.to_bits() >> (52 - HB_BITS);
-        let (xa, ella): ([f64; 4], [f64; 4]) = (cast(x), cast(ell));
-        let mut a = [0.0; 4];
-        let mut b = [0.0; 4];
+        let bits: u64x4 = cast(x);
+        let bin: [u64; 4] = cast(simd.and_u64x4(
+            simd.wrapping_sub_u64x4(
+                simd.shr_const_u64x4::<{ 52 - HB_BITS as i32 }>(bits),
+                simd.splat_u64x4(first),
+            ),
+            simd.splat_u64x4(HB_ALLOC as u64 - 1),
+        ));
+        // t = x − (x with its low 52 − HB_BITS mantissa bits cleared): the offset in the bin.
+        let start: f64x4 =
+            cast(simd.and_u64x4(bits, simd.splat_u64x4(!((1u64 << (52 - HB_BITS)) - 1))));
+        let t = simd.sub_f64x4(x, start);
+        let mut lo = [[0.0f64; 4]; 4];
+        let mut hi = [[0.0f64; 4]; 4];
         for l in 0..4 {
-            let bits = xa[l].to_bits();
-            let c = &self.bins
-                [((bits >> (52 - HB_BITS)).wrapping_sub(first)) as usize & (HB_ALLOC - 1)];
-            let t = xa[l] - f64::from_bits(bits & !((1u64 << (52 - HB_BITS)) - 1));
-            a[l] = ella[l] * (c[0] + t * (c[2] + t * (c[4] + t * c[6])));
-            b[l] = ella[l] * (c[1] + t * (c[3] + t * (c[5] + t * c[7])));
+            let r = &self.bins[bin[l] as usize];
+            lo[l] = [r[0], r[1], r[2], r[3]];
+            hi[l] = [r[4], r[5], r[6], r[7]];
         }
+        // Rows [c0₁, c0₂, c1₁, c1₂] of lanes 0..3 → [c0₁ of each lane], [c0₂ …], [c1₁ …], [c1₂ …].
+        let [c0a, c0b, c1a, c1b] = transpose4(simd, lo.map(cast));
+        let [c2a, c2b, c3a, c3b] = transpose4(simd, hi.map(cast));
+        let a = horner(simd, ell, t, [c0a, c1a, c2a, c3a]);
+        let b = horner(simd, ell, t, [c0b, c1b, c2b, c3b]);
         let sp = |v: f64| simd.splat_f64x4(v);
         let l2 = std::f64::consts::LN_2;
         let u = simd.div_f64x4(ell, x);
         let big = simd.cmp_ge_f64x4(x, sp(HB_X1));
-        let a = simd.select_f64x4(big, simd.mul_f64x4(sp(1.0 - l2), u), cast(a));
-        let b = simd.select_f64x4(big, simd.mul_f64x4(sp(1.0 + l2), u), cast(b));
+        let a = simd.select_f64x4(big, simd.mul_f64x4(sp(1.0 - l2), u), a);
+        let b = simd.select_f64x4(big, simd.mul_f64x4(sp(1.0 + l2), u), b);
         let small = simd.cmp_lt_f64x4(x, sp(HB_X0));
         let x12 = simd.div_f64x4(x, sp(12.0));
         let sa = simd.mul_f64x4(ell, simd.sub_f64x4(sp(0.25), x12));
@@ -392,6 +408,33 @@ impl HalfBarycentres {
             simd.select_f64x4(small, sb, b),
         )
     }
+}
+
+/// `ℓ (c0 + t (c1 + t (c2 + t c3)))` lane-wise (the operations of [`HalfBarycentres::eval`]).
+#[cfg(target_arch = "x86_64")]
+#[inline(always)]
+fn horner(simd: V3, ell: f64x4, t: f64x4, c: [f64x4; 4]) -> f64x4 {
+    let p = simd.add_f64x4(c[2], simd.mul_f64x4(t, c[3]));
+    let p = simd.add_f64x4(c[1], simd.mul_f64x4(t, p));
+    simd.mul_f64x4(ell, simd.add_f64x4(c[0], simd.mul_f64x4(t, p)))
+}
+
+/// The 4 × 4 transpose of four vectors (8 shuffles): element i of output j is element j of
+/// input i.
+#[cfg(target_arch = "x86_64")]
+#[inline(always)]
+pub fn transpose4(simd: V3, r: [f64x4; 4]) -> [f64x4; 4] {
+    let avx = simd.avx;
+    let a01 = avx._mm256_unpacklo_pd(cast(r[0]), cast(r[1]));
+    let a23 = avx._mm256_unpacklo_pd(cast(r[2]), cast(r[3]));
+    let b01 = avx._mm256_unpackhi_pd(cast(r[0]), cast(r[1]));
+    let b23 = avx._mm256_unpackhi_pd(cast(r[2]), cast(r[3]));
+    [
+        cast(avx._mm256_permute2f128_pd::<0x20>(a01, a23)),
+        cast(avx._mm256_permute2f128_pd::<0x20>(b01, b23)),
+        cast(avx._mm256_permute2f128_pd::<0x31>(a01, a23)),
+        cast(avx._mm256_permute2f128_pd::<0x31>(b01, b23)),
+    ]
 }
 
 /// Monomial coefficients `c0 + c1 t + c2 t² + c3 t³` of the cubic through (t_i, y_i) (Newton

@@ -5,10 +5,11 @@
 //! no unsafe code; elsewhere the queued rays are walked one by one by [`Ctx::walk_lean`]). Per crossing, the four lanes' segment lengths, attenuations
 //! (`e^{−kℓ}`, [`attenuation_x4`]), interception points ([`HalfBarycentres::eval_x4`]), power
 //! updates and DDA steps ([`Dda4::step_at`]) are computed lane-wise without a branch on the data;
-//! the cell records are read and the interceptions booked lane by lane in lane order; a lane
-//! whose ray ends (top, bottom, lost side, threshold) or meets a rare event (side wrap,
-//! empty-space skip) leaves the lane-wise path, and a finished lane is refilled with the next
-//! queued ray.
+//! the cell records are read and the interceptions booked lane by lane in lane order; the
+//! lanes that leave a repetitive scene through a side re-enter on the opposite side lane-wise
+//! ([`Dda4::wrap_sides_x4`]); a lane whose ray ends (top, bottom, lost side, threshold, wrap
+//! limit) or meets a rare event (empty-space skip) leaves the lane-wise path, and a finished
+//! lane is refilled with the next queued ray ([`Dda4::start`], the three axes in one vector).
 //!
 //! Each ray goes through the same operations as in [`Ctx::walk_lean`] (the same physics: DART 5
 //! flux tracking, Gastellu-Etchegorry et al. 2015, Remote Sens. 7, 1667–1701, §3), so its own
@@ -24,7 +25,7 @@ use super::{DenseView, add};
 #[cfg(target_arch = "x86_64")]
 use crate::radiative::dda::{Dda4, Exit};
 #[cfg(target_arch = "x86_64")]
-use crate::radiative::fastmath::{HalfBarycentres, attenuation_x4};
+use crate::radiative::fastmath::{HalfBarycentres, attenuation_x4, transpose4};
 #[cfg(target_arch = "x86_64")]
 use crate::scene::desc::BoundaryMode;
 use glam::DVec3;
@@ -71,6 +72,32 @@ impl Ctx<'_> {
             foot: out.foot,
         };
         q.pw[..self.w].copy_from_slice(&pw[..self.w]);
+        out.queue.push(q);
+        if out.queue.len() >= FLUSH_AT {
+            self.flush(out);
+        }
+    }
+
+    /// [`Ctx::queue`] of a ray of powers `v[ch] · share` (W, the products `send` forms).
+    #[inline]
+    pub(super) fn queue_scaled(
+        &self,
+        p: DVec3,
+        dir: usize,
+        v: &[f64],
+        share: f64,
+        out: &mut ChunkOut,
+    ) {
+        let mut q = Queued {
+            p,
+            dir: dir as u32,
+            pw: [0.0; 4],
+            ray_scale: out.ray_scale,
+            foot: out.foot,
+        };
+        for (a, b) in q.pw.iter_mut().zip(&v[..self.w]) {
+            *a = b * share;
+        }
         out.queue.push(q);
         if out.queue.len() >= FLUSH_AT {
             self.flush(out);
@@ -176,14 +203,14 @@ impl Ctx<'_> {
             slot: [0; 4],
             dirs: [0; 4],
             foot: [(0.0, 0.0); 4],
-            wraps: [0; 4],
+            wraps: [0.0; 4],
             next: 0,
         };
         let mut n_cross = 0u64;
         let mut n_skip = 0u64;
         let foot_saved = out.foot;
         for l in 0..4 {
-            ln.refill(self, l, queue, out);
+            ln.refill(simd, self, l, queue, out);
         }
         let sp = |v: f64| simd.splat_f64x4(v);
         let zero = sp(0.0);
@@ -209,34 +236,36 @@ impl Ctx<'_> {
             // Cell records, lane by lane; the lanes in empty cells at distance r > 1 jump over
             // the empty box around them (an event).
             let mut dens = [0.0; 4];
-            let mut k = [0.0; 4];
-            let mut skip = 0u32;
             let mut idx = [0u32; 4];
-            let mut tms = [0u32; 4];
+            let mut tms = [0u64; 4];
             for l in 0..4 {
                 let sc = scells[ln.dda.lin[l] as usize];
                 dens[l] = sc.density;
                 idx[l] = sc.idx;
-                tms[l] = sc.tm;
-                let occ = sc.density > 0.0;
-                skip |= ((!occ & (sc.tm > 1)) as u32) << l;
-                let g = if ONE_TM {
-                    ln.g[l]
-                } else {
-                    // An empty cell's tm is its skip distance, not a material: no G read.
-                    let tm = if occ { sc.tm as usize } else { 0 };
-                    g_dir.get(ln.g_row[l] + tm).copied().unwrap_or(0.0)
-                };
-                k[l] = g * sc.density;
+                tms[l] = sc.tm as u64;
             }
-            skip &= ln.act;
+            let dens: f64x4 = cast(dens);
+            let occ = simd.cmp_gt_f64x4(dens, zero);
+            // Empty cells at distance r = tm > 1 (an empty cell's tm is its skip distance).
+            let far = simd.cmp_gt_u64x4(cast(tms), simd.splat_u64x4(1));
+            let skip = bits(simd.andnot_m64x4(occ, far)) & ln.act;
+            let g: f64x4 = if ONE_TM {
+                cast(ln.g)
+            } else {
+                let occ: [u64; 4] = cast(occ);
+                cast::<[f64; 4], f64x4>(std::array::from_fn(|l| {
+                    // An empty cell's tm is its skip distance, not a material: no G read.
+                    let tm = if occ[l] != 0 { tms[l] as usize } else { 0 };
+                    g_dir.get(ln.g_row[l] + tm).copied().unwrap_or(0.0)
+                }))
+            };
+            let k = simd.mul_f64x4(g, dens);
             let act = mask(ln.act);
-            let k: f64x4 = cast(k);
             let t0: f64x4 = cast(ln.dda.t);
             let t1 = ln.dda.t_exit(simd);
             let ell = simd.sub_f64x4(t1, t0);
             let hit_m = simd.and_m64x4(
-                simd.and_m64x4(act, simd.cmp_gt_f64x4(cast(dens), zero)),
+                simd.and_m64x4(act, occ),
                 simd.and_m64x4(simd.cmp_gt_f64x4(t1, t0), simd.cmp_gt_f64x4(k, zero)),
             );
             let hit = bits(hit_m);
@@ -258,6 +287,17 @@ impl Ctx<'_> {
                 gain[c] = cast(simd.mul_f64x4(pwc, frac));
                 ln.pw[c] = cast(simd.select_f64x4(hit_m, simd.mul_f64x4(pwc, tr), pwc));
             }
+            // The weighted interception points lane-wise (`p · wt`, the scalar walk's products),
+            // then one row per lane: [p1x, p1y, p1z, p2x] · wt and [p2y · wt, p2z · wt, wt, 0].
+            let wtv: f64x4 = cast(wt);
+            let pw_pt = |v: [f64; 4]| simd.mul_f64x4(cast(v), wtv);
+            let rows_a: [[f64; 4]; 4] = transpose4(
+                simd,
+                [pw_pt(p1[0]), pw_pt(p1[1]), pw_pt(p1[2]), pw_pt(p2[0])],
+            )
+            .map(cast);
+            let rows_b: [[f64; 4]; 4] =
+                transpose4(simd, [pw_pt(p2[1]), pw_pt(p2[2]), wtv, zero]).map(cast);
             // Interceptions booked lane by lane (a fixed order).
             for l in 0..4 {
                 if hit & (1 << l) == 0 {
@@ -274,13 +314,12 @@ impl Ctx<'_> {
                     r[c] += gain[c][l];
                 }
                 let q: &mut [f64; 7] = (&mut pts[e * 7..e * 7 + 7]).try_into().expect("7");
-                q[0] += p1[0][l] * wt[l];
-                q[1] += p1[1][l] * wt[l];
-                q[2] += p1[2][l] * wt[l];
-                q[3] += p2[0][l] * wt[l];
-                q[4] += p2[1][l] * wt[l];
-                q[5] += p2[2][l] * wt[l];
-                q[6] += wt[l];
+                for i in 0..4 {
+                    q[i] += rows_a[l][i];
+                }
+                for i in 0..3 {
+                    q[4 + i] += rows_b[l][i];
+                }
             }
             // The channel sum in channel order (as `pw.iter().sum()`).
             let mut psum: f64x4 = cast(ln.pw[0]);
@@ -292,7 +331,22 @@ impl Ctx<'_> {
             let go = ln.act & !skip & !dead;
             let out_m = ln.dda.step_at(simd, t1, mask(go));
             n_cross += ln.act.count_ones() as u64;
-            let ev = skip | dead | (go & bits(out_m));
+            let mut out_b = go & bits(out_m);
+            // Lanes past the wrap limit (lost).
+            let mut over = 0u32;
+            if out_b != 0 && !isolated {
+                // Lanes that left through a side only (top and bottom win at a tie, as in
+                // `Dda::exit_kind`): wrapped to the opposite side lane-wise.
+                let side = out_b & !bits(ln.dda.z_outside(simd));
+                if side != 0 {
+                    let wraps =
+                        simd.add_f64x4(cast(ln.wraps), ln.dda.wrap_sides_x4(simd, mask(side)));
+                    ln.wraps = cast(wraps);
+                    over = side & bits(simd.cmp_gt_f64x4(wraps, sp(max_crossings as f64)));
+                    out_b &= !side;
+                }
+            }
+            let ev = skip | dead | over | out_b;
             if ev == 0 {
                 continue;
             }
@@ -301,7 +355,7 @@ impl Ctx<'_> {
                     continue;
                 }
                 let lane_pw: [f64; W] = std::array::from_fn(|c| ln.pw[c][l]);
-                let finished = if dead & (1 << l) != 0 {
+                let finished = if (dead | over) & (1 << l) != 0 {
                     add(&mut out.lost, &lane_pw);
                     true
                 } else if skip & (1 << l) != 0 && {
@@ -332,8 +386,8 @@ impl Ctx<'_> {
                                 add(&mut out.lost, &lane_pw);
                                 true
                             } else {
-                                ln.wraps[l] += ln.dda.wrap_sides(l);
-                                if ln.wraps[l] > max_crossings {
+                                ln.wraps[l] += ln.dda.wrap_sides(l) as f64;
+                                if ln.wraps[l] > max_crossings as f64 {
                                     add(&mut out.lost, &lane_pw);
                                     true
                                 } else {
@@ -344,7 +398,7 @@ impl Ctx<'_> {
                     }
                 };
                 if finished {
-                    ln.refill(self, l, queue, out);
+                    ln.refill(simd, self, l, queue, out);
                 }
             }
         }
@@ -356,7 +410,7 @@ impl Ctx<'_> {
 
 /// Per-lane state of the batched walk: traversal, active lanes (bit l), channel powers
 /// `pw[c][l]` and their sum, power threshold, start of the G row (and the single material's
-/// G), slot, direction, footprint, wraps; `next`: the next queued ray.
+/// G), slot, direction, footprint, side wraps (integer-valued); `next`: the next queued ray.
 #[cfg(target_arch = "x86_64")]
 struct Lanes<const W: usize> {
     dda: Dda4,
@@ -369,7 +423,7 @@ struct Lanes<const W: usize> {
     slot: [usize; 4],
     dirs: [usize; 4],
     foot: [(f64, f64); 4],
-    wraps: [u32; 4],
+    wraps: [f64; 4],
     next: usize,
 }
 
@@ -377,7 +431,8 @@ struct Lanes<const W: usize> {
 impl<const W: usize> Lanes<W> {
     /// Takes the next queued ray that starts inside the grid into lane l (rays that do not are
     /// booked as lost, as in the scalar walk); parks the lane when the queue is done.
-    fn refill(&mut self, ctx: &Ctx, l: usize, queue: &[Queued], out: &mut ChunkOut) {
+    #[inline(always)]
+    fn refill(&mut self, simd: V3, ctx: &Ctx, l: usize, queue: &[Queued], out: &mut ChunkOut) {
         loop {
             let Some(q) = queue.get(self.next) else {
                 self.act &= !(1 << l);
@@ -387,7 +442,7 @@ impl<const W: usize> Lanes<W> {
             self.next += 1;
             out.rays += 1;
             let dir = q.dir as usize;
-            if !self.dda.start(l, ctx.inp.spec, q.p, ctx.omega[dir]) {
+            if !self.dda.start(simd, l, ctx.inp.spec, q.p, ctx.omega[dir]) {
                 add(&mut out.lost, &q.pw[..W]);
                 continue;
             }
@@ -404,7 +459,7 @@ impl<const W: usize> Lanes<W> {
             self.slot[l] = ctx.slot_of(dir);
             self.dirs[l] = dir;
             self.foot[l] = q.foot;
-            self.wraps[l] = 0;
+            self.wraps[l] = 0.0;
             return;
         }
     }
