@@ -22,7 +22,7 @@
 //! (reference photons per pulse, default 1e5), `--ref-cache FILE` (reuse the reference).
 //!
 //! 1. ALS on the 40 m forest (24 trees, 1 m cells): pulses per second per core at the default
-//!    photons per pulse (340, `ExpectedValue` estimator; row `legacy-peak`: 1000 photons of the
+//!    photons per pulse (`DEFAULT_LIDAR_PHOTONS`, `ExpectedValue` estimator; row `legacy-peak`: 1000 photons of the
 //!    `Legacy` estimator, an earlier default at the same waveform error), multiple scattering
 //!    (orders ≤ 100), nadir, 0.3 m footprints, for the continuous and discrete (Ray-Carlo)
 //!    samplers and both returns methods, with the mean waveform energy and return count per

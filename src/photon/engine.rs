@@ -762,6 +762,9 @@ struct Photon {
     /// ([`Ctx::first_flight`] and [`Ctx::scatter_flight`] of [`LidarEstimator::ExpectedValue`]),
     /// so the surface collision of this flight is not peeled off.
     surface_scored: bool,
+    /// Receiver mode: the uniform of the first flight's free path (`τ* = −ln(1 − u)`), from
+    /// the pulse's beam-ray lattice ([`Ctx::first_flight`]); `None`: drawn from the stream.
+    first_u: Option<f64>,
 }
 
 impl<'a> Ctx<'a> {
@@ -1397,7 +1400,7 @@ impl Ctx<'_> {
         let Some(rx) = self.receiver else {
             return (self.fly(ph, g_cur, rng, out), None);
         };
-        let tau_star = -(1.0 - rng.next_f64()).ln();
+        let tau_star = -(1.0 - ph.first_u.unwrap_or_else(|| rng.next_f64())).ln();
         let d = ph.d;
         let cos_rx = d.dot(rx.axis);
         // Exact-backscatter intensity per unit intercepted weight, per turbid material.
@@ -2900,6 +2903,7 @@ fn run_batch(ctx: &Ctx, batch: u64, n: u64, source: &[f64]) -> BatchOut {
         direct: false,
         ret: None,
         surface_scored: false,
+        first_u: None,
     };
     let n_dirs = ctx.omega.len();
     let discrete = inp.params.sampler.is_discrete();
@@ -3678,21 +3682,28 @@ fn run_pulse(base: &Ctx, beam: &Beam, pl: &Pulse) -> PulseResult {
     // Stratified: beam rays on the R2 lattice (Roberts 2018: additive recurrence with the
     // plastic number φ₂, low discrepancy for every count) shifted by one uniform per axis
     // (Cranley & Patterson 1976), so each ray is uniform on the unit square (unbiased) while
-    // the set covers the footprint evenly.
+    // the set covers the footprint evenly. The uniform of each ray's first free path
+    // (τ* = −ln(1 − u₃), [`Ctx::first_flight`]) follows its own shifted golden-ratio sequence
+    // (Weyl), so the first collision depths of a pulse's rays cover [0, ∞) evenly too: each u₃
+    // is uniform (unbiased). On the forest error study it takes the multiple-scattering part of
+    // the error from 213 % to 152 % of itself at 90 rays (the R3 lattice over all three
+    // coordinates instead: 170 %, and the footprint coverage, hence the first order, worsens).
     const PHI2: f64 = 1.324_717_957_244_746;
+    const INV_GOLDEN: f64 = 0.618_033_988_749_894_9;
     let lattice = ctx.stratified.then(|| {
         (
-            [1.0 / PHI2, 1.0 / (PHI2 * PHI2)],
-            [rng.next_f64(), rng.next_f64()],
+            [1.0 / PHI2, 1.0 / (PHI2 * PHI2), INV_GOLDEN],
+            [rng.next_f64(), rng.next_f64(), rng.next_f64()],
         )
     });
     for i in 0..beam.photons {
-        let (u1, u2) = match lattice {
+        let (u1, u2, u3) = match lattice {
             Some((a, s)) => (
                 (s[0] + i as f64 * a[0]).fract(),
                 (s[1] + i as f64 * a[1]).fract(),
+                Some((s[2] + i as f64 * a[2]).fract()),
             ),
-            None => (rng.next_f64(), rng.next_f64()),
+            None => (rng.next_f64(), rng.next_f64(), None),
         };
         let [dx, dy] = beam.footprint.sample_footprint_point(u1, u2);
         let d = (pl.axis * beam.reference_range_m + e1 * dx + e2 * dy).normalize();
@@ -3745,6 +3756,7 @@ fn run_pulse(base: &Ctx, beam: &Beam, pl: &Pulse) -> PulseResult {
             direct: true,
             ret: None,
             surface_scored: false,
+            first_u: u3,
         };
         // Discrete mode: the pulse keeps its exact direction (its first scattering uses the
         // rows of the sector that contains it); later orders follow the discrete directions.

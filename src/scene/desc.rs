@@ -874,7 +874,7 @@ fn default_bin_ns() -> f64 {
     1.0
 }
 /// Default photons (beam rays) per LiDAR pulse (see [`LidarDesc::photons_per_pulse`]).
-pub const DEFAULT_LIDAR_PHOTONS: u32 = 90;
+pub const DEFAULT_LIDAR_PHOTONS: u32 = 72;
 
 fn default_lidar_photons() -> u32 {
     DEFAULT_LIDAR_PHOTONS
@@ -923,9 +923,10 @@ pub struct LidarDesc {
     /// Digitiser bin, ns (default 1).
     #[serde(default = "default_bin_ns")]
     pub bin_ns: f64,
-    /// Photons (beam rays) per pulse (default 90: with the `ExpectedValue` estimator, the
-    /// waveform error of the former defaults, 600 photons of `Stratified` and 1000 of `Legacy`,
-    /// on the forest ALS bench, at 1/5 and 1/8 of their instructions; README, LiDAR speed).
+    /// Photons (beam rays) per pulse (default 72: with the `ExpectedValue` estimator and the
+    /// first free paths on a golden-ratio sequence, the waveform error of the former defaults,
+    /// 600 photons of `Stratified` and 1000 of `Legacy`, on the forest ALS bench, at about 1/6
+    /// and 1/10 of their instructions; README, LiDAR speed).
     /// Tuned on that forest (flat ground); scenes whose returns differ in kind (e.g. BRDF
     /// surfaces, which keep the collision estimator) may need another count for that error.
     #[serde(default = "default_lidar_photons")]
