@@ -109,8 +109,9 @@ impl Simulation {
                             .run_if(resource_exists::<crate::resources::tracking::Directions>)
                             .run_if(
                                 |s: Res<RunSettings>,
+                                 skip: Option<Res<crate::resources::scene::SkipPassive>>,
                                  l: Option<Res<crate::resources::lidar::LidarInstruments>>| {
-                                    s.solver.needs_phase_tables()
+                                    (skip.is_none() && s.solver.needs_phase_tables())
                                         || l.is_some_and(|l| {
                                             l.0.iter().any(|d| {
                                                 d.sampler
