@@ -30,7 +30,8 @@
 //! 2. A multi-pulse scan of the urban scene: 250 000 pulses (500 × 500 grid, 0.12 m spacing)
 //!    at 100 photons per pulse (`--quick`: 10 000 pulses), wall time, pulses/s/core, peak RSS.
 //!
-//! The passive solver is reduced to a 64-photon Monte Carlo run so the timings are the LiDAR's.
+//! The bench scenes are LiDAR-only, so no passive solver runs (`SceneDesc::runs_passive`); the
+//! 64-photon Monte Carlo solver setting only matters if a scene asks for the passive run.
 
 use lumenscape::lidar::returns::ReturnsMethod;
 use lumenscape::lidar::waveform::Waveform;
@@ -75,6 +76,7 @@ fn lidar(pulses: PulsePattern, photons: u32) -> LidarDesc {
         sampler: LidarSampler::Discrete,
         estimator: Default::default(),
         scattering_photons_per_pulse: None,
+        fusion: false,
     }
 }
 

@@ -109,8 +109,9 @@ impl Simulation {
                             .run_if(resource_exists::<crate::resources::tracking::Directions>)
                             .run_if(
                                 |s: Res<RunSettings>,
+                                 skip: Option<Res<crate::resources::scene::SkipPassive>>,
                                  l: Option<Res<crate::resources::lidar::LidarInstruments>>| {
-                                    s.solver.needs_phase_tables()
+                                    (skip.is_none() && s.solver.needs_phase_tables())
                                         || l.is_some_and(|l| {
                                             l.0.iter().any(|d| {
                                                 d.sampler
@@ -128,6 +129,7 @@ impl Simulation {
                             .run_if(resource_exists::<crate::resources::tracking::OpticsTables>)
                             .run_if(resource_exists::<crate::resources::grid::CellGrid>)
                             .run_if(|s: Res<RunSettings>| !s.solver.is_monte_carlo())
+                            .run_if(not(resource_exists::<crate::resources::scene::SkipPassive>))
                             .run_if(no_stage_error),
                     );
                 }
@@ -138,6 +140,9 @@ impl Simulation {
                                 .run_if(resource_exists::<crate::resources::tracking::Directions>)
                                 .run_if(resource_exists::<crate::resources::grid::CellGrid>)
                                 .run_if(|s: Res<RunSettings>| s.solver.is_monte_carlo())
+                                .run_if(not(
+                                    resource_exists::<crate::resources::scene::SkipPassive>,
+                                ))
                                 .run_if(no_stage_error),
                             crate::systems::lidar::run_lidars
                                 .run_if(
@@ -260,5 +265,11 @@ impl Simulation {
     /// A resource of the world (panics if absent: for tests and callers that ran the stage).
     pub fn resource<R: Resource>(&self) -> &R {
         self.world.resource::<R>()
+    }
+
+    /// A resource of the world, if present (e.g. `RadiativeProducts` exists only when the
+    /// passive solver ran).
+    pub fn get_resource<R: Resource>(&self) -> Option<&R> {
+        self.world.get_resource::<R>()
     }
 }

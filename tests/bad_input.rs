@@ -271,6 +271,25 @@ fn bad_lidar_fields_are_named_with_their_line() {
         "{msg}"
     );
     assert_eq!(line_of(&e), Some(8), "{msg}");
+    // `passive: false` with a fusion product: the passive radiance is needed, so refused,
+    // naming the field and its line.
+    let text = GOOD.replacen(
+        "    version: 1,",
+        &format!(
+            "    version: 1,\n    passive: Some(false),\n{}",
+            lidar.replace("\"nope\"", "\"red\"").replace(
+                "footprint_radius_m: Some(0.2),",
+                "footprint_radius_m: Some(0.2),\n        fusion: true,"
+            )
+        ),
+        1,
+    );
+    let (e, msg) = error_of("lidar_fusion.ron", &text);
+    assert!(
+        msg.contains("passive") && msg.contains("fusion") && msg.contains("`als`"),
+        "{msg}"
+    );
+    assert_eq!(line_of(&e), Some(3), "{msg}");
 }
 
 #[test]

@@ -211,6 +211,7 @@ fn monte_carlo_and_lidar_are_bit_identical_with_skipping() {
         sampler: LidarSampler::Discrete,
         estimator: Default::default(),
         scattering_photons_per_pulse: None,
+        fusion: false,
     }]);
     let lidar = |skip| {
         let s = sim(&d, mc, skip);

@@ -45,6 +45,7 @@ fn lidar(name: &str, altitude_m: f64, pulses: PulsePattern, photons: u32) -> Lid
         sampler: LidarSampler::Discrete,
         estimator: Default::default(),
         scattering_photons_per_pulse: None,
+        fusion: false,
     }
 }
 
@@ -306,6 +307,7 @@ fn lidar_products_round_trip_through_the_las_reader() {
         500,
     );
     l.pulse_energy_j = 1e-4; // ~10 photo-electrons per shot at 500 m
+    l.fusion = true;
     l.photon_counting = Some(PhotonCountingDesc {
         quantum_efficiency: 0.15,
         dead_time_ns: 2.5,

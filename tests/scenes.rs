@@ -62,54 +62,72 @@ fn every_example_scene_runs_and_writes_products() {
                 la.analytic_m2
             );
         }
-        // Energy closes on every example scene (absorbed + escaped + lost = sources).
-        let rp = sim.resource::<lumenscape::radiative::products::RadiativeProducts>();
-        for b in &rp.bands {
-            assert!(
-                b.energy_closure <= 1e-9,
-                "{}: band {} energy closure {:e}",
-                p.display(),
-                b.band,
-                b.energy_closure
-            );
-            assert!(
-                b.brf.iter().all(|e| e.brf.is_finite()),
-                "{}: NaN BRF",
-                p.display()
-            );
+        // The passive solver runs unless the scene is LiDAR-only (`SceneDesc::runs_passive`):
+        // then no passive product is written and the LiDAR products are.
+        let (desc, _) = load_scene(&p).unwrap();
+        let passive = sim.get_resource::<lumenscape::radiative::products::RadiativeProducts>();
+        assert_eq!(passive.is_some(), desc.runs_passive(), "{}", p.display());
+        if let Some(rp) = passive {
+            // Energy closes on every example scene (absorbed + escaped + lost = sources).
+            for b in &rp.bands {
+                assert!(
+                    b.energy_closure <= 1e-9,
+                    "{}: band {} energy closure {:e}",
+                    p.display(),
+                    b.band,
+                    b.energy_closure
+                );
+                assert!(
+                    b.brf.iter().all(|e| e.brf.is_finite()),
+                    "{}: NaN BRF",
+                    p.display()
+                );
+            }
+            for f in [
+                "summary.json",
+                "brf.csv",
+                "budget/cells.csv",
+                "budget/layers.csv",
+                "budget/elements.csv",
+            ] {
+                assert!(out.join(f).is_file(), "{}: {f} missing", p.display());
+            }
+            // The per-cell budget adds up to the scene's absorbed fraction (vegetation, facets and
+            // ground): Σ fabs_cell × A_column / A_scene = fabs + fabs_ground.
+            let cells_csv = std::fs::read_to_string(out.join("budget/cells.csv")).unwrap();
+            let col_frac = 1.0 / (spec_n_columns(&sim) as f64);
+            for b in &rp.bands {
+                let s: f64 = cells_csv
+                    .lines()
+                    .skip(1)
+                    .filter(|l| l.split(',').nth(3) == Some(b.band.as_str()))
+                    .map(|l| l.split(',').nth(4).unwrap().parse::<f64>().unwrap())
+                    .sum::<f64>()
+                    * col_frac;
+                let want = b.fabs + b.fabs_ground;
+                assert!(
+                    (s - want).abs() <= 1e-6 * want.max(1e-9) + 1e-12,
+                    "{}: band {} per-cell budget sums to {s}, scene {want}",
+                    p.display(),
+                    b.band
+                );
+            }
+        } else {
+            for f in ["summary.json", "brf.csv", "budget"] {
+                assert!(!out.join(f).exists(), "{}: {f} written", p.display());
+            }
+            for l in desc.lidars.iter().flatten() {
+                let d = out.join("lidar").join(&l.name);
+                assert!(
+                    d.join("returns.las").is_file(),
+                    "{}: {} has no returns.las",
+                    p.display(),
+                    l.name
+                );
+            }
         }
-        for f in [
-            "maket.json",
-            "lai.exr",
-            "dsm.exr",
-            "density.csv",
-            "summary.json",
-            "brf.csv",
-            "budget/cells.csv",
-            "budget/layers.csv",
-            "budget/elements.csv",
-        ] {
+        for f in ["maket.json", "lai.exr", "dsm.exr", "density.csv"] {
             assert!(out.join(f).is_file(), "{}: {f} missing", p.display());
-        }
-        // The per-cell budget adds up to the scene's absorbed fraction (vegetation, facets and
-        // ground): Σ fabs_cell × A_column / A_scene = fabs + fabs_ground.
-        let cells_csv = std::fs::read_to_string(out.join("budget/cells.csv")).unwrap();
-        let col_frac = 1.0 / (spec_n_columns(&sim) as f64);
-        for b in &rp.bands {
-            let s: f64 = cells_csv
-                .lines()
-                .skip(1)
-                .filter(|l| l.split(',').nth(3) == Some(b.band.as_str()))
-                .map(|l| l.split(',').nth(4).unwrap().parse::<f64>().unwrap())
-                .sum::<f64>()
-                * col_frac;
-            let want = b.fabs + b.fabs_ground;
-            assert!(
-                (s - want).abs() <= 1e-6 * want.max(1e-9) + 1e-12,
-                "{}: band {} per-cell budget sums to {s}, scene {want}",
-                p.display(),
-                b.band
-            );
         }
         // No temporary file is left behind.
         for e in std::fs::read_dir(&out).unwrap() {
@@ -237,4 +255,48 @@ fn disk_canopy_has_the_requested_leaf_area_and_no_intersecting_disks() {
 fn spec_n_columns(sim: &Simulation) -> usize {
     let s = sim.resource::<GridSpec>();
     s.n[0] * s.n[1]
+}
+
+/// Model only what the scene needs: a LiDAR-only scene (lidar_als.ron) runs no passive solver
+/// and writes no passive product, and its LiDAR products are those of the same scene with the
+/// passive run forced (`passive: Some(true)`): the passive solve feeds only the fusion product
+/// and the photon-counting background. `fusion: true` asks for the passive run by itself.
+#[test]
+fn lidar_only_scenes_skip_the_passive_solver_and_keep_their_waveforms() {
+    use lumenscape::radiative::products::RadiativeProducts;
+    use lumenscape::resources::lidar::LidarProducts;
+    use lumenscape::scene::SceneSource;
+    let (desc, _) = load_scene(&asset("assets/scenes/lidar_als.ron")).unwrap();
+    assert!(desc.lidars.as_ref().is_some_and(|l| !l.is_empty()));
+    let run = |d: &lumenscape::scene::desc::SceneDesc| {
+        let mut sim = Simulation::from_desc(d, &SceneSource::generated(), Default::default())
+            .unwrap_or_else(|e| panic!("{e}"));
+        sim.run(None).unwrap_or_else(|e| panic!("{e}"));
+        let waves = format!("{:?}", sim.resource::<LidarProducts>().0[0].pulses);
+        let fusion = sim.resource::<LidarProducts>().0[0]
+            .fusion_radiance
+            .is_some();
+        (
+            sim.get_resource::<RadiativeProducts>().is_some(),
+            waves,
+            fusion,
+        )
+    };
+    let (passive, lean, fusion) = run(&desc);
+    assert!(
+        !passive && !fusion,
+        "a LiDAR-only scene ran the passive solver"
+    );
+    let mut forced = desc.clone();
+    forced.passive = Some(true);
+    let (passive, full, fusion) = run(&forced);
+    assert!(passive && !fusion);
+    assert!(lean == full, "the passive run changed the LiDAR products");
+    let mut fused = desc.clone();
+    fused.lidars.as_mut().unwrap()[0].fusion = true;
+    let (passive, _, fusion) = run(&fused);
+    assert!(
+        passive && fusion,
+        "fusion: true did not ask for the passive run"
+    );
 }

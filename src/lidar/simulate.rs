@@ -287,7 +287,7 @@ pub fn simulate_lidar(
         desc.sampler
     )];
     notes.push("turbid cells: first-order returns go back through the gaps the pulse came through when the material has leaf_size_m > 0 (Kuusk correlation: one-way transmittance for a monostatic receiver); leaf_size_m 0 = independent gaps (two-way); facets are exactly correlated".into());
-    // Fusion: passive radiance at each footprint centre (every band).
+    // Fusion (`fusion: true`): passive radiance at each footprint centre (every band).
     let centre = |pl: &PulseRecord| {
         let c = if pl.axis.z < 0.0 {
             pl.emitter + pl.axis * (pl.emitter.z / -pl.axis.z)
@@ -296,7 +296,7 @@ pub fn simulate_lidar(
         };
         (c.x, c.y)
     };
-    let fusion_radiance = passive.map(|pr| {
+    let fusion_radiance = passive.filter(|_| desc.fusion).map(|pr| {
         records
             .iter()
             .map(|pl| {

@@ -156,6 +156,13 @@ pub fn default_max_memory() -> u64 {
 #[derive(Debug, Clone, Resource)]
 pub struct OutputDir(pub PathBuf);
 
+/// Present when the scene needs no passive solve (a LiDAR-only scene, or `passive: false`;
+/// [`crate::scene::desc::SceneDesc::runs_passive`]): the Radiative stage and the Photon stage's
+/// passive Monte Carlo do not run and write no passive products. Absent (every other scene,
+/// and worlds built through the Rust API without a scene description): they run.
+#[derive(Debug, Clone, Copy, Default, Resource)]
+pub struct SkipPassive;
+
 /// Errors raised by systems; the simulation stops after the stage that raised one.
 #[derive(Debug, Clone, Default, Resource)]
 pub struct StageErrors(pub Vec<String>);

@@ -51,6 +51,25 @@ pub struct SceneDesc {
     /// Radiative-stage settings (preset and individual knobs).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub radiative: Option<RadiativeDesc>,
+    /// Whether the passive solver runs (flux tracking, or the Photon stage's Monte Carlo with
+    /// `--solver monte-carlo`) and writes its products (`summary.json`, `brf.csv`, images,
+    /// budget). Default (absent): it runs, except in a LiDAR scene whose instruments need no
+    /// passive radiance — none has `photon_counting` (solar background) or `fusion: true` —
+    /// where it would be wasted work (DART runs its LiDAR mode without a passive run too).
+    /// `Some(true)` forces the passive run; `Some(false)` skips it and is refused when an
+    /// instrument needs the passive radiance.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub passive: Option<bool>,
+}
+
+impl SceneDesc {
+    /// Whether the passive solver runs for this scene (see [`SceneDesc::passive`]).
+    pub fn runs_passive(&self) -> bool {
+        self.passive.unwrap_or_else(|| match &self.lidars {
+            Some(l) if !l.is_empty() => l.iter().any(LidarDesc::needs_passive),
+            _ => true,
+        })
+    }
 }
 
 /// Accuracy presets of the Radiative stage (direction sampling of the phase tables, stopping
@@ -944,6 +963,20 @@ pub struct LidarDesc {
     /// all of them; at most `photons_per_pulse`. Ignored by `Legacy`.
     #[serde(default)]
     pub scattering_photons_per_pulse: Option<u32>,
+    /// Fusion product (DART 5 paper §6, Figure 19): attach the passive spectral radiance of the
+    /// co-registered orthographic image to every discrete return (`fusion.las`, LAS point
+    /// format 7, RGB from the first three bands and one extra-bytes value per band). Asks for
+    /// the passive run (default false: a LiDAR-only scene runs no flux tracking).
+    #[serde(default)]
+    pub fusion: bool,
+}
+
+impl LidarDesc {
+    /// Whether this instrument needs the passive solver's radiance: the fusion product, or
+    /// the solar background of a photon-counting detector.
+    pub fn needs_passive(&self) -> bool {
+        self.fusion || self.photon_counting.is_some()
+    }
 }
 
 /// Estimator of a LiDAR's photon tracking (physics.md §9.2; DART 5 paper §4).

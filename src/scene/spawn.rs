@@ -630,7 +630,12 @@ pub fn spawn_scene(
     }
     world.insert_resource(radiative);
     world.insert_resource(TerrainRes(terrain));
-    // Model only what the scene needs: LiDAR work exists only with instruments.
+    // Model only what the scene needs: no passive solve for a LiDAR-only scene, LiDAR work
+    // only with instruments.
+    if !desc.runs_passive() {
+        world.insert_resource(crate::resources::scene::SkipPassive);
+    }
+    // LiDAR work exists only with instruments.
     if let Some(l) = desc.lidars.as_ref().filter(|l| !l.is_empty()) {
         world.insert_resource(crate::resources::lidar::LidarInstruments(l.clone()));
     }

@@ -402,6 +402,20 @@ pub fn validate(desc: &SceneDesc, src: &SceneSource) -> Result<(), SceneError> {
     }
     for (i, l) in desc.lidars.iter().flatten().enumerate() {
         validate_lidar(&v, desc, src, i, l)?;
+        if desc.passive == Some(false) && l.needs_passive() {
+            let why = if l.fusion {
+                "its fusion product (`fusion: true`)"
+            } else {
+                "its photon-counting solar background"
+            };
+            return Err(src.invalid(
+                "passive",
+                format!(
+                    "is false, but lidar `{}` needs the passive radiance for {why}",
+                    l.name
+                ),
+            ));
+        }
     }
     // Grid.
     let g = &desc.grid;

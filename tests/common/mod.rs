@@ -100,6 +100,7 @@ pub fn base_scene(size: (f64, f64), cell: (f64, f64, f64), boundary: BoundaryMod
         lidars: None,
         directions: None,
         radiative: None,
+        passive: None,
     }
 }
 

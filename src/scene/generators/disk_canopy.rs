@@ -250,6 +250,7 @@ pub fn disk_canopy(p: &DiskCanopyParams) -> Result<SceneDesc, String> {
         lidars: None,
         directions: Some(rami_directions(p.sun_azimuth_deg)),
         radiative: None,
+        passive: None,
     })
 }
 

@@ -216,5 +216,6 @@ pub fn forest(p: &ForestParams) -> SceneDesc {
         lidars: None,
         directions: None,
         radiative: None,
+        passive: None,
     }
 }

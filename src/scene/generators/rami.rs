@@ -541,6 +541,7 @@ pub fn rami_het01(case: &RamiCase, opts: &RamiOptions) -> Result<SceneDesc, Stri
         lidars: None,
         directions: Some(rami_measurement_directions(opts.sun_azimuth_deg)),
         radiative: None,
+        passive: None,
     })
 }
 

@@ -65,5 +65,6 @@ pub fn turbid_layer(p: &TurbidLayerParams) -> SceneDesc {
         lidars: None,
         directions: Some(rami_directions(p.sun_azimuth_deg)),
         radiative: None,
+        passive: None,
     }
 }

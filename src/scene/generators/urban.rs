@@ -125,5 +125,6 @@ pub fn urban(p: &UrbanParams) -> SceneDesc {
         lidars: None,
         directions: None,
         radiative: None,
+        passive: None,
     }
 }
