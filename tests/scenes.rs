@@ -299,4 +299,26 @@ fn lidar_only_scenes_skip_the_passive_solver_and_keep_their_waveforms() {
         passive && fusion,
         "fusion: true did not ask for the passive run"
     );
+    // The CLI says so, and writes the LiDAR products only.
+    let out_dir =
+        std::env::temp_dir().join(format!("lumenscape-lidar-only-{}", std::process::id()));
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_lumenscape"))
+        .args([
+            "run",
+            asset("assets/scenes/lidar_als.ron").to_str().unwrap(),
+            "--out",
+        ])
+        .arg(&out_dir)
+        .output()
+        .unwrap();
+    let stdout = String::from_utf8_lossy(&out.stdout);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert!(stdout.contains("passive solver: not run"), "{stdout}");
+    assert!(!out_dir.join("summary.json").exists());
+    assert!(out_dir.join("lidar").is_dir());
+    let _ = std::fs::remove_dir_all(out_dir);
 }

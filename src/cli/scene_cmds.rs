@@ -394,6 +394,16 @@ pub fn run(args: &RunArgs, out: &mut dyn Write) -> Result<(), CliError> {
         ran,
         skipped.join(", ")
     )?;
+    if sim
+        .get_resource::<crate::resources::scene::SkipPassive>()
+        .is_some()
+    {
+        writeln!(
+            out,
+            "passive solver: not run (LiDAR-only scene: no instrument has `fusion: true` or \
+             `photon_counting`; set `passive: Some(true)` for the passive products)"
+        )?;
+    }
     writeln!(
         out,
         "products written to {} in {:.2} s",
