@@ -1554,6 +1554,11 @@ impl Ctx<'_> {
             lambert_ground: self.lambert_ground(),
             tau_stop: self.ms_stop * tau_star,
             keep: 1.0 - 1.0 / self.ms_stop,
+            fov_tan2: if rx.cos_fov > 0.0 {
+                (1.0 - rx.cos_fov * rx.cos_fov) / (rx.cos_fov * rx.cos_fov)
+            } else {
+                -1.0
+            },
         };
         let mut io = FlightIo {
             rng,
@@ -2561,6 +2566,37 @@ struct ScatterScore<'g> {
     tau_stop: f64,
     /// `1 − 1/c`.
     keep: f64,
+    /// `tan²` of the receiver's FOV half-angle (< 0: a FOV of 90° or more, no segment test).
+    fov_tan2: f64,
+}
+
+/// Whether every point of the segment from `a` along the unit vector `d` over `len` (m,
+/// unwrapped coordinates) lies outside the field of view of `rx` (`tan2` = tan² of its
+/// half-angle, FOV < 90°): the segment's least distance ρ from the receiver axis exceeds the
+/// cone radius `s_max tan α` at the largest along-axis distance `s_max` of its ends (s is linear
+/// along the segment, and a point at along-axis distance s ≤ s_max lies in the cone only if
+/// ρ ≤ s tan α), with a relative margin of 1e-6 so that rounding never drops a point in view.
+/// Such a segment scores nothing ([`Ctx::peel_receiver`] drops points out of view).
+#[inline]
+fn segment_out_of_fov(rx: &Receiver, tan2: f64, a: DVec3, d: DVec3, len: f64) -> bool {
+    let ax = rx.axis;
+    let va = a - rx.position;
+    let (sa, sd) = (va.dot(ax), d.dot(ax));
+    let s_max = sa.max(sa + sd * len);
+    if !(s_max > 0.0) {
+        return s_max <= 0.0;
+    }
+    // Perpendicular parts of the start and of the direction; least |pa + t pd| on [0, len].
+    let pa = va - ax * sa;
+    let pd = d - ax * sd;
+    let pd2 = pd.length_squared();
+    let t = if pd2 > 0.0 {
+        (-pa.dot(pd) / pd2).clamp(0.0, len)
+    } else {
+        0.0
+    };
+    let rho2 = (pa + pd * t).length_squared();
+    rho2 > (1.0 + 1e-6) * s_max * s_max * tan2
 }
 
 impl FlightScore for ScatterScore<'_> {
@@ -2589,6 +2625,12 @@ impl FlightScore for ScatterScore<'_> {
             ell
         };
         if ell_f <= 0.0 {
+            return;
+        }
+        // Nothing to score (and no draws) when the whole segment is out of the receiver's view.
+        if self.fov_tan2 >= 0.0
+            && segment_out_of_fov(&rx, self.fov_tan2, dda.point(t0) + shift, d, ell_f)
+        {
             return;
         }
         let beta = keep * kv;
