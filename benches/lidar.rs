@@ -107,6 +107,11 @@ struct Options {
     settings: Vec<(LidarEstimator, u32, Option<u32>)>,
     /// `--reps R`: independent realizations of each setting in the error study (default 4).
     reps: usize,
+    /// `--out DIR`: the urban scan writes its products into DIR (streaming its waveforms, as
+    /// `lumenscape run --out` does), so the peak RSS is that of a real run.
+    out: Option<std::path::PathBuf>,
+    /// `--no-stream`: every pulse in one chunk (no streaming with `--out`), for comparisons.
+    no_stream: bool,
 }
 
 impl Options {
@@ -114,6 +119,8 @@ impl Options {
         let mut o = Options {
             ref_photons: 100_000,
             reps: 4,
+            out: None,
+            no_stream: false,
             ..Default::default()
         };
         let mut args = std::env::args().skip(1);
@@ -122,6 +129,10 @@ impl Options {
                 "--quick" => o.quick = true,
                 "--digest" => o.digest = true,
                 "--no-skip" => o.no_skip = true,
+                "--no-stream" => o.no_stream = true,
+                "--out" => {
+                    o.out = Some(args.next().expect("--out DIR").into());
+                }
                 "--pulses" => {
                     o.pulses = Some(
                         args.next()
@@ -239,7 +250,12 @@ fn digest(r: &LidarRun, name: &str, dump: Option<&mut std::fs::File>) -> u64 {
 }
 
 /// Runs the scene with one LiDAR (its products in the `LidarProducts` resource).
-fn simulate(mut d: SceneDesc, l: LidarDesc, opt: &Options) -> Simulation {
+fn simulate(
+    mut d: SceneDesc,
+    l: LidarDesc,
+    opt: &Options,
+    out: Option<&std::path::Path>,
+) -> Simulation {
     d.lidars = Some(vec![l]);
     let mut sim = Simulation::from_desc(
         &d,
@@ -250,21 +266,40 @@ fn simulate(mut d: SceneDesc, l: LidarDesc, opt: &Options) -> Simulation {
                 sampler: SamplerKind::Continuous,
             },
             skip_empty: !opt.no_skip,
+            lidar_chunk_pulses: if opt.no_stream {
+                usize::MAX
+            } else {
+                lumenscape::lidar::simulate::DEFAULT_CHUNK_PULSES
+            },
             ..Default::default()
         },
     )
     .unwrap();
-    sim.run(None).unwrap();
+    sim.run(out).unwrap();
     sim
 }
 
 /// Runs the scene with one LiDAR and returns its products.
 fn run_products(d: SceneDesc, l: LidarDesc, opt: &Options) -> LidarRun {
-    simulate(d, l, opt).resource::<LidarProducts>().0[0].clone()
+    simulate(d, l, opt, None).resource::<LidarProducts>().0[0].clone()
 }
 
 fn run(d: SceneDesc, l: LidarDesc, name: &str, opt: &mut Options) -> Outcome {
-    let sim = simulate(d, l, opt);
+    run_into(d, l, name, opt, None)
+}
+
+/// [`run`], writing the products into `out` when given (a scan longer than one chunk then
+/// streams its waveforms to disk while it runs).
+fn run_into(
+    d: SceneDesc,
+    l: LidarDesc,
+    name: &str,
+    opt: &mut Options,
+    out: Option<&std::path::Path>,
+) -> Outcome {
+    let t0 = std::time::Instant::now();
+    let sim = simulate(d, l, opt, out);
+    let wall = t0.elapsed().as_secs_f64();
     let r = &sim.resource::<LidarProducts>().0[0];
     if opt.digest || opt.dump.is_some() {
         let h = digest(r, name, opt.dump.as_mut());
@@ -285,6 +320,7 @@ fn run(d: SceneDesc, l: LidarDesc, name: &str, opt: &mut Options) -> Outcome {
     let returns = r.pulses.iter().map(|p| p.returns.len()).sum::<usize>() as f64 / n;
     Outcome {
         seconds: r.seconds,
+        wall,
         pulses: r.pulses.len(),
         energy,
         returns,
@@ -369,7 +405,10 @@ fn fit_study(r: &LidarRun, name: &str, f: &mut std::fs::File) {
 /// One LiDAR run: stage wall time, pulses, mean waveform energy per pulse (J) and mean number
 /// of discrete returns per pulse.
 struct Outcome {
+    /// LiDAR stage time, s.
     seconds: f64,
+    /// The whole simulation (stages and product writing), s.
+    wall: f64,
     pulses: usize,
     energy: f64,
     returns: f64,
@@ -494,12 +533,26 @@ fn main() {
     if let Some(e) = opt.estimator {
         l.estimator = e;
     }
-    let o = run(u, l, "urban", &mut opt);
+    let out = opt.out.clone();
+    let o = run_into(u, l, "urban", &mut opt, out.as_deref());
     let (secs, pulses) = (o.seconds, o.pulses);
     println!(
-        "urban scan, {pulses} pulses × 100 photons, peak-detection returns: {secs:.1} s, {:.0} pulses/s/core, peak RSS {:.0} MiB",
+        "urban scan, {pulses} pulses × 100 photons, peak-detection returns: {secs:.1} s, {:.0} pulses/s/core, peak RSS {:.0} MiB{}",
         pulses as f64 / secs / threads,
-        peak_rss_mib()
+        peak_rss_mib(),
+        match &out {
+            Some(d) => format!(
+                "; products written to {} (waveforms {}), whole run {:.1} s",
+                d.display(),
+                if opt.no_stream {
+                    "kept in memory"
+                } else {
+                    "streamed"
+                },
+                o.wall
+            ),
+            None => String::new(),
+        }
     );
 }
 
@@ -702,6 +755,7 @@ fn error_study(f: &SceneDesc, opt: &mut Options) {
         }
         let r = Outcome {
             seconds,
+            wall: seconds,
             pulses,
             energy: 0.0,
             returns: 0.0,

@@ -322,3 +322,163 @@ fn lidar_only_scenes_skip_the_passive_solver_and_keep_their_waveforms() {
     assert!(out_dir.join("lidar").is_dir());
     let _ = std::fs::remove_dir_all(out_dir);
 }
+
+/// A scan longer than one chunk streams its waveforms to disk while it runs (memory bounded by
+/// a chunk): the products are the same bytes as those written from memory, the in-memory
+/// results (returns, photon-counting points, energies) are identical, no temporary file is
+/// left, and a failed write leaves no partial product.
+#[test]
+fn streamed_lidar_scans_write_the_same_products_and_leave_nothing_behind() {
+    use lumenscape::resources::lidar::LidarProducts;
+    use lumenscape::resources::scene::RunSettings;
+    use lumenscape::scene::SceneSource;
+    use lumenscape::scene::desc::{LidarPlatform, PhotonCountingDesc, PulsePattern};
+    let (mut desc, _) = load_scene(&asset("assets/scenes/lidar_als.ron")).unwrap();
+    {
+        let l = &mut desc.lidars.as_mut().unwrap()[0];
+        l.photons_per_pulse = 64;
+        l.max_order = 20;
+        // A few detected photons per shot (photon-counting regime).
+        l.pulse_energy_j = 1e-10;
+        if let LidarPlatform::Airborne { pulses, .. } = &mut l.platform {
+            *pulses = PulsePattern::List(
+                (0..40)
+                    .map(|k| (0.3 + 0.09 * k as f64, 0.5 + 0.07 * k as f64))
+                    .collect(),
+            );
+        }
+        // Photon counting too (dark counts and solar background per chunk).
+        l.photon_counting = Some(PhotonCountingDesc {
+            quantum_efficiency: 0.5,
+            dead_time_ns: 2.5,
+            dark_count_hz: 1e6,
+            filter_bandwidth_nm: 0.03,
+            wavelength_nm: 1064.0,
+            shots: 2,
+        });
+    }
+    let root = std::env::temp_dir().join(format!("lumenscape-stream-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&root);
+    let run = |chunk: usize, out: Option<&std::path::Path>| {
+        let settings = RunSettings {
+            lidar_chunk_pulses: chunk,
+            // The passive run (photon-counting background) is not what is tested here.
+            preset: Some(lumenscape::scene::desc::Preset::Preview),
+            ..Default::default()
+        };
+        let mut sim = Simulation::from_desc(&desc, &SceneSource::generated(), settings)
+            .unwrap_or_else(|e| panic!("{e}"));
+        let res = sim.run(out).map(|_| ());
+        (sim, res)
+    };
+    let summary = |sim: &Simulation| {
+        let r = &sim.resource::<LidarProducts>().0[0];
+        let per_pulse: Vec<_> = r
+            .pulses
+            .iter()
+            .map(|p| {
+                (
+                    p.id,
+                    p.received_j.to_bits(),
+                    p.first_order_j.to_bits(),
+                    format!("{:?}", p.returns),
+                )
+            })
+            .collect();
+        (
+            format!("{per_pulse:?}"),
+            format!("{:?}", r.counted),
+            r.streamed.is_some(),
+        )
+    };
+    // The same scan from memory (one chunk) and streamed (chunks of 7, the last one partial).
+    let (a_dir, b_dir) = (root.join("memory"), root.join("streamed"));
+    let (sim_a, res) = run(8192, Some(&a_dir));
+    res.unwrap();
+    let (sim_b, res) = run(7, Some(&b_dir));
+    res.unwrap();
+    let (a, b) = (summary(&sim_a), summary(&sim_b));
+    assert!(
+        !a.2 && b.2,
+        "streamed only with an output folder and > 1 chunk"
+    );
+    assert!(!b.1.is_empty(), "no photon-counting points");
+    assert_eq!(a.0, b.0, "streaming changed returns or energies");
+    assert_eq!(a.1, b.1, "streaming changed the photon-counting points");
+    // Streamed: only the quick-looks' waveforms stay in memory.
+    let streamed = &sim_b.resource::<LidarProducts>().0[0].pulses;
+    let kept = lumenscape::lidar::products::QUICKLOOKS;
+    assert!(streamed[..kept].iter().all(|p| p.raw.n_bins() > 0));
+    assert!(
+        streamed[kept..]
+            .iter()
+            .all(|p| p.raw.n_bins() == 0 && p.waveform.n_bins() == 0)
+    );
+    drop((sim_a, sim_b));
+    // Every file under lidar/ is the same bytes (lidar.json without its timings); none is a
+    // leftover temporary file.
+    fn files(dir: &std::path::Path) -> Vec<PathBuf> {
+        let mut v = Vec::new();
+        for e in std::fs::read_dir(dir).unwrap() {
+            let p = e.unwrap().path();
+            if p.is_dir() {
+                v.extend(files(&p));
+            } else {
+                v.push(p);
+            }
+        }
+        v.sort();
+        v
+    }
+    let rel = |d: &std::path::Path| -> Vec<PathBuf> {
+        files(&d.join("lidar"))
+            .into_iter()
+            .map(|p| p.strip_prefix(d).unwrap().to_path_buf())
+            .collect()
+    };
+    let names = rel(&a_dir);
+    assert_eq!(names, rel(&b_dir));
+    assert!(names.iter().any(|p| p.ends_with("raw/waveforms.f32")));
+    for p in &names {
+        let name = p.file_name().unwrap().to_string_lossy();
+        assert!(
+            !name.starts_with('.'),
+            "temporary file left: {}",
+            p.display()
+        );
+        let (x, y) = (
+            std::fs::read(a_dir.join(p)).unwrap(),
+            std::fs::read(b_dir.join(p)).unwrap(),
+        );
+        if name == "lidar.json" {
+            let strip = |b: &[u8]| {
+                let mut v: serde_json::Value = serde_json::from_slice(b).unwrap();
+                let o = v.as_object_mut().unwrap();
+                o.remove("seconds");
+                o.remove("pulses_per_second_per_core");
+                v
+            };
+            assert_eq!(strip(&x), strip(&y), "{}", p.display());
+        } else {
+            assert!(x == y, "{} differs when streamed", p.display());
+        }
+    }
+    // A write that fails at the end (the data file's name is taken by a folder) reports the
+    // file and leaves no temporary or partial waveform file.
+    let d_dir = root.join("fails");
+    let inst = d_dir.join("lidar").join("als");
+    std::fs::create_dir_all(inst.join("waveforms.f32")).unwrap();
+    let (sim_d, res) = run(7, Some(&d_dir));
+    let err = res.expect_err("a taken file name did not fail").to_string();
+    assert!(err.contains("waveforms.f32"), "{err}");
+    drop(sim_d);
+    for p in files(&inst) {
+        let name = p.file_name().unwrap().to_string_lossy().into_owned();
+        assert!(
+            !name.starts_with('.') && !name.starts_with("waveforms"),
+            "left behind after the error: {}",
+            p.display()
+        );
+    }
+    let _ = std::fs::remove_dir_all(&root);
+}

@@ -17,10 +17,11 @@ use crate::lidar::photon_counting::{
     Detector, mean_signal_counts, simulate_shot, solar_background_rate,
 };
 use crate::lidar::pulse::{BeamProfile, FootprintSampler, PulseShape};
-use crate::lidar::waveform::WaveformBinner;
-use crate::photon::engine::{Beam, PhotonInput, Pulse, run_lidar};
+use crate::lidar::waveform::{Waveform, WaveformBinner};
+use crate::lidar::waveform_io::WaveformStream;
+use crate::photon::engine::{Beam, PhotonInput, Pulse, run_lidar_chunks};
 use crate::resources::directions::direction_from_deg;
-use crate::resources::lidar::{CountedPhoton, LidarRun, PulseRecord};
+use crate::resources::lidar::{CountedPhoton, LidarRun, PulseRecord, StreamedRun};
 use crate::scene::desc::{LidarDesc, LidarPlatform, PulsePattern};
 use glam::DVec3;
 
@@ -140,8 +141,37 @@ pub fn pipeline_decomposition_settings() -> crate::lidar::returns::Decomposition
     }
 }
 
+/// Footprint centre of a pulse on the plane z = 0 (the emitter itself for upward beams), m.
+fn footprint_centre(pl: &PulseRecord) -> (f64, f64) {
+    let c = if pl.axis.z < 0.0 {
+        pl.emitter + pl.axis * (pl.emitter.z / -pl.axis.z)
+    } else {
+        pl.emitter
+    };
+    (c.x, c.y)
+}
+
+/// Pulses tracked per chunk: the memory of a streamed scan is bounded by one chunk's waveforms
+/// (plus every pulse's returns and energies); 8192 pulses keep both cores busy and each
+/// chunk's parallel tail short.
+pub const DEFAULT_CHUNK_PULSES: usize = 8192;
+
+/// Streaming of a long scan's waveforms to disk while it runs (set by the LiDAR system when
+/// the run has an output folder).
+#[derive(Debug, Clone)]
+pub struct LidarStreaming {
+    /// The instrument's product folder (`DIR/lidar/<name>`).
+    pub dir: std::path::PathBuf,
+    /// Pulses per chunk; a scan of more pulses than this is streamed.
+    pub chunk_pulses: usize,
+}
+
 /// Runs one instrument. `input` must carry the laser band's optics only (one band); `band` is
 /// the scene band index (for the passive radiance); `box_lo`/`box_hi` the grid box (gate).
+/// Pulses run by chunks of [`LidarStreaming::chunk_pulses`] ([`DEFAULT_CHUNK_PULSES`] without
+/// `stream`); with `stream` and more pulses than one chunk, each chunk's waveforms are written
+/// to temporary files as soon as it is done ([`LidarRun::streamed`]) and only the first
+/// quick-looks' waveforms stay in memory. The products are the same bytes either way.
 pub fn simulate_lidar(
     desc: &LidarDesc,
     band: usize,
@@ -149,6 +179,7 @@ pub fn simulate_lidar(
     box_lo: DVec3,
     box_hi: DVec3,
     passive: Option<&PassiveRadiance>,
+    stream: Option<&LidarStreaming>,
 ) -> Result<LidarRun, String> {
     let t0 = std::time::Instant::now();
     let (pulses, ref_range) = pulses_of(desc);
@@ -215,7 +246,6 @@ pub fn simulate_lidar(
             .scattering_photons_per_pulse
             .unwrap_or(desc.photons_per_pulse),
     };
-    let results = run_lidar(input, &beam, &pulses)?;
     let shape = PulseShape::from_fwhm_ns(desc.pulse_fwhm_ns, 3.0)
         .map_err(|e| format!("lidar `{}`: {e}", desc.name))?;
     // The full time axis of the convolved waveforms (range gate widened by the pulse kernel):
@@ -232,45 +262,6 @@ pub fn simulate_lidar(
             w.n_bins() + k.weights.len() - 1,
         )
     };
-    // Convolution and returns per pulse, in parallel (each pulse is independent; the order
-    // of the records is the order of the pulses).
-    use rayon::prelude::*;
-    let records = results
-        .into_par_iter()
-        .zip(pulses.par_iter())
-        .map(|(r, pl)| -> Result<PulseRecord, String> {
-            // Returns are detected on the whole gate (the decomposition's fit sees the zero
-            // bins around the returns); the stored waveform is trimmed.
-            let mut waveform = r
-                .waveform
-                .convolve(&shape, None)
-                .map_err(|e| format!("lidar `{}` pulse {}: {e}", desc.name, r.id))?
-                .padded_to(gate_axis.0, gate_axis.1);
-            let peak = waveform.total.iter().cloned().fold(0.0, f64::max);
-            let returns = if peak > 0.0 {
-                crate::lidar::returns::detect_returns_method(
-                    &waveform,
-                    1e-3 * peak,
-                    desc.returns,
-                    &pipeline_decomposition_settings(),
-                )
-                .map_err(|e| format!("lidar `{}` pulse {}: {e}", desc.name, r.id))?
-            } else {
-                Vec::new()
-            };
-            waveform.trim();
-            Ok(PulseRecord {
-                id: r.id,
-                emitter: pl.emitter,
-                axis: pl.axis,
-                raw: r.waveform,
-                waveform,
-                out_of_gate_j: r.out_of_gate_j,
-                missed_j: r.missed_j,
-                returns,
-            })
-        })
-        .collect::<Result<Vec<_>, String>>()?;
     let mut notes = vec![format!(
         "footprint: {} profile{}, radius {radius:.4} m at {ref_range:.1} m, truncated at {reach} radii (energy outside: {:.2e}); receiver FOV half-angle {:.3e} rad; gate {:.3}–{:.3} m of path; returns: {:?}; sampler: {:?}",
         profile.name(),
@@ -287,84 +278,153 @@ pub fn simulate_lidar(
         desc.sampler
     )];
     notes.push("turbid cells: first-order returns go back through the gaps the pulse came through when the material has leaf_size_m > 0 (Kuusk correlation: one-way transmittance for a monostatic receiver); leaf_size_m 0 = independent gaps (two-way); facets are exactly correlated".into());
-    // Fusion (`fusion: true`): passive radiance at each footprint centre (every band).
-    let centre = |pl: &PulseRecord| {
-        let c = if pl.axis.z < 0.0 {
-            pl.emitter + pl.axis * (pl.emitter.z / -pl.axis.z)
-        } else {
-            pl.emitter
-        };
-        (c.x, c.y)
-    };
-    let fusion_radiance = passive.filter(|_| desc.fusion).map(|pr| {
-        records
-            .iter()
-            .map(|pl| {
-                let (x, y) = centre(pl);
-                (0..pr.per_band.len()).map(|b| pr.at(x, y, b)).collect()
-            })
-            .collect()
+    // Photon counting: the detector and the note on the background source, once.
+    let detector = desc.photon_counting.as_ref().map(|pc| Detector {
+        quantum_efficiency: pc.quantum_efficiency,
+        dead_time_ns: pc.dead_time_ns,
+        dark_count_hz: pc.dark_count_hz,
+        ..Detector::dart_default()
     });
-    // Photon counting.
-    let mut counted = Vec::new();
-    let mut background_rate_hz = Vec::new();
-    if let Some(pc) = &desc.photon_counting {
-        let det = Detector {
-            quantum_efficiency: pc.quantum_efficiency,
-            dead_time_ns: pc.dead_time_ns,
-            dark_count_hz: pc.dark_count_hz,
-            ..Detector::dart_default()
-        };
-        if passive.is_none() {
-            notes.push("photon counting: no passive radiance available (run the flux-tracking solver): solar background omitted, dark counts only".into());
-        } else if let Some(pr) = passive {
+    if desc.photon_counting.is_some() {
+        if let Some(pr) = passive {
             notes.push(format!(
                 "photon counting: solar background from {}",
                 pr.source
             ));
+        } else {
+            notes.push("photon counting: no passive radiance available (run the flux-tracking solver): solar background omitted, dark counts only".into());
         }
-        for pl in &records {
-            let (x, y) = centre(pl);
-            let radiance = passive.map_or(0.0, |pr| pr.at(x, y, band));
-            let rate = solar_background_rate(
-                radiance,
-                pc.filter_bandwidth_nm * 1e-3,
-                desc.aperture_m2,
-                fov_half,
-                &det,
-                pc.wavelength_nm,
-            )
-            .map_err(|e| format!("lidar `{}`: {e}", desc.name))?;
-            background_rate_hz.push(rate);
-            // The mean signal over the whole gate (zero outside the stored bins), so that
-            // background and dark counts and the dead time cover the full range gate.
-            let (t0_gate, n_gate) = gate_axis;
-            let dt = pl.waveform.dt_ns;
-            let padded = pl.waveform.padded_to(t0_gate, n_gate);
-            let signal = mean_signal_counts(&padded.total, pc.wavelength_nm, &det)
+    }
+    let mut counted = Vec::new();
+    let mut background_rate_hz = Vec::new();
+    let streaming = stream.filter(|s| pulses.len() > s.chunk_pulses.max(1));
+    let chunk = stream.map_or(DEFAULT_CHUNK_PULSES, |s| s.chunk_pulses);
+    let err = |e: crate::lidar::LidarError| format!("lidar `{}`: {e}", desc.name);
+    let mut writers = match streaming {
+        Some(s) => Some((
+            WaveformStream::create(&s.dir).map_err(err)?,
+            WaveformStream::create(&s.dir.join("raw")).map_err(err)?,
+        )),
+        None => None,
+    };
+    let mut records: Vec<PulseRecord> = Vec::with_capacity(pulses.len());
+    run_lidar_chunks(input, &beam, &pulses, chunk, |part, results| {
+        // Convolution and returns per pulse, in parallel (each pulse is independent; the
+        // order of the records is the order of the pulses).
+        use rayon::prelude::*;
+        let mut recs = results
+            .into_par_iter()
+            .zip(part.par_iter())
+            .map(|(r, pl)| -> Result<PulseRecord, String> {
+                // Returns are detected on the whole gate (the decomposition's fit sees the
+                // zero bins around the returns); the stored waveform is trimmed.
+                let mut waveform = r
+                    .waveform
+                    .convolve(&shape, None)
+                    .map_err(|e| format!("lidar `{}` pulse {}: {e}", desc.name, r.id))?
+                    .padded_to(gate_axis.0, gate_axis.1);
+                let peak = waveform.total.iter().cloned().fold(0.0, f64::max);
+                let returns = if peak > 0.0 {
+                    crate::lidar::returns::detect_returns_method(
+                        &waveform,
+                        1e-3 * peak,
+                        desc.returns,
+                        &pipeline_decomposition_settings(),
+                    )
+                    .map_err(|e| format!("lidar `{}` pulse {}: {e}", desc.name, r.id))?
+                } else {
+                    Vec::new()
+                };
+                waveform.trim();
+                Ok(PulseRecord {
+                    id: r.id,
+                    emitter: pl.emitter,
+                    axis: pl.axis,
+                    received_j: r.waveform.total_energy_j(),
+                    first_order_j: r.waveform.first_order_energy_j(),
+                    raw: r.waveform,
+                    waveform,
+                    out_of_gate_j: r.out_of_gate_j,
+                    missed_j: r.missed_j,
+                    returns,
+                })
+            })
+            .collect::<Result<Vec<_>, String>>()?;
+        if let (Some(pc), Some(det)) = (&desc.photon_counting, &detector) {
+            for pl in &recs {
+                let (x, y) = footprint_centre(pl);
+                let radiance = passive.map_or(0.0, |pr| pr.at(x, y, band));
+                let rate = solar_background_rate(
+                    radiance,
+                    pc.filter_bandwidth_nm * 1e-3,
+                    desc.aperture_m2,
+                    fov_half,
+                    det,
+                    pc.wavelength_nm,
+                )
                 .map_err(|e| format!("lidar `{}`: {e}", desc.name))?;
-            let bg_bin = rate * dt * 1e-9;
-            let mut rng = crate::scene::spawn::stream(
-                input.params.seed,
-                crate::photon::engine::LIDAR_STREAM ^ 0x5043,
-                pl.id,
-            );
-            for shot in 0..pc.shots {
-                let dets = simulate_shot(&signal, bg_bin, t0_gate, dt, &det, &mut rng)
+                background_rate_hz.push(rate);
+                // The mean signal over the whole gate (zero outside the stored bins), so that
+                // background and dark counts and the dead time cover the full range gate.
+                let (t0_gate, n_gate) = gate_axis;
+                let dt = pl.waveform.dt_ns;
+                let padded = pl.waveform.padded_to(t0_gate, n_gate);
+                let signal = mean_signal_counts(&padded.total, pc.wavelength_nm, det)
                     .map_err(|e| format!("lidar `{}`: {e}", desc.name))?;
-                for d in dets {
-                    let range = 0.5 * d.time_ns * 1e-9 * crate::lidar::SPEED_OF_LIGHT_M_PER_S;
-                    counted.push(CountedPhoton {
-                        pulse: pl.id,
-                        shot,
-                        position: pl.emitter + pl.axis * range,
-                        time_ns: d.time_ns,
-                        is_noise: d.is_noise,
-                    });
+                let bg_bin = rate * dt * 1e-9;
+                let mut rng = crate::scene::spawn::stream(
+                    input.params.seed,
+                    crate::photon::engine::LIDAR_STREAM ^ 0x5043,
+                    pl.id,
+                );
+                for shot in 0..pc.shots {
+                    let dets = simulate_shot(&signal, bg_bin, t0_gate, dt, det, &mut rng)
+                        .map_err(|e| format!("lidar `{}`: {e}", desc.name))?;
+                    for d in dets {
+                        let range = 0.5 * d.time_ns * 1e-9 * crate::lidar::SPEED_OF_LIGHT_M_PER_S;
+                        counted.push(CountedPhoton {
+                            pulse: pl.id,
+                            shot,
+                            position: pl.emitter + pl.axis * range,
+                            time_ns: d.time_ns,
+                            is_noise: d.is_noise,
+                        });
+                    }
                 }
             }
         }
-    }
+        if let Some((wf, raw)) = &mut writers {
+            wf.append(&recs.iter().map(|p| (p.id, &p.waveform)).collect::<Vec<_>>())
+                .map_err(err)?;
+            raw.append(&recs.iter().map(|p| (p.id, &p.raw)).collect::<Vec<_>>())
+                .map_err(err)?;
+            // Keep the quick-looks' waveforms; the others are on disk now.
+            let keep = crate::lidar::products::QUICKLOOKS.saturating_sub(records.len());
+            for p in recs.iter_mut().skip(keep) {
+                p.waveform = Waveform::zeros(p.waveform.t0_ns, p.waveform.dt_ns, 0);
+                p.raw = Waveform::zeros(p.raw.t0_ns, p.raw.dt_ns, 0);
+            }
+        }
+        records.extend(recs);
+        Ok(())
+    })?;
+    let streamed = match writers {
+        Some((wf, raw)) => Some(std::sync::Arc::new(StreamedRun {
+            waveforms: wf.finish().map_err(err)?,
+            raw: raw.finish().map_err(err)?,
+        })),
+        None => None,
+    };
+    // Fusion (`fusion: true`): passive radiance at each footprint centre (every band).
+    let fusion_radiance = passive.filter(|_| desc.fusion).map(|pr| {
+        records
+            .iter()
+            .map(|pl| {
+                let (x, y) = footprint_centre(pl);
+                (0..pr.per_band.len()).map(|b| pr.at(x, y, b)).collect()
+            })
+            .collect()
+    });
     Ok(LidarRun {
         desc: desc.clone(),
         pulses: records,
@@ -373,5 +433,6 @@ pub fn simulate_lidar(
         fusion_radiance,
         notes,
         seconds: t0.elapsed().as_secs_f64(),
+        streamed,
     })
 }

@@ -16,7 +16,10 @@ use super::LidarError;
 use super::waveform::Waveform;
 use crate::io::atomic::{tmp_path, write_atomic};
 use std::fmt::Write as _;
+use std::fs::File;
+use std::io::{BufWriter, Write};
 use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicBool, AtomicU64, Ordering};
 
 /// File name of the binary waveform data.
 pub const WAVEFORM_DATA_FILE: &str = "waveforms.f32";
@@ -54,44 +57,81 @@ pub struct WaveformIndexRow {
     pub first_order_energy_j: f64,
 }
 
+/// Appends waveforms in the product format: data bytes to `data`, index lines to `index`
+/// (header written by [`WaveformWriter::new`]), tracking the byte offset. Shared by the
+/// in-memory [`write_waveforms`] and the file-backed [`WaveformStream`], so both give the same
+/// bytes.
+struct WaveformWriter<D: Write, I: Write> {
+    data: D,
+    index: I,
+    offset: u64,
+}
+
+impl<D: Write, I: Write> WaveformWriter<D, I> {
+    fn new(data: D, mut index: I) -> std::io::Result<Self> {
+        writeln!(index, "{WAVEFORM_INDEX_HEADER}")?;
+        Ok(Self {
+            data,
+            index,
+            offset: 0,
+        })
+    }
+
+    /// Appends one waveform (validated by the caller).
+    fn append(&mut self, id: u64, w: &Waveform) -> std::io::Result<()> {
+        let mut bytes = Vec::with_capacity(8 * w.n_bins());
+        for v in w.total.iter().chain(&w.first_order) {
+            bytes.extend_from_slice(&(*v as f32).to_le_bytes());
+        }
+        self.data.write_all(&bytes)?;
+        // `{:e}` prints the shortest representation that round-trips exactly.
+        writeln!(
+            self.index,
+            "{id},{:e},{:e},{},{},{:e},{:e}",
+            w.t0_ns,
+            w.dt_ns,
+            w.n_bins(),
+            self.offset,
+            w.total_energy_j(),
+            w.first_order_energy_j()
+        )?;
+        self.offset += bytes.len() as u64;
+        Ok(())
+    }
+}
+
+fn validate_all(waveforms: &[(u64, &Waveform)]) -> Result<(), LidarError> {
+    for (id, w) in waveforms {
+        w.validate()
+            .map_err(|e| LidarError::InvalidInput(format!("pulse {id}: {e}")))?;
+    }
+    Ok(())
+}
+
 /// Writes `waveforms` (pulse id, waveform) into `dir` (created if missing). Every waveform is
 /// validated first (finite, non-negative); nothing is written if one is invalid.
 pub fn write_waveforms(
     dir: &Path,
     waveforms: &[(u64, &Waveform)],
 ) -> Result<WaveformFiles, LidarError> {
-    for (id, w) in waveforms {
-        w.validate()
-            .map_err(|e| LidarError::InvalidInput(format!("pulse {id}: {e}")))?;
-    }
+    validate_all(waveforms)?;
     std::fs::create_dir_all(dir)
         .map_err(|e| LidarError::Io(format!("{}: cannot create folder: {e}", dir.display())))?;
     let data_path = dir.join(WAVEFORM_DATA_FILE);
     let index_path = dir.join(WAVEFORM_INDEX_FILE);
 
     let total_bins: usize = waveforms.iter().map(|(_, w)| 2 * w.n_bins()).sum();
-    let mut data = Vec::with_capacity(4 * total_bins);
-    let mut index = String::with_capacity(64 * (waveforms.len() + 1));
-    index.push_str(WAVEFORM_INDEX_HEADER);
-    index.push('\n');
+    let mut wr = WaveformWriter::new(
+        Vec::with_capacity(4 * total_bins),
+        Vec::with_capacity(64 * (waveforms.len() + 1)),
+    )
+    .map_err(|e| LidarError::Io(e.to_string()))?;
     for (id, w) in waveforms {
-        let offset = data.len() as u64;
-        for v in w.total.iter().chain(&w.first_order) {
-            data.extend_from_slice(&(*v as f32).to_le_bytes());
-        }
-        // `{:e}` prints the shortest representation that round-trips exactly.
-        let _ = writeln!(
-            index,
-            "{id},{:e},{:e},{},{offset},{:e},{:e}",
-            w.t0_ns,
-            w.dt_ns,
-            w.n_bins(),
-            w.total_energy_j(),
-            w.first_order_energy_j()
-        );
+        wr.append(*id, w)
+            .map_err(|e| LidarError::Io(e.to_string()))?;
     }
-    write_atomic(&data_path, &data).map_err(LidarError::Io)?;
-    if let Err(e) = write_atomic(&index_path, index.as_bytes()) {
+    write_atomic(&data_path, &wr.data).map_err(LidarError::Io)?;
+    if let Err(e) = write_atomic(&index_path, &wr.index) {
         let _ = std::fs::remove_file(&data_path);
         let _ = std::fs::remove_file(tmp_path(&index_path));
         return Err(LidarError::Io(e));
@@ -100,6 +140,143 @@ pub fn write_waveforms(
         data: data_path,
         index: index_path,
     })
+}
+
+/// The waveform product of a long scan written chunk by chunk (memory bounded by one chunk
+/// instead of the whole scan), into temporary files next to the final ones. The bytes are
+/// those of [`write_waveforms`] on the same waveforms in the same order.
+/// [`WaveformStream::finish`] closes the files; [`StreamedWaveforms::commit`] renames them into
+/// place (data first, index last, as [`write_waveforms`]). Until then nothing is visible
+/// under the final names, and dropping either value removes the temporary files: after an
+/// error no partial product is left.
+pub struct WaveformStream {
+    writer: WaveformWriter<BufWriter<File>, BufWriter<File>>,
+    files: StreamedWaveforms,
+}
+
+/// Closed temporary files of a [`WaveformStream`], waiting for [`StreamedWaveforms::commit`].
+#[derive(Debug)]
+pub struct StreamedWaveforms {
+    tmp: WaveformFiles,
+    fin: WaveformFiles,
+    committed: AtomicBool,
+}
+
+/// A temporary name unique within the process (the scan may be re-run in the same folder).
+fn stream_tmp(path: &Path) -> PathBuf {
+    static NEXT: AtomicU64 = AtomicU64::new(0);
+    let name = path
+        .file_name()
+        .map(|n| n.to_string_lossy().into_owned())
+        .unwrap_or_default();
+    path.with_file_name(format!(
+        ".{name}.stream-{}-{}",
+        std::process::id(),
+        NEXT.fetch_add(1, Ordering::Relaxed)
+    ))
+}
+
+impl WaveformStream {
+    /// Starts a product in `dir` (created if missing).
+    pub fn create(dir: &Path) -> Result<Self, LidarError> {
+        std::fs::create_dir_all(dir)
+            .map_err(|e| LidarError::Io(format!("{}: cannot create folder: {e}", dir.display())))?;
+        let fin = WaveformFiles {
+            data: dir.join(WAVEFORM_DATA_FILE),
+            index: dir.join(WAVEFORM_INDEX_FILE),
+        };
+        let tmp = WaveformFiles {
+            data: stream_tmp(&fin.data),
+            index: stream_tmp(&fin.index),
+        };
+        let files = StreamedWaveforms {
+            tmp,
+            fin,
+            committed: AtomicBool::new(false),
+        };
+        let open = |p: &Path| {
+            File::create(p)
+                .map(BufWriter::new)
+                .map_err(|e| LidarError::Io(format!("{}: cannot create: {e}", p.display())))
+        };
+        // `files` exists before the files do: an error below removes what was created.
+        let data = open(&files.tmp.data)?;
+        let index = open(&files.tmp.index)?;
+        let writer = WaveformWriter::new(data, index).map_err(|e| {
+            LidarError::Io(format!("{}: cannot write: {e}", files.tmp.index.display()))
+        })?;
+        Ok(Self { writer, files })
+    }
+
+    /// Appends waveforms (pulse id, waveform), validated first: nothing of the batch is
+    /// written if one is invalid.
+    pub fn append(&mut self, waveforms: &[(u64, &Waveform)]) -> Result<(), LidarError> {
+        validate_all(waveforms)?;
+        for (id, w) in waveforms {
+            self.writer.append(*id, w).map_err(|e| {
+                LidarError::Io(format!(
+                    "{}: cannot write: {e}",
+                    self.files.tmp.data.display()
+                ))
+            })?;
+        }
+        Ok(())
+    }
+
+    /// Flushes and closes the temporary files.
+    pub fn finish(self) -> Result<StreamedWaveforms, LidarError> {
+        let Self { writer, files } = self;
+        let WaveformWriter { data, index, .. } = writer;
+        for (w, p) in [(data, &files.tmp.data), (index, &files.tmp.index)] {
+            let f = w
+                .into_inner()
+                .map_err(|e| LidarError::Io(format!("{}: cannot write: {e}", p.display())))?;
+            f.sync_all()
+                .map_err(|e| LidarError::Io(format!("{}: cannot write: {e}", p.display())))?;
+        }
+        Ok(files)
+    }
+}
+
+impl StreamedWaveforms {
+    /// Renames the temporary files to their final names (data, then index). Afterwards the
+    /// value owns nothing; a second call is an error.
+    pub fn commit(&self) -> Result<WaveformFiles, LidarError> {
+        if self.committed.swap(true, Ordering::AcqRel) {
+            return Err(LidarError::Io(format!(
+                "{}: already committed",
+                self.fin.data.display()
+            )));
+        }
+        let mv = |from: &Path, to: &Path| {
+            std::fs::rename(from, to)
+                .map_err(|e| LidarError::Io(format!("{}: cannot write: {e}", to.display())))
+        };
+        let res = mv(&self.tmp.data, &self.fin.data).and_then(|()| {
+            mv(&self.tmp.index, &self.fin.index).inspect_err(|_| {
+                let _ = std::fs::remove_file(&self.fin.data);
+            })
+        });
+        if res.is_err() {
+            let _ = std::fs::remove_file(&self.tmp.data);
+            let _ = std::fs::remove_file(&self.tmp.index);
+        }
+        res.map(|()| self.fin.clone())
+    }
+
+    /// Final paths of the product.
+    pub fn files(&self) -> &WaveformFiles {
+        &self.fin
+    }
+}
+
+impl Drop for StreamedWaveforms {
+    fn drop(&mut self) {
+        if !*self.committed.get_mut() {
+            let _ = std::fs::remove_file(&self.tmp.data);
+            let _ = std::fs::remove_file(&self.tmp.index);
+        }
+    }
 }
 
 /// Reads back a product written by [`write_waveforms`] (values as stored, i.e. f32-rounded).
@@ -321,6 +498,65 @@ fn fmt_tick(v: f64) -> String {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The streamed product is the bytes of the in-memory one; an invalid waveform writes
+    /// nothing of its batch; a stream dropped before `commit` leaves no file.
+    #[test]
+    fn streamed_products_match_and_vanish_when_dropped() {
+        let root = std::env::temp_dir().join(format!("ls-wfstream-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&root);
+        let w = |k: usize| Waveform {
+            t0_ns: 10.0 + k as f64,
+            dt_ns: 0.5,
+            total: (0..k + 1).map(|i| 1e-13 * (i + 1) as f64).collect(),
+            first_order: (0..k + 1).map(|i| 1e-14 * i as f64).collect(),
+        };
+        let all: Vec<Waveform> = (0..5).map(w).collect();
+        let pairs: Vec<(u64, &Waveform)> = all
+            .iter()
+            .enumerate()
+            .map(|(i, w)| (i as u64 * 3, w))
+            .collect();
+        let mem = root.join("mem");
+        write_waveforms(&mem, &pairs).unwrap();
+        let st = root.join("st");
+        let mut s = WaveformStream::create(&st).unwrap();
+        s.append(&pairs[..2]).unwrap();
+        let mut bad = w(1);
+        bad.total[0] = f64::NAN;
+        assert!(s.append(&[(99, &all[2]), (100, &bad)]).is_err());
+        s.append(&pairs[2..]).unwrap();
+        let files = s.finish().unwrap();
+        assert!(
+            !st.join(WAVEFORM_DATA_FILE).exists(),
+            "visible before commit"
+        );
+        files.commit().unwrap();
+        assert!(files.commit().is_err());
+        for f in [WAVEFORM_DATA_FILE, WAVEFORM_INDEX_FILE] {
+            assert_eq!(
+                std::fs::read(mem.join(f)).unwrap(),
+                std::fs::read(st.join(f)).unwrap(),
+                "{f}"
+            );
+        }
+        drop(files);
+        assert!(
+            st.join(WAVEFORM_DATA_FILE).exists(),
+            "committed files removed"
+        );
+        // Dropped before commit (an error elsewhere): nothing left in the folder.
+        let gone = root.join("gone");
+        let mut s = WaveformStream::create(&gone).unwrap();
+        s.append(&pairs).unwrap();
+        drop(s.finish().unwrap());
+        assert_eq!(std::fs::read_dir(&gone).unwrap().count(), 0);
+        let mut s = WaveformStream::create(&gone).unwrap();
+        s.append(&pairs).unwrap();
+        drop(s);
+        assert_eq!(std::fs::read_dir(&gone).unwrap().count(), 0);
+        let _ = std::fs::remove_dir_all(&root);
+    }
 
     #[test]
     fn ticks() {

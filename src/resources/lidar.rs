@@ -22,11 +22,16 @@ pub struct PulseRecord {
     pub axis: DVec3,
     /// Received energy per bin before the pulse shape (total and first order), J. Trimmed to
     /// the bins from the first to the last non-zero one ([`Waveform::trim`]): `t0_ns` differs
-    /// from pulse to pulse and an all-zero waveform is empty.
+    /// from pulse to pulse and an all-zero waveform is empty. Empty (no bins) for the pulses
+    /// whose waveforms were streamed to disk ([`LidarRun::streamed`]).
     pub raw: Waveform,
     /// Received waveform convolved with the emitted pulse (total and first order), J per bin;
-    /// trimmed like `raw`.
+    /// trimmed like `raw`, and empty like it when streamed.
     pub waveform: Waveform,
+    /// Received energy inside the range gate (sum of `raw.total`, kept when streamed), J.
+    pub received_j: f64,
+    /// First-order part of `received_j`, J.
+    pub first_order_j: f64,
     /// Received energy outside the range gate, J: exact before the gate, a lower bound after it
     /// (photons that can no longer be recorded inside the gate are stopped early).
     pub out_of_gate_j: f64,
@@ -69,6 +74,22 @@ pub struct LidarRun {
     pub notes: Vec<String>,
     /// Wall time, s.
     pub seconds: f64,
+    /// The waveform products already written to temporary files when the scan was streamed
+    /// (an output folder was set and the scan had more pulses than one chunk, see
+    /// [`crate::lidar::simulate::LidarStreaming`]): convolved, then raw. Their pulses keep
+    /// returns and energies in memory, but waveforms only for the first
+    /// [`crate::lidar::products::QUICKLOOKS`] pulses. The Output stage renames the files into
+    /// place; dropped without that, the temporary files are removed.
+    pub streamed: Option<std::sync::Arc<StreamedRun>>,
+}
+
+/// Waveform products of a streamed scan, waiting in temporary files for the Output stage.
+#[derive(Debug)]
+pub struct StreamedRun {
+    /// `waveforms.f32` + index of the convolved waveforms.
+    pub waveforms: crate::lidar::waveform_io::StreamedWaveforms,
+    /// The same for the raw (unconvolved) waveforms, under `raw/`.
+    pub raw: crate::lidar::waveform_io::StreamedWaveforms,
 }
 
 /// The Photon stage's LiDAR results.

@@ -89,6 +89,10 @@ pub struct RunSettings {
     /// to rounding, see [`crate::radiative::engine::TrackingParams::batch_walk`]). Off: one ray
     /// at a time (kept for the equality tests and for measuring).
     pub batch_walk: bool,
+    /// LiDAR pulses tracked per chunk; with an output folder, a scan of more pulses than one
+    /// chunk streams its waveforms to disk chunk by chunk (memory bounded by a chunk, same
+    /// products; [`crate::lidar::simulate::LidarStreaming`]).
+    pub lidar_chunk_pulses: usize,
 }
 
 /// Passive solver.
@@ -130,6 +134,7 @@ impl Default for RunSettings {
             image_oversampling: None,
             skip_empty: true,
             batch_walk: true,
+            lidar_chunk_pulses: crate::lidar::simulate::DEFAULT_CHUNK_PULSES,
         }
     }
 }

@@ -5,11 +5,15 @@
 //!
 //! Reads LidarInstruments, SceneInfo, GridSpec, CellGrid, FacetStore, Directions, Materials,
 //! TerrainRes, Ground, TurbidCrown, TurbidPlot, ImportedMesh, RadiativeProducts (optional),
-//! ImageDirections (optional), OpticsTables (discrete sampler); writes LidarProducts.
+//! ImageDirections (optional), OpticsTables (discrete sampler), RunSettings and OutputDir
+//! (optional: a scan longer than one chunk streams its waveforms into the output folder while it
+//! runs); writes LidarProducts.
 
 use crate::components::{Ground, ImportedMesh, TurbidCrown, TurbidPlot};
 use crate::geometry::terrain::Terrain;
-use crate::lidar::simulate::{PassiveRadiance, simulate_lidar};
+use crate::lidar::simulate::{
+    DEFAULT_CHUNK_PULSES, LidarStreaming, PassiveRadiance, simulate_lidar,
+};
 use crate::photon::engine::{PhotonInput, PhotonParams, SamplerKind};
 use crate::radiative::products::RadiativeProducts;
 use crate::resources::facets::{FacetKind, FacetStore};
@@ -120,11 +124,12 @@ pub fn run_lidars(
     dirs: Res<Directions>,
     mats: Res<Materials>,
     terrain: Res<TerrainRes>,
-    (passive, images, tables, run): (
+    (passive, images, tables, run, out): (
         Option<Res<RadiativeProducts>>,
         Option<Res<ImageDirections>>,
         Option<Res<OpticsTables>>,
         Option<Res<crate::resources::scene::RunSettings>>,
+        Option<Res<crate::resources::scene::OutputDir>>,
     ),
     grounds: Query<&Ground>,
     crowns: Query<&TurbidCrown>,
@@ -215,7 +220,21 @@ pub fn run_lidars(
         let pr = passive
             .as_ref()
             .and_then(|p| passive_radiance(p, images.as_deref(), &dirs, &spec, view));
-        match simulate_lidar(l, band, &input, box_lo, box_hi, pr.as_ref()) {
+        let stream = out.as_ref().map(|o| LidarStreaming {
+            dir: o.0.join("lidar").join(&l.name),
+            chunk_pulses: run
+                .as_ref()
+                .map_or(DEFAULT_CHUNK_PULSES, |r| r.lidar_chunk_pulses),
+        });
+        match simulate_lidar(
+            l,
+            band,
+            &input,
+            box_lo,
+            box_hi,
+            pr.as_ref(),
+            stream.as_ref(),
+        ) {
             Ok(r) => runs.push(r),
             Err(e) => {
                 errors.0.push(e);

@@ -188,8 +188,10 @@ impl Ctx<'_> {
         let max_crossings = self.inp.params.max_crossings;
         let scells = &self.scells[..];
         let ns = view.ns;
-        let tur = &mut *view.tur;
-        let pts = &mut *view.pts;
+        // The records as rows (one bounds check per booking instead of a range check): the
+        // channel powers of (entry, slot) and the seven point sums of an entry.
+        let tur: &mut [[f64; W]] = view.tur.as_chunks_mut::<W>().0;
+        let pts: &mut [[f64; 7]] = view.pts.as_chunks_mut::<7>().0;
         let flag = &mut *view.flag;
         let touched = &mut *view.touched;
         let mut ln = Lanes::<W> {
@@ -308,12 +310,11 @@ impl Ctx<'_> {
                     flag[e] = true;
                     touched.push(e as u32);
                 }
-                let s = (e * ns + ln.slot[l]) * W;
-                let r: &mut [f64; W] = (&mut tur[s..s + W]).try_into().expect("W");
+                let r = &mut tur[e * ns + ln.slot[l]];
                 for c in 0..W {
                     r[c] += gain[c][l];
                 }
-                let q: &mut [f64; 7] = (&mut pts[e * 7..e * 7 + 7]).try_into().expect("7");
+                let q = &mut pts[e];
                 for i in 0..4 {
                     q[i] += rows_a[l][i];
                 }
