@@ -644,8 +644,8 @@ struct Ctx<'a> {
 }
 
 /// Per cell, the bounding box of the cell's facets (their vertices' box, widened by a margin
-/// `m`) cut to the cell widened by `2m`, `m = 4 × hit tolerance + 1e-9 × (largest |coordinate|
-/// + largest cell side)`: a facet hit that [`Ctx::facet_hit`] accepts lies on the facet
+/// `m`) cut to the cell widened by `2m`, with `m` four hit tolerances plus 1e-9 of the sum of
+/// the largest |coordinate| and the largest cell side: a facet hit that [`Ctx::facet_hit`] accepts lies on the facet
 /// (barycentric slack 1e-12) within the hit tolerance of the cell segment, so inside this box
 /// (rounding included); cells without facets get an empty box. Empty when the scene has none.
 fn facet_boxes(inp: &PhotonInput) -> Vec<[f64; 6]> {
