@@ -4,6 +4,8 @@
 //! [`half_barycentres`] (physics.md §3.6). They exist because the libm calls (`exp_m1`,
 //! `ln`) were a third of the kernel's instructions; each is tested against the libm form.
 #[cfg(target_arch = "x86_64")]
+use core::arch::x86_64::__m128d;
+#[cfg(target_arch = "x86_64")]
 use pulp::{cast, f64x4, u64x4, x86::V3};
 
 /// `2^{j/128}`, j = 0..127, correctly rounded (computed with 60-digit decimals).
@@ -362,9 +364,11 @@ impl HalfBarycentres {
     /// [`HalfBarycentres::eval`] of four segments at once (AVX2), the same bits per lane: the
     /// three forms (series, cubic piece, dense limit) are computed on every lane and the result
     /// selected (no branch on x; the bin index is masked into the table for any x). The four
-    /// bins' coefficient rows are read as two 4-wide loads each and transposed into one vector
-    /// per coefficient (16 shuffles), so the two Horner evaluations run lane-wise (the same
-    /// operations in the same order as [`HalfBarycentres::eval`]).
+    /// bins' coefficient rows are read as 128-bit pairs (cₖ₁, cₖ₂), lanes 0 and 2 (1 and 3) in
+    /// one vector, and unpacked into one vector per coefficient (8 inserts, 8 unpacks; the
+    /// 4 × 4 transposes of full rows compiled to ~56 broadcasts and blends), so the two Horner
+    /// evaluations run lane-wise (the same operations in the same order as
+    /// [`HalfBarycentres::eval`]).
     #[cfg(target_arch = "x86_64")]
     #[inline(always)]
     pub fn eval_x4(&self, simd: V3, x: f64x4, ell: f64x4) -> (f64x4, f64x4) {
@@ -381,18 +385,22 @@ impl HalfBarycentres {
         let start: f64x4 =
             cast(simd.and_u64x4(bits, simd.splat_u64x4(!((1u64 << (52 - HB_BITS)) - 1))));
         let t = simd.sub_f64x4(x, start);
-        let mut lo = [[0.0f64; 4]; 4];
-        let mut hi = [[0.0f64; 4]; 4];
-        for l in 0..4 {
-            let r = &self.bins[bin[l] as usize];
-            lo[l] = [r[0], r[1], r[2], r[3]];
-            hi[l] = [r[4], r[5], r[6], r[7]];
+        let rows: [&[f64; 8]; 4] = std::array::from_fn(|l| &self.bins[bin[l] as usize]);
+        // Pair k (cₖ₁, cₖ₂) of lane l's row as one 128-bit value.
+        let pair = |l: usize, k: usize| -> __m128d { cast([rows[l][2 * k], rows[l][2 * k + 1]]) };
+        let avx = simd.avx;
+        let mut ca = [simd.splat_f64x4(0.0); 4];
+        let mut cb = [simd.splat_f64x4(0.0); 4];
+        for k in 0..4 {
+            // [pair of lane 0, pair of lane 2] and [lane 1, lane 3]: their low elements
+            // interleaved are cₖ₁ of lanes 0..3, their high elements cₖ₂.
+            let a = avx._mm256_setr_m128d(pair(0, k), pair(2, k));
+            let b = avx._mm256_setr_m128d(pair(1, k), pair(3, k));
+            ca[k] = cast(avx._mm256_unpacklo_pd(a, b));
+            cb[k] = cast(avx._mm256_unpackhi_pd(a, b));
         }
-        // Rows [c0₁, c0₂, c1₁, c1₂] of lanes 0..3 → [c0₁ of each lane], [c0₂ …], [c1₁ …], [c1₂ …].
-        let [c0a, c0b, c1a, c1b] = transpose4(simd, lo.map(cast));
-        let [c2a, c2b, c3a, c3b] = transpose4(simd, hi.map(cast));
-        let a = horner(simd, ell, t, [c0a, c1a, c2a, c3a]);
-        let b = horner(simd, ell, t, [c0b, c1b, c2b, c3b]);
+        let a = horner(simd, ell, t, ca);
+        let b = horner(simd, ell, t, cb);
         let sp = |v: f64| simd.splat_f64x4(v);
         let l2 = std::f64::consts::LN_2;
         let u = simd.div_f64x4(ell, x);
