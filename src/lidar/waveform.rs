@@ -350,7 +350,8 @@ impl WaveformBinner {
         } else if x >= self.total.len() as f64 {
             Err(BinOutcome::AfterGate)
         } else {
-            Ok((x.floor() as usize).min(self.total.len() - 1))
+            // x ≥ 0: truncation is the floor (no libm call).
+            Ok((x as usize).min(self.total.len() - 1))
         }
     }
 

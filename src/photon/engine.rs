@@ -43,7 +43,7 @@ use crate::photon::small::Small;
 use crate::physics::brdf::Brdf;
 use crate::physics::lad::{GTable, VolscattKernel};
 use crate::physics::phase::FluidPhase;
-use crate::radiative::dda::{Dda, Exit, skip_field};
+use crate::radiative::dda::{Dda, Exit, floor_i64, skip_field};
 use crate::radiative::engine::intersect;
 use crate::resources::directions::DirectionSet;
 use crate::resources::facets::Facet;
@@ -637,6 +637,72 @@ struct Ctx<'a> {
     /// `c` ≥ 1, and expected-value first-order ground return in [`Ctx::first_flight`] (0: off,
     /// the collision estimator).
     ms_stop: f64,
+    /// Per cell (empty: the scene has no facets): a box `[lo, hi]` (x, y, z lo then hi) that
+    /// holds every point of the cell's facets near the cell ([`facet_boxes`]); a ray segment
+    /// that misses it hits none of them ([`Ctx::facet_hit`], [`Ctx::facet_behind`]).
+    facet_box: std::sync::Arc<[[f64; 6]]>,
+}
+
+/// Per cell, the bounding box of the cell's facets (their vertices' box, widened by a margin
+/// `m`) cut to the cell widened by `2m`, with `m` four hit tolerances plus 1e-9 of the sum of
+/// the largest |coordinate| and the largest cell side: a facet hit that [`Ctx::facet_hit`] accepts lies on the facet
+/// (barycentric slack 1e-12) within the hit tolerance of the cell segment, so inside this box
+/// (rounding included); cells without facets get an empty box. Empty when the scene has none.
+fn facet_boxes(inp: &PhotonInput) -> Vec<[f64; 6]> {
+    let spec = inp.spec;
+    let grid = inp.grid;
+    let n_cells = spec.n_cells();
+    if grid.facet_ids.is_empty() || grid.facet_start.len() != n_cells + 1 {
+        return Vec::new();
+    }
+    let tol = spec.hit_tolerance();
+    let far = inp
+        .facets
+        .iter()
+        .flat_map(|f| f.v.iter())
+        .fold(0.0f64, |a, v| a.max(v.abs().max_element()));
+    let m = 4.0 * tol + 1e-9 * (far + spec.cell.max_element());
+    // Cells without facets: an empty box (lo > hi), which no ray meets.
+    const EMPTY: [f64; 6] = [1.0, 1.0, 1.0, -1.0, -1.0, -1.0];
+    let mut out = vec![EMPTY; n_cells];
+    for (c, b) in out.iter_mut().enumerate() {
+        let ids = grid.facets_of(c);
+        if ids.is_empty() {
+            continue;
+        }
+        let (mut lo, mut hi) = (DVec3::splat(f64::INFINITY), DVec3::splat(-f64::INFINITY));
+        for &f in ids {
+            for v in &inp.facets[f as usize].v {
+                lo = lo.min(*v);
+                hi = hi.max(*v);
+            }
+        }
+        let [i, j, k] = spec.ijk(c);
+        let (clo, chi) = spec.cell_box(i as i64, j as i64, k as i64);
+        let lo = (lo - m).max(clo - 2.0 * m);
+        let hi = (hi + m).min(chi + 2.0 * m);
+        *b = [lo.x, lo.y, lo.z, hi.x, hi.y, hi.z];
+    }
+    out
+}
+
+/// Whether the ray `o + t d`, `t ∈ [ta, tb]`, meets the box `b` (slab test; a NaN bound from
+/// a degenerate direction component keeps the ray: conservative).
+#[inline]
+fn ray_meets_box(b: &[f64; 6], o: DVec3, d: DVec3, ta: f64, tb: f64) -> bool {
+    let (mut lo, mut hi) = (ta, tb);
+    for a in 0..3 {
+        let (bl, bh) = (b[a], b[a + 3]);
+        if d[a] != 0.0 {
+            let inv = 1.0 / d[a];
+            let (t1, t2) = ((bl - o[a]) * inv, (bh - o[a]) * inv);
+            lo = lo.max(t1.min(t2));
+            hi = hi.min(t1.max(t2));
+        } else if !(o[a] >= bl && o[a] <= bh) {
+            return false;
+        }
+    }
+    lo <= hi
 }
 
 /// Per-column cumulative vertical leaf-area sums of the tracked turbid materials (computed once
@@ -808,6 +874,7 @@ impl<'a> Ctx<'a> {
             columns: None,
             ms_stop: 0.0,
             empty: std::sync::Arc::from(Vec::new()),
+            facet_box: std::sync::Arc::from(facet_boxes(inp)),
         };
         let grid = inp.grid;
         let empty: Vec<bool> = (0..grid.facet_start.len().saturating_sub(1))
@@ -915,12 +982,11 @@ impl Ctx<'_> {
 
     fn column(&self, p: DVec3) -> u32 {
         let spec = self.inp.spec;
-        let i = ((p.x - spec.origin.x) / spec.cell.x)
-            .floor()
-            .clamp(0.0, (spec.n[0] - 1) as f64) as usize;
-        let j = ((p.y - spec.origin.y) / spec.cell.y)
-            .floor()
-            .clamp(0.0, (spec.n[1] - 1) as f64) as usize;
+        // (floor_i64: no libm call; NaN gives column 0 as before.)
+        let i =
+            floor_i64((p.x - spec.origin.x) / spec.cell.x).clamp(0, spec.n[0] as i64 - 1) as usize;
+        let j =
+            floor_i64((p.y - spec.origin.y) / spec.cell.y).clamp(0, spec.n[1] as i64 - 1) as usize;
         (i + spec.n[0] * j) as u32
     }
 
@@ -956,6 +1022,11 @@ impl Ctx<'_> {
     ) -> Option<(u32, f64)> {
         let grid = self.inp.grid;
         let tol = self.inp.spec.hit_tolerance();
+        if let Some(b) = self.facet_box.get(c)
+            && !ray_meets_box(b, o, d, t0 - tol, t1 + tol)
+        {
+            return None;
+        }
         let mut hit: Option<(u32, f64)> = None;
         for &f in grid.facets_of(c) {
             if Some(f) == skip {
@@ -980,6 +1051,11 @@ impl Ctx<'_> {
     /// one-sided facet from behind (not a hit for this ray, but one for the reversed ray).
     fn facet_behind(&self, c: usize, o: DVec3, d: DVec3, t0: f64, t1: f64) -> bool {
         let tol = self.inp.spec.hit_tolerance();
+        if let Some(b) = self.facet_box.get(c)
+            && !ray_meets_box(b, o, d, t0 - tol, t1 + tol)
+        {
+            return false;
+        }
         self.inp.grid.facets_of(c).iter().any(|&f| {
             let fa = &self.inp.facets[f as usize];
             !fa.two_sided
@@ -1478,6 +1554,11 @@ impl Ctx<'_> {
             lambert_ground: self.lambert_ground(),
             tau_stop: self.ms_stop * tau_star,
             keep: 1.0 - 1.0 / self.ms_stop,
+            fov_tan2: if rx.cos_fov > 0.0 {
+                (1.0 - rx.cos_fov * rx.cos_fov) / (rx.cos_fov * rx.cos_fov)
+            } else {
+                -1.0
+            },
         };
         let mut io = FlightIo {
             rng,
@@ -2063,7 +2144,7 @@ impl Ctx<'_> {
         for a in 0..2 {
             let x0 = (p[a] - spec.origin[a]) / spec.cell[a];
             let x1 = (q[a] - spec.origin[a]) / spec.cell[a];
-            let i = x0.floor();
+            let i = floor_i64(x0) as f64;
             if !(i >= 0.0
                 && i < spec.n[a] as f64
                 && x0 > i
@@ -2075,9 +2156,8 @@ impl Ctx<'_> {
             }
             ij[a] = i as usize;
         }
-        let k = ((p.z - spec.origin.z) / spec.cell.z)
-            .floor()
-            .clamp(0.0, (spec.n[2] - 1) as f64);
+        let k =
+            floor_i64((p.z - spec.origin.z) / spec.cell.z).clamp(0, spec.n[2] as i64 - 1) as f64;
         let c = spec.index(ij[0], ij[1], k as usize);
         if !col.clear[c] {
             return None;
@@ -2486,6 +2566,37 @@ struct ScatterScore<'g> {
     tau_stop: f64,
     /// `1 − 1/c`.
     keep: f64,
+    /// `tan²` of the receiver's FOV half-angle (< 0: a FOV of 90° or more, no segment test).
+    fov_tan2: f64,
+}
+
+/// Whether every point of the segment from `a` along the unit vector `d` over `len` (m,
+/// unwrapped coordinates) lies outside the field of view of `rx` (`tan2` = tan² of its
+/// half-angle, FOV < 90°): the segment's least distance ρ from the receiver axis exceeds the
+/// cone radius `s_max tan α` at the largest along-axis distance `s_max` of its ends (s is linear
+/// along the segment, and a point at along-axis distance s ≤ s_max lies in the cone only if
+/// ρ ≤ s tan α), with a relative margin of 1e-6 so that rounding never drops a point in view.
+/// Such a segment scores nothing ([`Ctx::peel_receiver`] drops points out of view).
+#[inline]
+fn segment_out_of_fov(rx: &Receiver, tan2: f64, a: DVec3, d: DVec3, len: f64) -> bool {
+    let ax = rx.axis;
+    let va = a - rx.position;
+    let (sa, sd) = (va.dot(ax), d.dot(ax));
+    let s_max = sa.max(sa + sd * len);
+    if !(s_max > 0.0) {
+        return s_max <= 0.0;
+    }
+    // Perpendicular parts of the start and of the direction; least |pa + t pd| on [0, len].
+    let pa = va - ax * sa;
+    let pd = d - ax * sd;
+    let pd2 = pd.length_squared();
+    let t = if pd2 > 0.0 {
+        (-pa.dot(pd) / pd2).clamp(0.0, len)
+    } else {
+        0.0
+    };
+    let rho2 = (pa + pd * t).length_squared();
+    rho2 > (1.0 + 1e-6) * s_max * s_max * tan2
 }
 
 impl FlightScore for ScatterScore<'_> {
@@ -2514,6 +2625,12 @@ impl FlightScore for ScatterScore<'_> {
             ell
         };
         if ell_f <= 0.0 {
+            return;
+        }
+        // Nothing to score (and no draws) when the whole segment is out of the receiver's view.
+        if self.fov_tan2 >= 0.0
+            && segment_out_of_fov(&rx, self.fov_tan2, dda.point(t0) + shift, d, ell_f)
+        {
             return;
         }
         let beta = keep * kv;
@@ -2649,13 +2766,13 @@ fn bin_first_order(
             break;
         }
         let in_gate = (0.0..n).contains(&xa);
-        let grid_edge = ((xa / kb).floor() + 1.0) * kb;
         let edge = if xa < 0.0 {
             0.0
         } else if xa >= n {
             f64::INFINITY
         } else {
-            grid_edge.min(n)
+            // ⌊xa/kb⌋ by truncation (xa ≥ 0 here; no libm call).
+            ((((xa / kb) as u64) as f64 + 1.0) * kb).min(n)
         };
         let xb = edge.min(x1);
         let b = if xb >= x1 {
@@ -2687,6 +2804,13 @@ fn bin_first_order(
         a = b;
         xa = xb;
     }
+}
+
+/// `x − ⌊x⌋` for `x ≥ 0` (the fractional part of a lattice coordinate), by truncation: the
+/// same value as `x.fract()` without its libm call.
+#[inline]
+fn unit_fract(x: f64) -> f64 {
+    x - (x as u64) as f64
 }
 
 /// Transmittance `e^{−τ}` of a return optical depth τ, zero beyond τ = 69.1 (e^{−69.1} < 1e-30,
@@ -3722,9 +3846,9 @@ fn run_pulse(base: &Ctx, beam: &Beam, pl: &Pulse) -> PulseResult {
     for i in 0..beam.photons {
         let (u1, u2, u3) = match lattice {
             Some((a, s)) => (
-                (s[0] + i as f64 * a[0]).fract(),
-                (s[1] + i as f64 * a[1]).fract(),
-                Some((s[2] + i as f64 * a[2]).fract()),
+                unit_fract(s[0] + i as f64 * a[0]),
+                unit_fract(s[1] + i as f64 * a[1]),
+                Some(unit_fract(s[2] + i as f64 * a[2])),
             ),
             None => (rng.next_f64(), rng.next_f64(), None),
         };
@@ -3745,18 +3869,26 @@ fn run_pulse(base: &Ctx, beam: &Beam, pl: &Pulse) -> PulseResult {
         if spec.boundary != BoundaryMode::Isolated {
             for a in 0..2 {
                 let len = if a == 0 { ctx.size.0 } else { ctx.size.1 };
-                let rel = (q[a] - spec.origin[a]).rem_euclid(len);
+                // (rem_euclid is a libm fmod call; inside [0, len) it returns its argument.)
+                let raw = q[a] - spec.origin[a];
+                let rel = if (0.0..len).contains(&raw) {
+                    raw
+                } else {
+                    raw.rem_euclid(len)
+                };
                 let wrapped = spec.origin[a] + rel;
                 shift[a] = q[a] - wrapped;
                 q[a] = wrapped;
             }
             // Continuous topography: a point k tiles along +x maps to the base tile k·offset
             // lower (as `wrap` does when a ray leaves through +x).
-            let kx = (shift.x / ctx.size.0).round();
-            let ky = (shift.y / ctx.size.1).round();
-            let dz = kx * spec.topography_offset.0 + ky * spec.topography_offset.1;
-            q.z -= dz;
-            shift.z += dz;
+            if shift.x != 0.0 || shift.y != 0.0 {
+                let kx = (shift.x / ctx.size.0).round();
+                let ky = (shift.y / ctx.size.1).round();
+                let dz = kx * spec.topography_offset.0 + ky * spec.topography_offset.1;
+                q.z -= dz;
+                shift.z += dz;
+            }
         } else if !inside(DVec3::new(q.x, q.y, top.min(q.z))) {
             missed += w0;
             continue;

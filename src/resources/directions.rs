@@ -498,6 +498,21 @@ impl Node {
         }
     }
 
+    /// The leaf id of a zonal node's polar cap when `u` lies in it: the first ring (highest u)
+    /// has one cell, a leaf, and `u ≥ u0` of that ring ([`zonal_cell`] then returns (0, 0)
+    /// whatever φ). `None` otherwise (use [`Node::lookup`]).
+    #[inline]
+    fn cap_leaf(&self, u: f64) -> Option<usize> {
+        if let Node::Zonal { rings, .. } = self
+            && let Some(r) = rings.first()
+            && r.u0 <= u
+            && let [Node::Leaf(l)] = r.cells.as_slice()
+        {
+            return Some(l.id);
+        }
+        None
+    }
+
     fn lookup(&self, u: f64, phi: f64) -> usize {
         match self {
             Node::Leaf(l) => l.id,
@@ -555,7 +570,11 @@ fn zonal_cell(extent: &Rect, rings: &[Ring], u: f64, phi: f64) -> (usize, usize)
     let r = &rings[k];
     let m = r.cells.len();
     let w = extent.dphi / m as f64;
-    let mut rel = (phi - r.phi0).rem_euclid(TAU);
+    // (rem_euclid is a libm fmod call; inside [0, 2π) it returns its argument.)
+    let mut rel = phi - r.phi0;
+    if !(0.0..TAU).contains(&rel) {
+        rel = rel.rem_euclid(TAU);
+    }
     if !extent.full_ring() && rel > extent.dphi {
         rel = if rel > extent.dphi + 0.5 * (TAU - extent.dphi) {
             0.0
@@ -1245,6 +1264,17 @@ impl DirectionSet {
     /// the ring by μ, then azimuth arithmetic, then at most a few split children).
     /// μ = 0 goes to the upper hemisphere; zero or non-finite vectors map to the +z cap.
     pub fn find_sector(&self, omega: DVec3) -> usize {
+        // Fast path (same result as the full lookup): a direction inside the polar cap of its
+        // hemisphere (the first ring holds one leaf, so neither the azimuth nor the ring search
+        // matters), e.g. every return toward a nadir LiDAR receiver.
+        let len = omega.length();
+        if len.is_finite() && len > 0.0 {
+            let z = omega.z / len;
+            let h = if z >= 0.0 { 0 } else { 1 };
+            if let Some(id) = self.roots[h].cap_leaf(z.abs().min(1.0)) {
+                return id;
+            }
+        }
         let (h, u, p) = local(omega);
         self.roots[h].lookup(u, p)
     }
