@@ -144,6 +144,10 @@ pub struct TrackingParams {
     /// agree to rounding (only the summation order of the rays' contributions changes). Off:
     /// one ray at a time (kept for the equality tests and for measuring).
     pub batch_walk: bool,
+    /// A progress bar of the iterations on stderr (a display setting, not written with the
+    /// products).
+    #[serde(skip)]
+    pub progress: bool,
 }
 
 impl TrackingParams {
@@ -164,6 +168,7 @@ impl TrackingParams {
             turbid_subfaces: TurbidSubfaces::Off,
             turbid_exit_grouping: false,
             batch_walk: true,
+            progress: false,
         }
     }
     /// Fast look: 10 iterations, threshold 1e-2.
@@ -2898,7 +2903,13 @@ pub fn run(inp: &RadiativeInput) -> RadiativeResult {
     let mut prev_estimate = f64::NAN;
     res.q = vec![0.0; w];
     let mut last_inc = Increments::new(&res);
+    let bar = crate::io::progress::progress_bar(
+        inp.params.progress,
+        inp.params.max_iterations as u64,
+        "flux tracking: iterations",
+    );
     while res.iterations < inp.params.max_iterations {
+        bar.set_position(res.iterations as u64);
         let pend = prev_pending.clone();
         if pend.iter().sum::<f64>() <= 1e-15 * source.iter().sum::<f64>() {
             res.converged = true;
@@ -2945,6 +2956,7 @@ pub fn run(inp: &RadiativeInput) -> RadiativeResult {
         prev_estimate = estimate;
     }
     // --- Remaining stores: extrapolate (or book as remaining).
+    bar.finish_and_clear();
     let pend = pending(&stores, w);
     if inp.params.extrapolate && res.iterations >= 2 {
         let mut fac = vec![0.0; w];
