@@ -1,4 +1,4 @@
-//! Input/output: atomic writes, EXR products, mesh import.
+//! Input/output: atomic writes, EXR products, mesh import, progress bars.
 
 pub mod atomic;
 pub mod csv_text;
@@ -6,4 +6,5 @@ pub mod exr_out;
 pub mod las_out;
 pub mod leaf_list;
 pub mod mesh;
+pub mod progress;
 pub mod rami_mes;

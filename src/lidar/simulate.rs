@@ -156,22 +156,35 @@ fn footprint_centre(pl: &PulseRecord) -> (f64, f64) {
 /// chunk's parallel tail short.
 pub const DEFAULT_CHUNK_PULSES: usize = 8192;
 
-/// Streaming of a long scan's waveforms to disk while it runs (set by the LiDAR system when
-/// the run has an output folder).
+/// How an instrument's pulses are run: by chunks, the waveforms of a long scan streamed to
+/// disk while it runs when there is an output folder, with a progress bar if asked.
 #[derive(Debug, Clone)]
-pub struct LidarStreaming {
-    /// The instrument's product folder (`DIR/lidar/<name>`).
-    pub dir: std::path::PathBuf,
-    /// Pulses per chunk; a scan of more pulses than this is streamed.
+pub struct LidarChunks {
+    /// Pulses per chunk ([`DEFAULT_CHUNK_PULSES`] by default).
     pub chunk_pulses: usize,
+    /// The instrument's product folder (`DIR/lidar/<name>`) when the run writes products: a
+    /// scan of more pulses than one chunk is then streamed.
+    pub stream_dir: Option<std::path::PathBuf>,
+    /// A progress bar of the pulses on stderr (advanced per chunk).
+    pub progress: bool,
+}
+
+impl Default for LidarChunks {
+    fn default() -> Self {
+        Self {
+            chunk_pulses: DEFAULT_CHUNK_PULSES,
+            stream_dir: None,
+            progress: false,
+        }
+    }
 }
 
 /// Runs one instrument. `input` must carry the laser band's optics only (one band); `band` is
 /// the scene band index (for the passive radiance); `box_lo`/`box_hi` the grid box (gate).
-/// Pulses run by chunks of [`LidarStreaming::chunk_pulses`] ([`DEFAULT_CHUNK_PULSES`] without
-/// `stream`); with `stream` and more pulses than one chunk, each chunk's waveforms are written
-/// to temporary files as soon as it is done ([`LidarRun::streamed`]) and only the first
-/// quick-looks' waveforms stay in memory. The products are the same bytes either way.
+/// Pulses run by chunks of [`LidarChunks::chunk_pulses`]; with a `stream_dir` and more pulses
+/// than one chunk, each chunk's waveforms are written to temporary files as soon as it is done
+/// ([`LidarRun::streamed`]) and only the first quick-looks' waveforms stay in memory. The
+/// products are the same bytes either way.
 pub fn simulate_lidar(
     desc: &LidarDesc,
     band: usize,
@@ -179,7 +192,7 @@ pub fn simulate_lidar(
     box_lo: DVec3,
     box_hi: DVec3,
     passive: Option<&PassiveRadiance>,
-    stream: Option<&LidarStreaming>,
+    chunks: &LidarChunks,
 ) -> Result<LidarRun, String> {
     let t0 = std::time::Instant::now();
     let (pulses, ref_range) = pulses_of(desc);
@@ -297,16 +310,17 @@ pub fn simulate_lidar(
     }
     let mut counted = Vec::new();
     let mut background_rate_hz = Vec::new();
-    let streaming = stream.filter(|s| pulses.len() > s.chunk_pulses.max(1));
-    let chunk = stream.map_or(DEFAULT_CHUNK_PULSES, |s| s.chunk_pulses);
+    let chunk = chunks.chunk_pulses.max(1);
     let err = |e: crate::lidar::LidarError| format!("lidar `{}`: {e}", desc.name);
-    let mut writers = match streaming {
-        Some(s) => Some((
-            WaveformStream::create(&s.dir).map_err(err)?,
-            WaveformStream::create(&s.dir.join("raw")).map_err(err)?,
+    let mut writers = match &chunks.stream_dir {
+        Some(dir) if pulses.len() > chunk => Some((
+            WaveformStream::create(dir).map_err(err)?,
+            WaveformStream::create(&dir.join("raw")).map_err(err)?,
         )),
-        None => None,
+        _ => None,
     };
+    let bar =
+        crate::io::progress::progress_bar(chunks.progress, pulses.len() as u64, "LiDAR pulses");
     let mut records: Vec<PulseRecord> = Vec::with_capacity(pulses.len());
     run_lidar_chunks(input, &beam, &pulses, chunk, |part, results| {
         // Convolution and returns per pulse, in parallel (each pulse is independent; the
@@ -406,8 +420,10 @@ pub fn simulate_lidar(
             }
         }
         records.extend(recs);
+        bar.inc(part.len() as u64);
         Ok(())
     })?;
+    bar.finish_and_clear();
     let streamed = match writers {
         Some((wf, raw)) => Some(std::sync::Arc::new(StreamedRun {
             waveforms: wf.finish().map_err(err)?,

@@ -76,7 +76,7 @@ pub struct LidarRun {
     pub seconds: f64,
     /// The waveform products already written to temporary files when the scan was streamed
     /// (an output folder was set and the scan had more pulses than one chunk, see
-    /// [`crate::lidar::simulate::LidarStreaming`]): convolved, then raw. Their pulses keep
+    /// [`crate::lidar::simulate::LidarChunks`]): convolved, then raw. Their pulses keep
     /// returns and energies in memory, but waveforms only for the first
     /// [`crate::lidar::products::QUICKLOOKS`] pulses. The Output stage renames the files into
     /// place; dropped without that, the temporary files are removed.

@@ -91,7 +91,7 @@ pub struct RunSettings {
     pub batch_walk: bool,
     /// LiDAR pulses tracked per chunk; with an output folder, a scan of more pulses than one
     /// chunk streams its waveforms to disk chunk by chunk (memory bounded by a chunk, same
-    /// products; [`crate::lidar::simulate::LidarStreaming`]).
+    /// products; [`crate::lidar::simulate::LidarChunks`]).
     pub lidar_chunk_pulses: usize,
 }
 

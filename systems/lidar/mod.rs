@@ -11,9 +11,7 @@
 
 use crate::components::{Ground, ImportedMesh, TurbidCrown, TurbidPlot};
 use crate::geometry::terrain::Terrain;
-use crate::lidar::simulate::{
-    DEFAULT_CHUNK_PULSES, LidarStreaming, PassiveRadiance, simulate_lidar,
-};
+use crate::lidar::simulate::{DEFAULT_CHUNK_PULSES, LidarChunks, PassiveRadiance, simulate_lidar};
 use crate::photon::engine::{PhotonInput, PhotonParams, SamplerKind};
 use crate::radiative::products::RadiativeProducts;
 use crate::resources::facets::{FacetKind, FacetStore};
@@ -220,21 +218,14 @@ pub fn run_lidars(
         let pr = passive
             .as_ref()
             .and_then(|p| passive_radiance(p, images.as_deref(), &dirs, &spec, view));
-        let stream = out.as_ref().map(|o| LidarStreaming {
-            dir: o.0.join("lidar").join(&l.name),
+        let chunks = LidarChunks {
             chunk_pulses: run
                 .as_ref()
                 .map_or(DEFAULT_CHUNK_PULSES, |r| r.lidar_chunk_pulses),
-        });
-        match simulate_lidar(
-            l,
-            band,
-            &input,
-            box_lo,
-            box_hi,
-            pr.as_ref(),
-            stream.as_ref(),
-        ) {
+            stream_dir: out.as_ref().map(|o| o.0.join("lidar").join(&l.name)),
+            progress: run.as_ref().is_some_and(|r| r.progress),
+        };
+        match simulate_lidar(l, band, &input, box_lo, box_hi, pr.as_ref(), &chunks) {
             Ok(r) => runs.push(r),
             Err(e) => {
                 errors.0.push(e);

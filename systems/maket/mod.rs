@@ -509,7 +509,7 @@ pub fn rasterise_turbid(
 ) {
     let g = &*spec;
     let crown_list: Vec<&TurbidCrown> = crowns.iter().collect();
-    let bar = progress_bar(
+    let bar = crate::io::progress::progress_bar(
         settings.progress,
         crown_list.len() as u64,
         "Maket: rasterising crowns",
@@ -734,19 +734,4 @@ pub fn make_report(
         );
     }
     r
-}
-
-/// A progress bar on stderr, hidden when `show` is false.
-pub fn progress_bar(show: bool, len: u64, msg: &'static str) -> indicatif::ProgressBar {
-    if !show {
-        return indicatif::ProgressBar::hidden();
-    }
-    let b = indicatif::ProgressBar::new(len);
-    if let Ok(style) =
-        indicatif::ProgressStyle::with_template("{msg} [{bar:40}] {pos}/{len} ({eta})")
-    {
-        b.set_style(style);
-    }
-    b.set_message(msg);
-    b
 }
