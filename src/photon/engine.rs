@@ -2757,6 +2757,46 @@ fn bin_first_order(
     // Whole strata: width kb·h, shared offset.
     let em_full = (-alpha * kb * h).exp_m1();
     let off_full = -(rng.next_f64() * em_full).ln_1p() / alpha;
+    // Common case: one bin per stratum and the segment well inside the gate. The strata are
+    // visited in the order of the general loop below, with its arithmetic (the same values
+    // bit for bit), without its per-stratum gate, grouping and edge logic: stratum k is bin k,
+    // from ⌊x0⌋; the first and the last draw their own point, the whole ones between share
+    // the offset.
+    if kb == 1.0 && x0 >= 0.0 && x1 < n - 1.0 {
+        let mut k = (x0 as u64) as f64; // ⌊x0⌋
+        let (mut a, mut ea) = (0.0, 1.0);
+        loop {
+            let edge = k + 1.0;
+            if edge >= x1 {
+                // Last stratum [a, ell] (the only one when the segment lies in one bin).
+                if ell > a {
+                    let em = (-alpha * (ell - a)).exp_m1();
+                    let u = a - (rng.next_f64() * em).ln_1p() / alpha;
+                    let r = l0 + clamp_between(u, a, ell);
+                    wave.add_first_order_at(k as usize, base * (ea * -em / alpha) / (r * r));
+                }
+                return;
+            }
+            let bx = (edge - x0) * h;
+            let b = if bx < ell { bx } else { ell };
+            if !(b > a) {
+                // Both ends rounded to ell (the bin ends are strictly increasing): the general
+                // loop stops here too.
+                return;
+            }
+            let (em, u) = if a > 0.0 {
+                (em_full, a + off_full)
+            } else {
+                let em = (-alpha * (b - a)).exp_m1();
+                (em, a - (rng.next_f64() * em).ln_1p() / alpha)
+            };
+            let r = l0 + clamp_between(u, a, b);
+            wave.add_first_order_at(k as usize, base * (ea * -em / alpha) / (r * r));
+            ea *= 1.0 + em;
+            a = b;
+            k = edge;
+        }
+    }
     let mut xa = x0;
     let mut ea = 1.0; // e^{−α a}
     let mut a = 0.0;
@@ -2803,6 +2843,18 @@ fn bin_first_order(
         ea *= 1.0 + em;
         a = b;
         xa = xb;
+    }
+}
+
+/// `u` clamped to `[a, b]` (`a ≤ b`), as `f64::clamp` (NaN stays NaN) without its checks.
+#[inline(always)]
+fn clamp_between(u: f64, a: f64, b: f64) -> f64 {
+    if u < a {
+        a
+    } else if u > b {
+        b
+    } else {
+        u
     }
 }
 
