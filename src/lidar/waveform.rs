@@ -267,7 +267,10 @@ pub struct WaveformBinner {
     path_min_m: f64,
     bin_len_m: f64,
     dt_ns: f64,
-    total: Vec<NeumaierSum>,
+    /// Orders other than 1 (0 = direct emitter→receiver, ≥ 2 = multiple scattering); the total
+    /// of a bin is `first + rest` (one rounding), so a first-order packet costs one compensated
+    /// add, not two (the whole-bin loop of the LiDAR first-order estimate adds ~900 per pulse).
+    rest: Vec<NeumaierSum>,
     first: Vec<NeumaierSum>,
     before: NeumaierSum,
     after: NeumaierSum,
@@ -303,7 +306,7 @@ impl WaveformBinner {
             path_min_m,
             bin_len_m,
             dt_ns,
-            total: vec![NeumaierSum::default(); n],
+            rest: vec![NeumaierSum::default(); n],
             first: vec![NeumaierSum::default(); n],
             before: NeumaierSum::default(),
             after: NeumaierSum::default(),
@@ -315,7 +318,7 @@ impl WaveformBinner {
 
     /// Number of bins.
     pub fn n_bins(&self) -> usize {
-        self.total.len()
+        self.first.len()
     }
 
     /// Gate start time (ns).
@@ -347,11 +350,11 @@ impl WaveformBinner {
         let x = (path_m - self.path_min_m) / self.bin_len_m;
         if x < 0.0 {
             Err(BinOutcome::BeforeGate)
-        } else if x >= self.total.len() as f64 {
+        } else if x >= self.first.len() as f64 {
             Err(BinOutcome::AfterGate)
         } else {
             // x ≥ 0: truncation is the floor (no libm call).
-            Ok((x as usize).min(self.total.len() - 1))
+            Ok((x as usize).min(self.first.len() - 1))
         }
     }
 
@@ -360,12 +363,25 @@ impl WaveformBinner {
     /// is not finite and ≥ 0.
     #[inline]
     pub fn add_first_order_at(&mut self, i: usize, energy_j: f64) {
-        if !(energy_j.is_finite() && energy_j >= 0.0) || i >= self.total.len() {
+        if !(energy_j.is_finite() && energy_j >= 0.0) || i >= self.first.len() {
             self.rejected += 1;
             return;
         }
-        self.total[i].add(energy_j);
         self.first[i].add(energy_j);
+    }
+
+    /// The first-order bins, for a caller that adds many packets to known bins after its own
+    /// checks (energies finite and ≥ 0; [`WaveformBinner::reject`] for the others), as
+    /// [`WaveformBinner::add_first_order_at`] does one at a time.
+    #[inline]
+    pub fn first_order_bins_mut(&mut self) -> &mut [NeumaierSum] {
+        &mut self.first
+    }
+
+    /// Counts `n` packets rejected by a caller of [`WaveformBinner::first_order_bins_mut`].
+    #[inline]
+    pub fn reject(&mut self, n: u64) {
+        self.rejected += n;
     }
 
     /// Adds a packet of `energy_j` (J) that travelled `path_length_m` (m) after `order`
@@ -379,9 +395,10 @@ impl WaveformBinner {
         let first = order == 1;
         match self.bin_index(path_length_m) {
             Ok(i) => {
-                self.total[i].add(energy_j);
                 if first {
                     self.first[i].add(energy_j);
+                } else {
+                    self.rest[i].add(energy_j);
                 }
                 BinOutcome::Binned(i)
             }
@@ -410,13 +427,13 @@ impl WaveformBinner {
     pub fn merge(&mut self, other: &WaveformBinner) -> Result<(), LidarError> {
         if other.path_min_m != self.path_min_m
             || other.dt_ns != self.dt_ns
-            || other.total.len() != self.total.len()
+            || other.first.len() != self.first.len()
         {
             return Err(LidarError::InvalidInput(
                 "cannot merge waveform binners with different gates".into(),
             ));
         }
-        for (a, b) in self.total.iter_mut().zip(&other.total) {
+        for (a, b) in self.rest.iter_mut().zip(&other.rest) {
             a.merge(b);
         }
         for (a, b) in self.first.iter_mut().zip(&other.first) {
@@ -446,7 +463,12 @@ impl WaveformBinner {
         Waveform {
             t0_ns: self.t0_ns(),
             dt_ns: self.dt_ns,
-            total: self.total.iter().map(NeumaierSum::value).collect(),
+            total: self
+                .first
+                .iter()
+                .zip(&self.rest)
+                .map(|(f, r)| f.value() + r.value())
+                .collect(),
             first_order: self.first.iter().map(NeumaierSum::value).collect(),
         }
     }

@@ -2764,7 +2764,19 @@ fn bin_first_order(
     // the offset.
     if kb == 1.0 && x0 >= 0.0 && x1 < n - 1.0 {
         let mut k = (x0 as u64) as f64; // ⌊x0⌋
+        let mut ki = k as usize; // the same bin as an index (k < x1 < n − 1 throughout)
         let (mut a, mut ea) = (0.0, 1.0);
+        let mut rejected = 0;
+        let bins = wave.first_order_bins_mut();
+        // A packet as `WaveformBinner::add_first_order_at` books it (finite and ≥ 0, else
+        // counted as rejected).
+        let mut book = |i: usize, e: f64| {
+            if e.is_finite() && e >= 0.0 {
+                bins[i].add(e);
+            } else {
+                rejected += 1;
+            }
+        };
         loop {
             let edge = k + 1.0;
             if edge >= x1 {
@@ -2773,16 +2785,16 @@ fn bin_first_order(
                     let em = (-alpha * (ell - a)).exp_m1();
                     let u = a - (rng.next_f64() * em).ln_1p() / alpha;
                     let r = l0 + clamp_between(u, a, ell);
-                    wave.add_first_order_at(k as usize, base * (ea * -em / alpha) / (r * r));
+                    book(ki, base * (ea * -em / alpha) / (r * r));
                 }
-                return;
+                break;
             }
             let bx = (edge - x0) * h;
             let b = if bx < ell { bx } else { ell };
             if !(b > a) {
                 // Both ends rounded to ell (the bin ends are strictly increasing): the general
                 // loop stops here too.
-                return;
+                break;
             }
             let (em, u) = if a > 0.0 {
                 (em_full, a + off_full)
@@ -2791,11 +2803,14 @@ fn bin_first_order(
                 (em, a - (rng.next_f64() * em).ln_1p() / alpha)
             };
             let r = l0 + clamp_between(u, a, b);
-            wave.add_first_order_at(k as usize, base * (ea * -em / alpha) / (r * r));
+            book(ki, base * (ea * -em / alpha) / (r * r));
             ea *= 1.0 + em;
             a = b;
             k = edge;
+            ki += 1;
         }
+        wave.reject(rejected);
+        return;
     }
     let mut xa = x0;
     let mut ea = 1.0; // e^{−α a}

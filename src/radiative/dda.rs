@@ -394,6 +394,11 @@ pub struct Dda4 {
     n: [f64; 3],
     n_int: [i64; 3],
     stride: [i64; 3],
+    /// Per side axis, one period in metres (`n · size`, as [`Dda::wrap_sides`] forms it) and
+    /// in the linear index (`n · stride`): the constants of [`Dda4::wrap_sides_x4`], formed
+    /// once per lane start instead of at every wrap.
+    period: [f64; 2],
+    period_lin: [i64; 2],
 }
 
 impl Dda4 {
@@ -414,6 +419,7 @@ impl Dda4 {
             self.n_int[a] = d.n[a];
             self.stride[a] = d.stride[a];
         }
+        self.set_periods();
         self.t[l] = d.t;
         self.lin[l] = d.lin;
     }
@@ -469,6 +475,17 @@ impl Dda4 {
         let t_max = simd.max_f64x4(t_max, zero);
         let step = simd.sub_f64x4(upf, simd.select_f64x4(down, sp(1.0), zero));
         let b_base = simd.add_f64x4(lo, simd.mul_f64x4(upf, size));
+        // The integer-valued idx and step as integers, by the 1.5 · 2⁵² shift (v + 1.5 · 2⁵²
+        // has the integer v in its low mantissa bits for |v| < 2⁵¹; cell indices and steps are
+        // far inside): the same values as `v as i64`, without its saturation checks.
+        const SHIFT: f64 = 6755399441055744.0;
+        let to_int = |v: f64x4| -> [i64; 4] {
+            cast(simd.wrapping_sub_u64x4(
+                cast(simd.add_f64x4(v, sp(SHIFT))),
+                simd.splat_u64x4(SHIFT.to_bits()),
+            ))
+        };
+        let (idx_i, step_i) = (to_int(idx), to_int(step));
         let (idx, step, t_max, inv, b_base): ([f64; 4], [f64; 4], [f64; 4], [f64; 4], [f64; 4]) =
             (cast(idx), cast(step), cast(t_max), cast(inv), cast(b_base));
         self.stride = [1, n[0], n[0] * n[1]];
@@ -480,15 +497,24 @@ impl Dda4 {
             self.dir[a][l] = d[a];
             self.inv[a][l] = inv[a];
             self.b_base[a][l] = b_base[a];
-            self.dlin[a][l] = step[a] as i64 * self.stride[a];
+            self.dlin[a][l] = step_i[a] * self.stride[a];
             self.size[a] = spec.cell[a];
             self.n[a] = n[a] as f64;
             self.n_int[a] = n[a];
         }
+        self.set_periods();
         self.t[l] = 0.0;
-        let c = |a: usize| idx[a] as i64;
-        self.lin[l] = c(0) + n[0] * (c(1) + n[1] * c(2));
+        self.lin[l] = idx_i[0] + n[0] * (idx_i[1] + n[1] * idx_i[2]);
         true
+    }
+
+    /// [`Dda4::period`] and [`Dda4::period_lin`] from the grid's counts, sizes and strides.
+    #[inline(always)]
+    fn set_periods(&mut self) {
+        for a in 0..2 {
+            self.period[a] = self.n_int[a] as f64 * self.size[a];
+            self.period_lin[a] = self.n_int[a] * self.stride[a];
+        }
     }
 
     /// Parks lane `l` on cell 0 (an idle lane: [`Dda4::step_at`] leaves it alone when it is
@@ -658,14 +684,14 @@ impl Dda4 {
             let back = simd.select_f64x4(below, n, simd.select_f64x4(above, sp(-self.n[a]), zero));
             let c = simd.add_f64x4(c, back);
             self.cell[a] = cast(c);
-            let nl = self.n_int[a] * self.stride[a];
+            let nl = self.period_lin[a];
             let dl = simd.select_i64x4(
                 below,
                 simd.splat_i64x4(nl),
                 simd.select_i64x4(above, simd.splat_i64x4(-nl), simd.splat_i64x4(0)),
             );
             self.lin = cast(simd.wrapping_add_i64x4(cast(self.lin), dl));
-            let period = self.n_int[a] as f64 * self.size[a];
+            let period = self.period[a];
             let o0: f64x4 = cast(self.origin[a]);
             let o1 = simd.add_f64x4(o0, simd.select_f64x4(below, sp(period), sp(-period)));
             let o = simd.select_f64x4(w, o1, o0);

@@ -3453,15 +3453,18 @@ fn emit(
                                 continue;
                             }
                             intercepted[ch] += val;
+                            // `outgoing[j · w + ch] += val · trow[j]` for every direction j, by
+                            // rows of w (no bounds check per direction).
+                            let rows = outgoing.chunks_exact_mut(w);
                             if slot == ns - 1 {
                                 let trow = tables[ch % nb].row(tables[0].sun_row().unwrap_or(0));
-                                for j in 0..n_dirs {
-                                    outgoing[j * w + ch] += val * trow[j] as f64;
+                                for (o, &t) in rows.zip(&trow[..n_dirs]) {
+                                    o[ch] += val * t as f64;
                                 }
                             } else {
                                 let trow = ctx.slot_row(tm, ch % nb, slot);
-                                for j in 0..n_dirs {
-                                    outgoing[j * w + ch] += val * trow[j];
+                                for (o, &t) in rows.zip(&trow[..n_dirs]) {
+                                    o[ch] += val * t;
                                 }
                             }
                         }

@@ -6,7 +6,7 @@
 #[cfg(target_arch = "x86_64")]
 use core::arch::x86_64::__m128d;
 #[cfg(target_arch = "x86_64")]
-use pulp::{cast, f64x4, u64x4, x86::V3};
+use pulp::{cast, f64x4, m64x4, u64x4, x86::V3};
 
 /// `2^{j/128}`, j = 0..127, correctly rounded (computed with 60-digit decimals).
 const EXP2_TABLE: [f64; 128] = [
@@ -368,10 +368,13 @@ impl HalfBarycentres {
     /// one vector, and unpacked into one vector per coefficient (8 inserts, 8 unpacks; the
     /// 4 × 4 transposes of full rows compiled to ~56 broadcasts and blends), so the two Horner
     /// evaluations run lane-wise (the same operations in the same order as
-    /// [`HalfBarycentres::eval`]).
+    /// [`HalfBarycentres::eval`]). Only the lanes of `live` are guaranteed: the series and
+    /// dense-limit forms (two divisions and their selects) are computed only when a live lane
+    /// needs them (x < 2⁻¹⁴ or x ≥ 64, rare in the flux-tracking walk); the other lanes may
+    /// then hold the cubic piece of an x outside its range.
     #[cfg(target_arch = "x86_64")]
     #[inline(always)]
-    pub fn eval_x4(&self, simd: V3, x: f64x4, ell: f64x4) -> (f64x4, f64x4) {
+    pub fn eval_x4(&self, simd: V3, x: f64x4, ell: f64x4, live: m64x4) -> (f64x4, f64x4) {
         let first = HB_X0.to_bits() >> (52 - HB_BITS);
         let bits: u64x4 = cast(x);
         let bin: [u64; 4] = cast(simd.and_u64x4(
@@ -402,12 +405,16 @@ impl HalfBarycentres {
         let a = horner(simd, ell, t, ca);
         let b = horner(simd, ell, t, cb);
         let sp = |v: f64| simd.splat_f64x4(v);
+        let big = simd.cmp_ge_f64x4(x, sp(HB_X1));
+        let small = simd.cmp_lt_f64x4(x, sp(HB_X0));
+        let odd = simd.and_m64x4(live, simd.or_m64x4(big, small));
+        if simd.avx._mm256_movemask_pd(cast(odd)) == 0 {
+            return (a, b);
+        }
         let l2 = std::f64::consts::LN_2;
         let u = simd.div_f64x4(ell, x);
-        let big = simd.cmp_ge_f64x4(x, sp(HB_X1));
         let a = simd.select_f64x4(big, simd.mul_f64x4(sp(1.0 - l2), u), a);
         let b = simd.select_f64x4(big, simd.mul_f64x4(sp(1.0 + l2), u), b);
-        let small = simd.cmp_lt_f64x4(x, sp(HB_X0));
         let x12 = simd.div_f64x4(x, sp(12.0));
         let sa = simd.mul_f64x4(ell, simd.sub_f64x4(sp(0.25), x12));
         let sb = simd.mul_f64x4(ell, simd.sub_f64x4(sp(0.75), x12));
@@ -562,8 +569,19 @@ mod tests {
                 let (f, t) = attenuation_x4(simd, cast(x));
                 (cast(f), cast(t))
             };
+            // Every lane live, and a mask cycling through the 16 subsets (the rare forms'
+            // branch taken and skipped): the live lanes must be the scalar bits.
+            let all = simd.cmp_eq_f64x4(simd.splat_f64x4(0.0), simd.splat_f64x4(0.0));
+            let live_bits = (n % 16) as u64;
+            let part: m64x4 = cast::<[u64; 4], _>(std::array::from_fn(|l| {
+                0u64.wrapping_sub((live_bits >> l) & 1)
+            }));
             let (s1, s2): ([f64; 4], [f64; 4]) = {
-                let (a, b) = hb.eval_x4(simd, cast(x), cast(ell));
+                let (a, b) = hb.eval_x4(simd, cast(x), cast(ell), all);
+                (cast(a), cast(b))
+            };
+            let (p1, p2): ([f64; 4], [f64; 4]) = {
+                let (a, b) = hb.eval_x4(simd, cast(x), cast(ell), part);
                 (cast(a), cast(b))
             };
             for l in 0..4 {
@@ -581,6 +599,14 @@ mod tests {
                     "x {}",
                     x[l]
                 );
+                if live_bits >> l & 1 == 1 {
+                    assert_eq!(
+                        (p1[l].to_bits(), p2[l].to_bits()),
+                        (a.to_bits(), b.to_bits()),
+                        "x {} (lane {l} of live mask {live_bits:04b})",
+                        x[l]
+                    );
+                }
             }
         }
     }

@@ -273,7 +273,7 @@ impl Ctx<'_> {
             let hit = bits(hit_m);
             let x = simd.select_f64x4(hit_m, simd.mul_f64x4(k, ell), zero);
             let (frac, tr) = attenuation_x4(simd, x);
-            let (s1, s2) = hb.eval_x4(simd, x, ell);
+            let (s1, s2) = hb.eval_x4(simd, x, ell, hit_m);
             let psum: f64x4 = cast(ln.psum);
             let wt: [f64; 4] = cast(simd.mul_f64x4(psum, frac));
             let point = |a: usize, s: f64x4| -> [f64; 4] {
