@@ -1140,7 +1140,7 @@ impl Ctx<'_> {
                     let exit = if r > 1 {
                         fly_skip(&mut dda, r, &mut out.skipped)
                     } else {
-                        dda.advance()
+                        cross_empty(&mut dda, &self.empty, &mut out.crossings)
                     };
                     match exit {
                         Exit::Inside => continue,
@@ -1616,7 +1616,7 @@ impl Ctx<'_> {
                     if r > 1 {
                         fly_skip(&mut dda, r, &mut io.out.skipped)
                     } else {
-                        dda.advance()
+                        cross_empty(&mut dda, &self.empty, &mut io.out.crossings)
                     }
                 } else {
                     let t0 = dda.t;
@@ -3038,6 +3038,29 @@ fn fly_skip(dda: &mut Dda, r: u8, skipped: &mut u64) -> Exit {
     let (e, faces) = dda.skip_to(h, dda.skip_exit(h));
     *skipped += faces - 1;
     e
+}
+
+/// Crosses the run of empty cells crossed one by one (field value 1, see [`skip_field`]) that
+/// starts at the current cell of `dda`: steps until the ray enters a cell with another value
+/// (returns [`Exit::Inside`] there) or leaves the grid (returns the exit [`Dda::advance`] would
+/// report), adding the empty cells entered on the way to `crossings` (the caller counts the
+/// current one and the cell it stops in). The same cells, segment ends and exit as a loop of
+/// [`Dda::advance`] calls (bit for bit: [`Dda::step_at`] moves into the same state), in a loop
+/// that reads nothing else: an empty cell adds nothing to optical depths and draws nothing.
+#[inline(always)]
+fn cross_empty(dda: &mut Dda, empty: &[u8], crossings: &mut u64) -> Exit {
+    let mut n = 0u64;
+    let exit = loop {
+        if !dda.step_at(dda.t_exit()) {
+            break dda.exit_kind();
+        }
+        if empty[dda.index()] != 1 {
+            break Exit::Inside;
+        }
+        n += 1;
+    };
+    *crossings += n;
+    exit
 }
 
 /// Photon stream purpose tag (see `scene::spawn::stream`).
