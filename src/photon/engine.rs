@@ -1127,7 +1127,7 @@ impl Ctx<'_> {
         let spec = self.inp.spec;
         let mut crossings = 0u32;
         'restart: loop {
-            let Some(mut dda) = Dda::new(spec, ph.p, ph.d) else {
+            let Some(mut dda) = Dda::new_inline(spec, ph.p, ph.d) else {
                 return Hit::Lost;
             };
             loop {
@@ -1604,7 +1604,7 @@ impl Ctx<'_> {
         let end: Option<Hit>;
         let mut ret = None;
         'restart: loop {
-            let Some(mut dda) = Dda::new(spec, p, d) else {
+            let Some(mut dda) = Dda::new_inline(spec, p, d) else {
                 end = Some(Hit::Lost);
                 break 'restart;
             };
