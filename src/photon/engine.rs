@@ -2785,9 +2785,16 @@ fn bin_first_order(
     let kb = ((x1.min(n) - x0.max(0.0)) / MAX_FIRST_ORDER_STRATA)
         .ceil()
         .max(1.0);
-    // Whole strata: width kb·h, shared offset.
-    let em_full = (-alpha * kb * h).exp_m1();
-    let off_full = -(rng.next_f64() * em_full).ln_1p() / alpha;
+    // Whole strata: width kb·h, shared offset (its uniform drawn here, its two libm calls
+    // made at the first whole stratum only: a segment over one or two bins has none).
+    let v_full = rng.next_f64();
+    let mut full: Option<(f64, f64)> = None;
+    let mut full = move || {
+        *full.get_or_insert_with(|| {
+            let em_full = (-alpha * kb * h).exp_m1();
+            (em_full, -(v_full * em_full).ln_1p() / alpha)
+        })
+    };
     // Common case: one bin per stratum and the segment well inside the gate. The strata are
     // visited in the order of the general loop below, with its arithmetic (the same values
     // bit for bit), without its per-stratum gate, grouping and edge logic: stratum k is bin k,
@@ -2828,6 +2835,7 @@ fn bin_first_order(
                 break;
             }
             let (em, u) = if a > 0.0 {
+                let (em_full, off_full) = full();
                 (em_full, a + off_full)
             } else {
                 let em = (-alpha * (b - a)).exp_m1();
@@ -2873,6 +2881,7 @@ fn bin_first_order(
         }
         let whole = in_gate && a > 0.0 && xb < x1 && edge == xa + kb;
         let (em, u) = if whole {
+            let (em_full, off_full) = full();
             (em_full, a + off_full)
         } else {
             let em = (-alpha * (b - a)).exp_m1(); // e^{−α(b−a)} − 1 ≤ 0
