@@ -3863,21 +3863,28 @@ pub fn run_lidar(
     pulses: &[Pulse],
 ) -> Result<Vec<PulseResult>, String> {
     let mut all = Vec::with_capacity(pulses.len());
-    run_lidar_chunks(inp, beam, pulses, pulses.len().max(1), |_, r| {
-        all.extend(r);
-        Ok(())
-    })?;
+    run_lidar_chunks(
+        inp,
+        beam,
+        pulses.iter().cloned(),
+        pulses.len().max(1),
+        |_, r| {
+            all.extend(r);
+            Ok(())
+        },
+    )?;
     Ok(all)
 }
 
 /// [`run_lidar`] by chunks of `chunk` pulses (in order): `each` receives every chunk's pulses
-/// and results before the next chunk runs, so a long scan's waveforms need not all be in
-/// memory at once. The tracking context (column depths) is built once. Results are those of
-/// [`run_lidar`] bit for bit: each pulse has its own random stream (seed, pulse ID).
+/// and results before the next chunk runs, so a long scan's pulses and waveforms need not all
+/// be in memory at once (`pulses` may generate them on demand). The tracking context (column
+/// depths) is built once. Results are those of [`run_lidar`] bit for bit: each pulse has its
+/// own random stream (seed, pulse ID).
 pub fn run_lidar_chunks(
     inp: &PhotonInput,
     beam: &Beam,
-    pulses: &[Pulse],
+    pulses: impl IntoIterator<Item = Pulse>,
     chunk: usize,
     mut each: impl FnMut(&[Pulse], Vec<PulseResult>) -> Result<(), String>,
 ) -> Result<(), String> {
@@ -3886,14 +3893,18 @@ pub fn run_lidar_chunks(
     // Validate the binner once.
     crate::lidar::waveform::WaveformBinner::new(beam.gate_m.0, beam.gate_m.1, beam.bin_ns)
         .map_err(|e| e.to_string())?;
-    for part in pulses.chunks(chunk.max(1)) {
+    let mut pulses = pulses.into_iter();
+    loop {
+        let part: Vec<Pulse> = pulses.by_ref().take(chunk.max(1)).collect();
+        if part.is_empty() {
+            return Ok(());
+        }
         let results = part
             .par_iter()
             .map(|pl| run_pulse(&base, beam, pl))
             .collect();
-        each(part, results)?;
+        each(&part, results)?;
     }
-    Ok(())
 }
 
 fn run_pulse(base: &Ctx, beam: &Beam, pl: &Pulse) -> PulseResult {
