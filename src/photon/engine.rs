@@ -491,12 +491,21 @@ impl Acc {
             sink: true,
         }
     }
-    #[inline]
+    /// The record of `key` (a sink: its scratch record), inlined up to the record lookup
+    /// (every LiDAR event books into sinks).
+    #[inline(always)]
     fn get(&mut self, key: u32) -> &mut [f64] {
         let w = self.width;
         if self.sink {
             return &mut self.dense.as_mut().expect("sink buffer")[..w];
         }
+        self.record(key)
+    }
+
+    /// [`Acc::get`] of a non-sink accumulator.
+    #[inline(never)]
+    fn record(&mut self, key: u32) -> &mut [f64] {
+        let w = self.width;
         match &mut self.dense {
             Some(d) => &mut d[key as usize * w..(key as usize + 1) * w],
             None => self.sparse.entry(key).or_insert_with(|| vec![0.0; w]),
