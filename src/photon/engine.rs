@@ -1633,7 +1633,7 @@ impl Ctx<'_> {
         let path0 = ph.path;
         let mut left = tau_star;
         let mut tau = 0.0;
-        let mut p = ph.p;
+        let p = ph.p;
         let mut skip = ph.skip_facet;
         let mut shift = ph.shift;
         let mut crossings = 0u32;
@@ -1643,10 +1643,10 @@ impl Ctx<'_> {
         // How the walk ended when no collision came first (None: stopped, fly again).
         let end: Option<Hit>;
         let mut ret = None;
-        'restart: loop {
+        'walk: {
             let Some(mut dda) = Dda::new_inline(spec, p, d) else {
                 end = Some(Hit::Lost);
-                break 'restart;
+                break 'walk;
             };
             loop {
                 io.out.crossings += 1;
@@ -1707,11 +1707,11 @@ impl Ctx<'_> {
                             ret = score.surface_ret();
                         }
                         end = Some(Hit::Facet { f, p: at.0 });
-                        break 'restart;
+                        break 'walk;
                     }
                     if score.stop(tau, coll.is_some()) {
                         end = None;
-                        break 'restart;
+                        break 'walk;
                     }
                     dda.advance()
                 };
@@ -1724,7 +1724,7 @@ impl Ctx<'_> {
                             ph.shift = shift;
                         }
                         end = Some(Hit::Escape);
-                        break 'restart;
+                        break 'walk;
                     }
                     Exit::Bottom => {
                         let at = (dda.point(dda.t), shift, path0 + travelled + dda.t);
@@ -1741,32 +1741,36 @@ impl Ctx<'_> {
                         } else {
                             Hit::Lost
                         });
-                        break 'restart;
+                        break 'walk;
                     }
                     Exit::Side(axis, s) => {
                         if spec.boundary == BoundaryMode::Isolated {
                             end = Some(Hit::Lost);
-                            break 'restart;
+                            break 'walk;
                         }
                         crossings += 1;
                         if crossings > self.inp.params.max_crossings
                             || path0 + travelled + dda.t > self.max_path
                         {
                             end = Some(Hit::Lost);
-                            break 'restart;
+                            break 'walk;
                         }
                         let e = dda.point(dda.t);
                         match self.wrap(e, axis, s) {
                             Some(q) => {
                                 travelled += dda.t;
                                 shift += e - q;
-                                p = q;
                                 skip = None;
-                                continue 'restart;
+                                // The same direction from q: restarted in place.
+                                if dda.restart(spec, q) {
+                                    continue;
+                                }
+                                end = Some(Hit::Lost);
+                                break 'walk;
                             }
                             None => {
                                 end = Some(if d.z > 0.0 { Hit::Escape } else { Hit::Lost });
-                                break 'restart;
+                                break 'walk;
                             }
                         }
                     }
