@@ -310,18 +310,18 @@ fn run_into(
     if let Some(f) = opt.fit_study.as_mut() {
         fit_study(r, name, f);
     }
-    let n = r.pulses.len().max(1) as f64;
-    let energy = r
-        .pulses
-        .iter()
-        .map(|p| p.waveform.total.iter().sum::<f64>())
-        .sum::<f64>()
-        / n;
-    let returns = r.pulses.iter().map(|p| p.returns.len()).sum::<usize>() as f64 / n;
+    // Every pulse (a streamed run keeps only the quick-looks' pulses in memory).
+    let n = r.pulse_count().max(1) as f64;
+    let (mut energy, mut returns) = (0.0, 0.0);
+    for p in r.pulse_entries().expect("pulse entries") {
+        let p = p.expect("pulse entry");
+        energy += p.received_j / n;
+        returns += p.returns.len() as f64 / n;
+    }
     Outcome {
         seconds: r.seconds,
         wall,
-        pulses: r.pulses.len(),
+        pulses: r.pulse_count(),
         energy,
         returns,
     }

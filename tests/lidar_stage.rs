@@ -801,3 +801,69 @@ fn column_returns() -> u64 {
         1 << 40
     }
 }
+
+/// Pulses are generated on demand (`PulsePlan`, a long scan is never held in memory): a scan
+/// lays out `lines` lines of pulses along the start→end direction, `line_spacing_m` apart
+/// (to the left), emitters at the platform altitude along the view direction above each
+/// centre, IDs in order; a terrestrial grid runs every azimuth for each zenith.
+#[test]
+fn pulse_plans_lay_out_scans_and_terrestrial_grids() {
+    use lumenscape::lidar::simulate::{PulsePlan, pulses_of};
+    let mut l = lidar(
+        "scan",
+        500.0,
+        PulsePattern::Scan {
+            start: (0.5, 0.5),
+            end: (3.5, 0.5),
+            lines: 3,
+            line_spacing_m: 1.5,
+            pulse_spacing_m: 1.5,
+        },
+        10,
+    );
+    if let LidarPlatform::Airborne {
+        view_zenith_deg,
+        view_azimuth_deg,
+        ..
+    } = &mut l.platform
+    {
+        (*view_zenith_deg, *view_azimuth_deg) = (20.0, 30.0);
+    }
+    let plan = PulsePlan::new(&l);
+    assert_eq!(plan.len(), 9);
+    let (zen, az) = (20f64.to_radians(), 30f64.to_radians());
+    let v = glam::DVec3::new(zen.sin() * az.cos(), zen.sin() * az.sin(), zen.cos());
+    let range = 500.0 / zen.cos();
+    assert!((plan.reference_range_m - range).abs() < 1e-9);
+    for (i, p) in plan.iter().enumerate() {
+        assert_eq!(p.id, i as u64);
+        let (line, k) = (i / 3, i % 3);
+        let centre = glam::DVec3::new(0.5 + 1.5 * k as f64, 0.5 + 1.5 * line as f64, 0.0);
+        assert!(
+            (p.emitter - (centre + v * range)).length() < 1e-9,
+            "pulse {i}"
+        );
+        assert!((p.axis + v).length() < 1e-12);
+        // The beam axis from the emitter meets z = 0 at the centre.
+        let hit = p.emitter + p.axis * (p.emitter.z / -p.axis.z);
+        assert!((hit - centre).length() < 1e-9);
+    }
+    assert_eq!(pulses_of(&l).0, plan.iter().collect::<Vec<_>>());
+
+    l.platform = LidarPlatform::Terrestrial {
+        position_m: (1.0, 2.0, 1.5),
+        zenith_deg: (0.0, 90.0, 45.0),
+        azimuth_deg: (0.0, 270.0, 90.0),
+    };
+    let plan = PulsePlan::new(&l);
+    assert_eq!((plan.len(), plan.reference_range_m), (12, 1.0));
+    let p = plan.get(5); // zenith 45°, azimuth 90°
+    let s = 0.5f64.sqrt();
+    assert!(
+        (p.axis - glam::DVec3::new(0.0, s, s)).length() < 1e-12,
+        "{:?}",
+        p.axis
+    );
+    assert_eq!(p.emitter, glam::DVec3::new(1.0, 2.0, 1.5));
+    assert!(plan.iter().all(|p| (p.axis.length() - 1.0).abs() < 1e-12));
+}

@@ -347,7 +347,9 @@ fn streamed_lidar_scans_write_the_same_products_and_leave_nothing_behind() {
                     .collect(),
             );
         }
-        // Photon counting too (dark counts and solar background per chunk).
+        // The fusion product (passive radiance per pulse) and photon counting (dark counts and
+        // solar background per chunk).
+        l.fusion = true;
         l.photon_counting = Some(PhotonCountingDesc {
             quantum_efficiency: 0.5,
             dead_time_ns: 2.5,
@@ -371,24 +373,31 @@ fn streamed_lidar_scans_write_the_same_products_and_leave_nothing_behind() {
         let res = sim.run(out).map(|_| ());
         (sim, res)
     };
+    // Every pulse's entry (energies, returns, background rate, fused radiance) and every
+    // detection, read from memory or from the spools.
     let summary = |sim: &Simulation| {
         let r = &sim.resource::<LidarProducts>().0[0];
-        let per_pulse: Vec<_> = r
-            .pulses
-            .iter()
-            .map(|p| {
-                (
-                    p.id,
-                    p.received_j.to_bits(),
-                    p.first_order_j.to_bits(),
-                    format!("{:?}", p.returns),
-                )
-            })
-            .collect();
+        let entries: Vec<_> = r
+            .pulse_entries()
+            .unwrap()
+            .collect::<Result<_, _>>()
+            .unwrap();
+        let counted: Vec<_> = r
+            .counted_photons()
+            .unwrap()
+            .collect::<Result<_, _>>()
+            .unwrap();
+        assert_eq!(entries.len(), 40);
+        assert!(
+            entries
+                .iter()
+                .all(|e| e.fusion_radiance.is_some() && e.background_rate_hz.is_some())
+        );
         (
-            format!("{per_pulse:?}"),
-            format!("{:?}", r.counted),
+            format!("{entries:?}"),
+            format!("{counted:?}"),
             r.streamed.is_some(),
+            r.counted_totals(),
         )
     };
     // The same scan from memory (one chunk) and streamed (chunks of 7, the last one partial).
@@ -403,17 +412,20 @@ fn streamed_lidar_scans_write_the_same_products_and_leave_nothing_behind() {
         "streamed only with an output folder and > 1 chunk"
     );
     assert!(!b.1.is_empty(), "no photon-counting points");
-    assert_eq!(a.0, b.0, "streaming changed returns or energies");
-    assert_eq!(a.1, b.1, "streaming changed the photon-counting points");
-    // Streamed: only the quick-looks' waveforms stay in memory.
-    let streamed = &sim_b.resource::<LidarProducts>().0[0].pulses;
-    let kept = lumenscape::lidar::products::QUICKLOOKS;
-    assert!(streamed[..kept].iter().all(|p| p.raw.n_bins() > 0));
-    assert!(
-        streamed[kept..]
-            .iter()
-            .all(|p| p.raw.n_bins() == 0 && p.waveform.n_bins() == 0)
+    assert_eq!(
+        a.0, b.0,
+        "streaming changed returns, energies or fused radiances"
     );
+    assert_eq!(a.1, b.1, "streaming changed the photon-counting points");
+    assert_eq!(a.3, b.3, "streaming changed the detection counts");
+    // Streamed: only the quick-looks' pulses (with their waveforms) stay in memory, and
+    // nothing of the per-pulse vectors.
+    let rb = &sim_b.resource::<LidarProducts>().0[0];
+    let kept = lumenscape::lidar::products::QUICKLOOKS;
+    assert_eq!(rb.pulses.len(), kept);
+    assert!(rb.pulses.iter().all(|p| p.raw.n_bins() > 0));
+    assert!(rb.counted.is_empty() && rb.background_rate_hz.is_empty());
+    assert!(rb.fusion_radiance.is_none() && rb.has_fusion());
     drop((sim_a, sim_b));
     // Every file under lidar/ is the same bytes (lidar.json without its timings); none is a
     // leftover temporary file.
@@ -438,7 +450,14 @@ fn streamed_lidar_scans_write_the_same_products_and_leave_nothing_behind() {
     };
     let names = rel(&a_dir);
     assert_eq!(names, rel(&b_dir));
-    assert!(names.iter().any(|p| p.ends_with("raw/waveforms.f32")));
+    for f in [
+        "raw/waveforms.f32",
+        "returns.las",
+        "fusion.las",
+        "photon_counting.las",
+    ] {
+        assert!(names.iter().any(|p| p.ends_with(f)), "no {f}");
+    }
     for p in &names {
         let name = p.file_name().unwrap().to_string_lossy();
         assert!(

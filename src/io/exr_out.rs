@@ -60,7 +60,13 @@ pub fn write_exr_layers_with(
         let layer = Layer::new(
             (nx, ny),
             LayerAttributes::named(l.name.as_str()),
-            Encoding::FAST_LOSSLESS,
+            // RLE in 64×64 tiles as `FAST_LOSSLESS`, but the tiles in increasing order: with
+            // `Unspecified` the crate writes them as its threads finish compressing, and the
+            // same image gave different bytes from run to run.
+            Encoding {
+                line_order: LineOrder::Increasing,
+                ..Encoding::FAST_LOSSLESS
+            },
             AnyChannels::sort(chans.into()),
         );
         list.push(layer);
@@ -152,4 +158,45 @@ pub fn read_exr_channels(
         }
     }
     Ok((size.0, size.1, out))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The same image gives the same bytes (tiles in increasing order, declared so in the
+    /// header), whatever order the compression threads finish in; values read back.
+    #[test]
+    fn the_same_image_gives_the_same_bytes() {
+        let dir = std::env::temp_dir().join(format!("lumenscape-exr-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        // 5 × 4 tiles of 64 × 64, varied values (RLE blocks of different sizes).
+        let (nx, ny) = (300, 250);
+        let vals = |s: f64| -> Vec<f64> {
+            (0..nx * ny)
+                .map(|k| ((k as f64 * s).sin() * 1e3).round() / 1e3)
+                .collect()
+        };
+        let layers = [ExrLayer {
+            name: "brf".into(),
+            channels: vec![("a".into(), vals(0.37)), ("b".into(), vals(1.1))],
+        }];
+        let mut first = None;
+        for k in 0..6 {
+            let p = dir.join(format!("img{k}.exr"));
+            write_exr_layers(&p, nx, ny, &layers).unwrap();
+            let bytes = std::fs::read(&p).unwrap();
+            match &first {
+                None => first = Some(bytes),
+                Some(f) => assert!(f == &bytes, "write {k} differs"),
+            }
+        }
+        let meta = exr::meta::MetaData::read_from_file(dir.join("img0.exr"), false).unwrap();
+        assert_eq!(meta.headers[0].line_order, LineOrder::Increasing);
+        let (rx, ry, ch) = read_exr_channels(&dir.join("img0.exr")).unwrap();
+        assert_eq!((rx, ry), (nx, ny));
+        let a = &ch.iter().find(|c| c.0 == "brf.a").unwrap().1;
+        assert!(a.iter().zip(vals(0.37)).all(|(x, y)| *x == y as f32));
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
 }

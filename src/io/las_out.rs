@@ -14,11 +14,10 @@
 //!
 //! Extra bytes of one point record: `pulse_id` u64 LE, then one f64 LE per band, in the order of
 //! the descriptors. Each descriptor is the 192-byte LAS 1.4 `EXTRA_BYTES` struct (see
-//! [`extra_bytes_descriptor`]). The file is built in memory and written atomically
-//! ([`crate::io::atomic::write_atomic`]): after an error no partial file is left.
+//! [`extra_bytes_descriptor`]). Points are converted and written one by one to a temporary file
+//! renamed into place at the end ([`write_las_stream`]): memory does not grow with the cloud,
+//! and after an error no partial file is left.
 
-use crate::io::atomic::write_atomic;
-use std::io::Cursor;
 use std::path::Path;
 
 /// Name of the extra-bytes dimension carrying the pulse identifier.
@@ -139,7 +138,7 @@ pub fn extra_bytes_vlr_payload(extra_names: &[String]) -> Result<Vec<u8>, String
 ///   scale)); scales must be finite and > 0, every coordinate must fit in i32 after it;
 /// * `extra_names`: names of the f64 band dimensions; each point's `extra` must have this length.
 ///
-/// All points are validated before anything is written; errors name the file (and the point).
+/// Errors name the file (and the point); after an error no file is left ([`write_las_stream`]).
 /// An empty point list writes a valid empty file.
 pub fn write_las(
     path: &Path,
@@ -148,18 +147,71 @@ pub fn write_las(
     offset: [f64; 3],
     extra_names: &[String],
 ) -> Result<(), String> {
-    let fail = |msg: String| format!("{}: {msg}", path.display());
-    let bytes = build_las(points, scale, offset, extra_names).map_err(fail)?;
-    write_atomic(path, &bytes)
+    let with_rgb = points.first().is_some_and(|p| p.rgb.is_some());
+    write_las_stream(
+        path,
+        with_rgb,
+        points.iter().cloned().map(Ok),
+        scale,
+        offset,
+        extra_names,
+    )
+    .map(|_| ())
 }
 
-/// The LAS file image of [`write_las`], in memory.
-pub fn build_las(
-    points: &[LasPoint],
+/// [`write_las`] from a stream of points, PDRF 7 if `with_rgb` (every point must then carry
+/// RGB) else 6; returns the number of points written. Each point is converted and written as
+/// it comes (memory independent of the number of points) to a temporary file in the same
+/// folder, renamed to `path` at the end; an invalid point, an error of the stream or an I/O
+/// error removes the temporary file: no partial product is left.
+pub fn write_las_stream(
+    path: &Path,
+    with_rgb: bool,
+    points: impl IntoIterator<Item = Result<LasPoint, String>>,
     scale: [f64; 3],
     offset: [f64; 3],
     extra_names: &[String],
-) -> Result<Vec<u8>, String> {
+) -> Result<u64, String> {
+    let fail = |msg: String| format!("{}: {msg}", path.display());
+    let header = las_header(with_rgb, scale, offset, extra_names).map_err(fail)?;
+    let transforms = *header.transforms();
+    let tmp = crate::io::atomic::tmp_path(path);
+    let res = (|| -> Result<u64, String> {
+        let file = std::fs::File::create(&tmp).map_err(|e| format!("cannot write: {e}"))?;
+        let mut writer = las::Writer::new(std::io::BufWriter::new(file), header)
+            .map_err(|e| format!("cannot write: {e}"))?;
+        let mut n = 0u64;
+        for (i, p) in points.into_iter().enumerate() {
+            let p = to_las_point(&p?, i, with_rgb, extra_names.len(), &transforms)?;
+            writer
+                .write_point(p)
+                .map_err(|e| format!("cannot write: {e}"))?;
+            n += 1;
+        }
+        let file = writer
+            .into_inner()
+            .map_err(|e| format!("cannot write: {e}"))?
+            .into_inner()
+            .map_err(|e| format!("cannot write: {}", e.error()))?;
+        file.sync_all()
+            .and_then(|_| std::fs::rename(&tmp, path))
+            .map_err(|e| format!("cannot write: {e}"))?;
+        Ok(n)
+    })();
+    res.map_err(|e| {
+        let _ = std::fs::remove_file(&tmp);
+        fail(e)
+    })
+}
+
+/// The LAS 1.4 header of [`write_las`]: PDRF 6 or 7, the transforms, the Extra Bytes VLR
+/// (`pulse_id` + one f64 per band).
+fn las_header(
+    with_rgb: bool,
+    scale: [f64; 3],
+    offset: [f64; 3],
+    extra_names: &[String],
+) -> Result<las::Header, String> {
     for (axis, s, o) in [
         ("x", scale[0], offset[0]),
         ("y", scale[1], offset[1]),
@@ -171,7 +223,6 @@ pub fn build_las(
             ));
         }
     }
-    let with_rgb = points.first().is_some_and(|p| p.rgb.is_some());
     let vlr_data = extra_bytes_vlr_payload(extra_names)?;
     let n_extra = 8 + 8 * extra_names.len();
 
@@ -206,27 +257,7 @@ pub fn build_las(
         description: "Extra Bytes Record".into(),
         data: vlr_data,
     });
-    let header = builder.into_header().map_err(|e| e.to_string())?;
-
-    // Validate and convert every point before writing any byte.
-    let mut las_points = Vec::with_capacity(points.len());
-    for (i, p) in points.iter().enumerate() {
-        las_points.push(to_las_point(
-            p,
-            i,
-            with_rgb,
-            extra_names.len(),
-            header.transforms(),
-        )?);
-    }
-
-    let mut writer =
-        las::Writer::new(Cursor::new(Vec::new()), header).map_err(|e| e.to_string())?;
-    for p in las_points {
-        writer.write_point(p).map_err(|e| e.to_string())?;
-    }
-    let cursor = writer.into_inner().map_err(|e| e.to_string())?;
-    Ok(cursor.into_inner())
+    builder.into_header().map_err(|e| e.to_string())
 }
 
 fn to_las_point(

@@ -18,6 +18,8 @@
 //!   draws and sequential dead-time simulation for single-photon LiDAR — physics.md §9.5.
 //! * [`waveform_io`]: compact waveform products (little-endian f32 binary + CSV index) and SVG
 //!   quick-looks.
+//! * [`spool`]: per-pulse results of a streamed scan in temporary files (memory bounded by a
+//!   chunk).
 //! * [`special`]: erf/erfc and log-factorial used by the above.
 //!
 //! Energies are `f64` joules everywhere: single packets of 1e-13 J (GLAS-like geometry) are far
@@ -31,6 +33,7 @@ pub mod pulse;
 pub mod returns;
 pub mod simulate;
 pub mod special;
+pub mod spool;
 pub mod waveform;
 pub mod waveform_io;
 

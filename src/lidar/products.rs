@@ -6,7 +6,8 @@
 //! `lidar.json` (energies per pulse, notes, timings). Every file is written atomically.
 
 use crate::io::atomic::{write_atomic, write_atomic_with};
-use crate::io::las_out::{LasPoint, write_las};
+use crate::io::las_out::{LasPoint, write_las_stream};
+use crate::lidar::spool::PulseEntry;
 use crate::lidar::waveform_io::{waveform_svg, write_waveforms};
 use crate::resources::lidar::LidarRun;
 use std::path::Path;
@@ -44,21 +45,27 @@ pub fn write_lidar(dir: &Path, runs: &[LidarRun], band_names: &[String]) -> Resu
                 waveform_svg(&p.waveform).as_bytes(),
             )?;
         }
-        // Discrete returns.
-        let emax = run
-            .pulses
-            .iter()
-            .flat_map(|p| p.returns.iter().map(|r| r.energy_j))
-            .fold(0.0, f64::max);
-        let mut points = Vec::new();
-        let mut fusion = Vec::new();
-        for (k, p) in run.pulses.iter().enumerate() {
+        // Discrete returns, streamed from the run's pulses (two passes: the intensity and
+        // the fusion colours are scaled by the scan's maxima).
+        let fail = |e: String| format!("{}: {e}", d.display());
+        let (mut emax, mut lmax) = (0.0f64, 0.0f64);
+        for e in run.pulse_entries().map_err(fail)? {
+            let e = e.map_err(fail)?;
+            emax = e.returns.iter().map(|r| r.energy_j).fold(emax, f64::max);
+            if let Some(rad) = &e.fusion_radiance {
+                lmax = rad.iter().cloned().fold(lmax, f64::max);
+            }
+        }
+        let lmax = lmax.max(1e-300);
+        // The points of one pulse: returns by range, at most 15.
+        let points_of_pulse = |p: &PulseEntry, fused: bool| -> Vec<LasPoint> {
             let mut rs = p.returns.clone();
             rs.sort_by(|a, b| a.range_m.total_cmp(&b.range_m));
             let n = rs.len().min(15);
+            let mut out = Vec::with_capacity(n);
             for (i, r) in rs.iter().take(15).enumerate() {
                 let pos = p.emitter + p.axis * r.range_m;
-                let pt = LasPoint {
+                let mut pt = LasPoint {
                     x: pos.x,
                     y: pos.y,
                     z: pos.z,
@@ -76,9 +83,7 @@ pub fn write_lidar(dir: &Path, runs: &[LidarRun], band_names: &[String]) -> Resu
                     rgb: None,
                     extra: Vec::new(),
                 };
-                if let Some(fr) = &run.fusion_radiance {
-                    let rad = &fr[k];
-                    let lmax = fr.iter().flatten().cloned().fold(0.0, f64::max).max(1e-300);
+                if fused && let Some(rad) = &p.fusion_radiance {
                     let c = |b: usize| {
                         (rad.get(b).or(rad.last()).copied().unwrap_or(0.0) / lmax * 65535.0)
                             .round()
@@ -86,26 +91,43 @@ pub fn write_lidar(dir: &Path, runs: &[LidarRun], band_names: &[String]) -> Resu
                     };
                     // RGB: bands 3, 2, 1 of the scene (or the available ones).
                     let nbd = rad.len();
-                    let rgb = [c(2.min(nbd - 1)), c(1.min(nbd - 1)), c(0)];
-                    fusion.push(LasPoint {
-                        rgb: Some(rgb),
-                        extra: rad.clone(),
-                        ..pt.clone()
-                    });
+                    pt.rgb = Some([c(2.min(nbd - 1)), c(1.min(nbd - 1)), c(0)]);
+                    pt.extra = rad.clone();
                 }
-                points.push(pt);
+                out.push(pt);
             }
-        }
-        write_las(&d.join("returns.las"), &points, [1e-3; 3], [0.0; 3], &[])?;
-        if run.fusion_radiance.is_some() {
+            out
+        };
+        let points_of = &points_of_pulse;
+        // Points of every pulse, in order, from a fresh pass over the entries.
+        let stream = |fused: bool| -> Result<_, String> {
+            Ok(run.pulse_entries()?.flat_map(move |e| match e {
+                Ok(e) => points_of(&e, fused).into_iter().map(Ok).collect::<Vec<_>>(),
+                Err(e) => vec![Err(e)],
+            }))
+        };
+        write_las_stream(
+            &d.join("returns.las"),
+            false,
+            stream(false).map_err(fail)?,
+            [1e-3; 3],
+            [0.0; 3],
+            &[],
+        )?;
+        if run.has_fusion() {
             let names: Vec<String> = band_names.iter().map(|b| format!("radiance_{b}")).collect();
-            write_las(&d.join("fusion.las"), &fusion, [1e-3; 3], [0.0; 3], &names)?;
+            write_las_stream(
+                &d.join("fusion.las"),
+                true,
+                stream(true).map_err(fail)?,
+                [1e-3; 3],
+                [0.0; 3],
+                &names,
+            )?;
         }
-        if !run.counted.is_empty() {
-            let pts: Vec<LasPoint> = run
-                .counted
-                .iter()
-                .map(|c| LasPoint {
+        if run.counted_totals().0 > 0 {
+            let pts = run.counted_photons().map_err(fail)?.map(|c| {
+                c.map(|c| LasPoint {
                     x: c.position.x,
                     y: c.position.y,
                     z: c.position.z,
@@ -120,10 +142,11 @@ pub fn write_lidar(dir: &Path, runs: &[LidarRun], band_names: &[String]) -> Resu
                     rgb: None,
                     extra: Vec::new(),
                 })
-                .collect();
-            write_las(
+            });
+            write_las_stream(
                 &d.join("photon_counting.las"),
-                &pts,
+                false,
+                pts,
                 [1e-3; 3],
                 [0.0; 3],
                 &[],
@@ -151,26 +174,46 @@ fn write_summary(path: &Path, run: &LidarRun) -> Result<(), String> {
         received_j: f64,
         returns: usize,
     }
-    /// The pulses, serialised one by one.
-    struct PerPulse<'a>(&'a [crate::resources::lidar::PulseRecord]);
+    /// The pulses, serialised one by one as they are read (from memory or the spool).
+    struct PerPulse<'a>(&'a LidarRun);
     impl Serialize for PerPulse<'_> {
         fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
-            s.collect_seq(self.0.iter().map(|p| PulseSummary {
-                axis: p.axis.to_array(),
-                emitter_m: p.emitter.to_array(),
-                first_order_j: p.first_order_j,
-                id: p.id,
-                missed_j: p.missed_j,
-                out_of_gate_j: p.out_of_gate_j,
-                received_j: p.received_j,
-                returns: p.returns.len(),
-            }))
+            use serde::ser::{Error, SerializeSeq};
+            let mut seq = s.serialize_seq(Some(self.0.pulse_count()))?;
+            for p in self.0.pulse_entries().map_err(S::Error::custom)? {
+                let p = p.map_err(S::Error::custom)?;
+                seq.serialize_element(&PulseSummary {
+                    axis: p.axis.to_array(),
+                    emitter_m: p.emitter.to_array(),
+                    first_order_j: p.first_order_j,
+                    id: p.id,
+                    missed_j: p.missed_j,
+                    out_of_gate_j: p.out_of_gate_j,
+                    received_j: p.received_j,
+                    returns: p.returns.len(),
+                })?;
+            }
+            seq.end()
+        }
+    }
+    /// The background rates, per pulse (photon counting; empty otherwise).
+    struct Rates<'a>(&'a LidarRun);
+    impl Serialize for Rates<'_> {
+        fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+            use serde::ser::{Error, SerializeSeq};
+            let mut seq = s.serialize_seq(None)?;
+            for p in self.0.pulse_entries().map_err(S::Error::custom)? {
+                if let Some(r) = p.map_err(S::Error::custom)?.background_rate_hz {
+                    seq.serialize_element(&r)?;
+                }
+            }
+            seq.end()
         }
     }
     /// The whole file (fields in key order).
     #[derive(Serialize)]
     struct Summary<'a> {
-        background_rate_hz: &'a [f64],
+        background_rate_hz: Rates<'a>,
         docs: serde_json::Value,
         instrument: serde_json::Value,
         notes: &'a [String],
@@ -183,7 +226,7 @@ fn write_summary(path: &Path, run: &LidarRun) -> Result<(), String> {
     }
     let threads = rayon::current_num_threads().max(1) as f64;
     let summary = Summary {
-        background_rate_hz: &run.background_rate_hz,
+        background_rate_hz: Rates(run),
         docs: serde_json::json!({
             "received_j": "energy received inside the range gate (raw waveform), J",
             "first_order_j": "first-order part of received_j, J",
@@ -194,11 +237,11 @@ fn write_summary(path: &Path, run: &LidarRun) -> Result<(), String> {
         instrument: serde_json::to_value(&run.desc)
             .map_err(|e| format!("{}: {e}", path.display()))?,
         notes: &run.notes,
-        per_pulse: PerPulse(&run.pulses),
-        photon_counting_detections: run.counted.len(),
-        photon_counting_noise: run.counted.iter().filter(|c| c.is_noise).count(),
-        pulses: run.pulses.len(),
-        pulses_per_second_per_core: run.pulses.len() as f64 / (run.seconds.max(1e-9) * threads),
+        per_pulse: PerPulse(run),
+        photon_counting_detections: run.counted_totals().0,
+        photon_counting_noise: run.counted_totals().1,
+        pulses: run.pulse_count(),
+        pulses_per_second_per_core: run.pulse_count() as f64 / (run.seconds.max(1e-9) * threads),
         seconds: run.seconds,
     };
     write_atomic_with(path, |w| {

@@ -17,7 +17,8 @@ use crate::lidar::photon_counting::{
     Detector, mean_signal_counts, simulate_shot, solar_background_rate,
 };
 use crate::lidar::pulse::{BeamProfile, FootprintSampler, PulseShape};
-use crate::lidar::waveform::{Waveform, WaveformBinner};
+use crate::lidar::spool::{PulseEntry, Spool, spool_counted};
+use crate::lidar::waveform::WaveformBinner;
 use crate::lidar::waveform_io::WaveformStream;
 use crate::photon::engine::{Beam, PhotonInput, Pulse, run_lidar_chunks};
 use crate::resources::directions::direction_from_deg;
@@ -52,81 +53,181 @@ impl PassiveRadiance {
 /// Pulses of an instrument: (ID, emitter, axis) and the reference range at which footprint
 /// offsets are defined. Airborne: emitter above the footprint centre on z = 0 along the view
 /// direction; terrestrial: the scanner position, directions from the angular grid, reference
-/// range 1 m.
+/// range 1 m. The whole list: a long scan is better generated on demand ([`PulsePlan`]).
 pub fn pulses_of(desc: &LidarDesc) -> (Vec<Pulse>, f64) {
-    match &desc.platform {
-        LidarPlatform::Airborne {
-            altitude_m,
-            view_zenith_deg,
-            view_azimuth_deg,
-            pulses,
-        } => {
-            let v = direction_from_deg(*view_zenith_deg, *view_azimuth_deg);
-            let range = altitude_m / v.z;
-            let centres: Vec<(f64, f64)> = match pulses {
-                PulsePattern::Single(p) => vec![*p],
-                PulsePattern::List(ps) => ps.clone(),
-                PulsePattern::Scan {
-                    start,
-                    end,
-                    lines,
-                    line_spacing_m,
-                    pulse_spacing_m,
-                } => {
-                    let (dx, dy) = (end.0 - start.0, end.1 - start.1);
-                    let len = (dx * dx + dy * dy).sqrt();
-                    let (ux, uy) = if len > 0.0 {
-                        (dx / len, dy / len)
-                    } else {
-                        (1.0, 0.0)
-                    };
-                    let n = (len / pulse_spacing_m + 1e-9).floor() as usize + 1;
-                    let mut c = Vec::new();
-                    for l in 0..*lines as usize {
-                        let off = l as f64 * line_spacing_m;
-                        for k in 0..n {
-                            let s = k as f64 * pulse_spacing_m;
-                            c.push((start.0 + ux * s - uy * off, start.1 + uy * s + ux * off));
+    let plan = PulsePlan::new(desc);
+    (plan.iter().collect(), plan.reference_range_m)
+}
+
+/// The pulses of an instrument ([`pulses_of`]) generated on demand by index, so that a scan of
+/// millions of pulses is never held in memory: pulse `i` is the same value as the `i`-th of
+/// the list, bit for bit.
+#[derive(Debug, Clone)]
+pub struct PulsePlan<'a> {
+    kind: PlanKind<'a>,
+    /// Range at which the footprint offsets are defined (m).
+    pub reference_range_m: f64,
+}
+
+#[derive(Debug, Clone)]
+enum PlanKind<'a> {
+    /// Emitters at `range` along `v` above footprint centres on z = 0.
+    Airborne {
+        v: DVec3,
+        range: f64,
+        centres: Centres<'a>,
+    },
+    /// Every azimuth for each zenith (degrees), from one position.
+    Terrestrial {
+        position: DVec3,
+        zeniths: Vec<f64>,
+        azimuths: Vec<f64>,
+    },
+}
+
+#[derive(Debug, Clone)]
+enum Centres<'a> {
+    List(&'a [(f64, f64)]),
+    /// `lines` parallel lines of `n` pulses from `start` along the unit vector `u`.
+    Scan {
+        start: (f64, f64),
+        u: (f64, f64),
+        n: usize,
+        lines: usize,
+        line_spacing_m: f64,
+        pulse_spacing_m: f64,
+    },
+}
+
+impl<'a> PulsePlan<'a> {
+    /// The plan of `desc`'s platform.
+    pub fn new(desc: &'a LidarDesc) -> Self {
+        match &desc.platform {
+            LidarPlatform::Airborne {
+                altitude_m,
+                view_zenith_deg,
+                view_azimuth_deg,
+                pulses,
+            } => {
+                let v = direction_from_deg(*view_zenith_deg, *view_azimuth_deg);
+                let range = altitude_m / v.z;
+                let centres = match pulses {
+                    PulsePattern::Single(p) => Centres::List(std::slice::from_ref(p)),
+                    PulsePattern::List(ps) => Centres::List(ps),
+                    PulsePattern::Scan {
+                        start,
+                        end,
+                        lines,
+                        line_spacing_m,
+                        pulse_spacing_m,
+                    } => {
+                        let (dx, dy) = (end.0 - start.0, end.1 - start.1);
+                        let len = (dx * dx + dy * dy).sqrt();
+                        let u = if len > 0.0 {
+                            (dx / len, dy / len)
+                        } else {
+                            (1.0, 0.0)
+                        };
+                        Centres::Scan {
+                            start: *start,
+                            u,
+                            n: (len / pulse_spacing_m + 1e-9).floor() as usize + 1,
+                            lines: *lines as usize,
+                            line_spacing_m: *line_spacing_m,
+                            pulse_spacing_m: *pulse_spacing_m,
                         }
                     }
-                    c
-                }
-            };
-            let pulses = centres
-                .iter()
-                .enumerate()
-                .map(|(i, &(x, y))| Pulse {
-                    id: i as u64,
-                    emitter: DVec3::new(x, y, 0.0) + v * range,
-                    axis: -v,
-                })
-                .collect();
-            (pulses, range)
-        }
-        LidarPlatform::Terrestrial {
-            position_m,
-            zenith_deg,
-            azimuth_deg,
-        } => {
-            let steps = |(a, b, s): (f64, f64, f64)| -> Vec<f64> {
-                let n = ((b - a) / s + 1e-9).floor() as usize + 1;
-                (0..n).map(|k| a + k as f64 * s).collect()
-            };
-            let p = DVec3::new(position_m.0, position_m.1, position_m.2);
-            let mut pulses = Vec::new();
-            for z in steps(*zenith_deg) {
-                for a in steps(*azimuth_deg) {
-                    let (zr, ar) = (z.to_radians(), a.to_radians());
-                    pulses.push(Pulse {
-                        id: pulses.len() as u64,
-                        emitter: p,
-                        axis: DVec3::new(zr.sin() * ar.cos(), zr.sin() * ar.sin(), zr.cos())
-                            .normalize(),
-                    });
+                };
+                Self {
+                    kind: PlanKind::Airborne { v, range, centres },
+                    reference_range_m: range,
                 }
             }
-            (pulses, 1.0)
+            LidarPlatform::Terrestrial {
+                position_m,
+                zenith_deg,
+                azimuth_deg,
+            } => {
+                let steps = |(a, b, s): (f64, f64, f64)| -> Vec<f64> {
+                    let n = ((b - a) / s + 1e-9).floor() as usize + 1;
+                    (0..n).map(|k| a + k as f64 * s).collect()
+                };
+                Self {
+                    kind: PlanKind::Terrestrial {
+                        position: DVec3::new(position_m.0, position_m.1, position_m.2),
+                        zeniths: steps(*zenith_deg),
+                        azimuths: steps(*azimuth_deg),
+                    },
+                    reference_range_m: 1.0,
+                }
+            }
         }
+    }
+
+    /// Number of pulses.
+    pub fn len(&self) -> usize {
+        match &self.kind {
+            PlanKind::Airborne { centres, .. } => match centres {
+                Centres::List(ps) => ps.len(),
+                Centres::Scan { n, lines, .. } => n * lines,
+            },
+            PlanKind::Terrestrial {
+                zeniths, azimuths, ..
+            } => zeniths.len() * azimuths.len(),
+        }
+    }
+
+    /// Whether the plan has no pulse.
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+
+    /// Pulse `i` (`i < len()`), ID `i`.
+    pub fn get(&self, i: usize) -> Pulse {
+        match &self.kind {
+            PlanKind::Airborne { v, range, centres } => {
+                let (x, y) = match centres {
+                    Centres::List(ps) => ps[i],
+                    Centres::Scan {
+                        start,
+                        u: (ux, uy),
+                        n,
+                        line_spacing_m,
+                        pulse_spacing_m,
+                        ..
+                    } => {
+                        let (l, k) = (i / n, i % n);
+                        let off = l as f64 * line_spacing_m;
+                        let s = k as f64 * pulse_spacing_m;
+                        (start.0 + ux * s - uy * off, start.1 + uy * s + ux * off)
+                    }
+                };
+                Pulse {
+                    id: i as u64,
+                    emitter: DVec3::new(x, y, 0.0) + *v * *range,
+                    axis: -*v,
+                }
+            }
+            PlanKind::Terrestrial {
+                position,
+                zeniths,
+                azimuths,
+            } => {
+                let (z, a) = (zeniths[i / azimuths.len()], azimuths[i % azimuths.len()]);
+                let (zr, ar) = (z.to_radians(), a.to_radians());
+                Pulse {
+                    id: i as u64,
+                    emitter: *position,
+                    axis: DVec3::new(zr.sin() * ar.cos(), zr.sin() * ar.sin(), zr.cos())
+                        .normalize(),
+                }
+            }
+        }
+    }
+
+    /// The pulses in order.
+    pub fn iter(&self) -> impl Iterator<Item = Pulse> + '_ {
+        (0..self.len()).map(|i| self.get(i))
     }
 }
 
@@ -195,7 +296,9 @@ pub fn simulate_lidar(
     chunks: &LidarChunks,
 ) -> Result<LidarRun, String> {
     let t0 = std::time::Instant::now();
-    let (pulses, ref_range) = pulses_of(desc);
+    // Generated on demand: a scan's pulse list is not held in memory.
+    let plan = PulsePlan::new(desc);
+    let ref_range = plan.reference_range_m;
     let radius = match (desc.footprint_radius_m, desc.divergence_mrad) {
         (Some(r), _) => r,
         (None, Some(d)) => ref_range * (0.5e-3 * d).tan(),
@@ -217,7 +320,7 @@ pub fn simulate_lidar(
     // Range gate from the grid box (two-way), plus the margin for multiple scattering.
     let mut d_min = f64::INFINITY;
     let mut d_max: f64 = 0.0;
-    for pl in &pulses {
+    for pl in plan.iter() {
         let corners = (0..8).map(|k| {
             DVec3::new(
                 if k & 1 == 0 { box_lo.x } else { box_hi.x },
@@ -312,17 +415,27 @@ pub fn simulate_lidar(
     let mut background_rate_hz = Vec::new();
     let chunk = chunks.chunk_pulses.max(1);
     let err = |e: crate::lidar::LidarError| format!("lidar `{}`: {e}", desc.name);
+    let fusion = desc.fusion && passive.is_some();
+    // Streamed: waveforms and spools of the pulses' entries and detections.
     let mut writers = match &chunks.stream_dir {
-        Some(dir) if pulses.len() > chunk => Some((
+        Some(dir) if plan.len() > chunk => Some((
             WaveformStream::create(dir).map_err(err)?,
             WaveformStream::create(&dir.join("raw")).map_err(err)?,
+            Spool::create(dir, "pulses")?,
+            Spool::create(dir, "counted")?,
         )),
         _ => None,
     };
-    let bar =
-        crate::io::progress::progress_bar(chunks.progress, pulses.len() as u64, "LiDAR pulses");
-    let mut records: Vec<PulseRecord> = Vec::with_capacity(pulses.len());
-    run_lidar_chunks(input, &beam, &pulses, chunk, |part, results| {
+    let mut noise = 0;
+    // Fusion (`fusion: true`): passive radiance at each footprint centre (every band).
+    let mut fusion_radiance: Vec<Vec<f64>> = Vec::new();
+    let bar = crate::io::progress::progress_bar(chunks.progress, plan.len() as u64, "LiDAR pulses");
+    let mut records: Vec<PulseRecord> = Vec::with_capacity(if writers.is_some() {
+        crate::lidar::products::QUICKLOOKS
+    } else {
+        plan.len()
+    });
+    run_lidar_chunks(input, &beam, plan.iter(), chunk, |part, results| {
         // Convolution and returns per pulse, in parallel (each pulse is independent; the
         // order of the records is the order of the pulses).
         use rayon::prelude::*;
@@ -407,17 +520,43 @@ pub fn simulate_lidar(
                 }
             }
         }
-        if let Some((wf, raw)) = &mut writers {
+        if let Some(pr) = passive.filter(|_| fusion) {
+            fusion_radiance.extend(recs.iter().map(|pl| {
+                let (x, y) = footprint_centre(pl);
+                (0..pr.per_band.len()).map(|b| pr.at(x, y, b)).collect()
+            }));
+        }
+        if let Some((wf, raw, pulse_spool, counted_spool)) = &mut writers {
             wf.append(&recs.iter().map(|p| (p.id, &p.waveform)).collect::<Vec<_>>())
                 .map_err(err)?;
             raw.append(&recs.iter().map(|p| (p.id, &p.raw)).collect::<Vec<_>>())
                 .map_err(err)?;
-            // Keep the quick-looks' waveforms; the others are on disk now.
-            let keep = crate::lidar::products::QUICKLOOKS.saturating_sub(records.len());
-            for p in recs.iter_mut().skip(keep) {
-                p.waveform = Waveform::zeros(p.waveform.t0_ns, p.waveform.dt_ns, 0);
-                p.raw = Waveform::zeros(p.raw.t0_ns, p.raw.dt_ns, 0);
+            // Everything else of the chunk goes to the spools: memory stays bounded by a chunk.
+            let mut rates = background_rate_hz.drain(..);
+            let mut radiances = fusion_radiance.drain(..);
+            for p in &recs {
+                PulseEntry {
+                    id: p.id,
+                    emitter: p.emitter,
+                    axis: p.axis,
+                    received_j: p.received_j,
+                    first_order_j: p.first_order_j,
+                    out_of_gate_j: p.out_of_gate_j,
+                    missed_j: p.missed_j,
+                    returns: p.returns.clone(),
+                    background_rate_hz: rates.next(),
+                    fusion_radiance: radiances.next(),
+                }
+                .spool(pulse_spool)?;
             }
+            drop((rates, radiances));
+            for c in counted.drain(..) {
+                noise += usize::from(c.is_noise);
+                spool_counted(&c, counted_spool)?;
+            }
+            // Keep the quick-looks' pulses (with their waveforms) only.
+            let keep = crate::lidar::products::QUICKLOOKS.saturating_sub(records.len());
+            recs.truncate(keep);
         }
         records.extend(recs);
         bar.inc(part.len() as u64);
@@ -425,28 +564,22 @@ pub fn simulate_lidar(
     })?;
     bar.finish_and_clear();
     let streamed = match writers {
-        Some((wf, raw)) => Some(std::sync::Arc::new(StreamedRun {
+        Some((wf, raw, pulse_spool, counted_spool)) => Some(std::sync::Arc::new(StreamedRun {
             waveforms: wf.finish().map_err(err)?,
             raw: raw.finish().map_err(err)?,
+            pulses: pulse_spool.finish()?,
+            counted: counted_spool.finish()?,
+            noise,
+            fusion,
         })),
         None => None,
     };
-    // Fusion (`fusion: true`): passive radiance at each footprint centre (every band).
-    let fusion_radiance = passive.filter(|_| desc.fusion).map(|pr| {
-        records
-            .iter()
-            .map(|pl| {
-                let (x, y) = footprint_centre(pl);
-                (0..pr.per_band.len()).map(|b| pr.at(x, y, b)).collect()
-            })
-            .collect()
-    });
     Ok(LidarRun {
         desc: desc.clone(),
         pulses: records,
         counted,
         background_rate_hz,
-        fusion_radiance,
+        fusion_radiance: (fusion && streamed.is_none()).then_some(fusion_radiance),
         notes,
         seconds: t0.elapsed().as_secs_f64(),
         streamed,

@@ -72,6 +72,13 @@ impl Dda {
     /// Starts at `p` (inside the grid box, boundaries included) along the unit vector `d`.
     /// Returns `None` if `p` is outside the grid box.
     pub fn new(spec: &GridSpec, p: DVec3, d: DVec3) -> Option<Self> {
+        Self::new_inline(spec, p, d)
+    }
+
+    /// [`Dda::new`] inlined into the caller: the state is built in place instead of being
+    /// returned through memory and copied (the Photon walks start one per flight).
+    #[inline(always)]
+    pub fn new_inline(spec: &GridSpec, p: DVec3, d: DVec3) -> Option<Self> {
         let n = [spec.n[0] as i64, spec.n[1] as i64, spec.n[2] as i64];
         let size = spec.cell;
         let lo = spec.origin;

@@ -213,8 +213,8 @@ pub fn run_lidars(
             e_diff: vec![0.0],
             params,
         };
-        let (pulses, _) = crate::lidar::simulate::pulses_of(l);
-        let view = pulses.first().map_or(glam::DVec3::Z, |p| -p.axis);
+        let plan = crate::lidar::simulate::PulsePlan::new(l);
+        let view = plan.iter().next().map_or(glam::DVec3::Z, |p| -p.axis);
         let pr = passive
             .as_ref()
             .and_then(|p| passive_radiance(p, images.as_deref(), &dirs, &spec, view));
