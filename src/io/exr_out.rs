@@ -85,16 +85,78 @@ pub fn write_exr_layers_with(
     }
     let image = Image::from_layers(attributes, list);
     let tmp = tmp_path(path);
-    image
-        .write()
-        .to_file(&tmp)
-        .map_err(|e| format!("{}: cannot write EXR: {e}", path.display()))?;
-    std::fs::rename(&tmp, path).map_err(|e| {
+    let res = (|| -> std::result::Result<(), String> {
+        image
+            .write()
+            .to_file(&tmp)
+            .map_err(|e| format!("cannot write EXR: {e}"))?;
+        // exr keeps the custom attributes in a std HashMap (randomly seeded): put every
+        // header's attributes in name order so that the same image gives the same bytes.
+        let mut bytes = std::fs::read(&tmp).map_err(|e| format!("cannot write: {e}"))?;
+        sort_header_attributes(&mut bytes)?;
+        std::fs::write(&tmp, &bytes).map_err(|e| format!("cannot write: {e}"))?;
+        std::fs::rename(&tmp, path).map_err(|e| format!("cannot write: {e}"))
+    })();
+    res.map_err(|e| {
         let _ = std::fs::remove_file(&tmp);
-        format!("{}: cannot write: {e}", path.display())
+        format!("{}: {e}", path.display())
     })?;
     let _ = write_atomic;
     Ok(())
+}
+
+/// Sorts the attributes of every header of an OpenEXR file image by name, in place. Each
+/// attribute is `name\0 type\0 size:i32 value[size]`; a header ends with a null byte, and a
+/// multi-part file's header list with an empty header (OpenEXR file layout, "Header"). The
+/// headers keep their lengths, so the offset tables after them stay valid.
+fn sort_header_attributes(bytes: &mut [u8]) -> std::result::Result<(), String> {
+    let bad = |what: &str| format!("cannot reorder the EXR header: {what}");
+    if bytes.len() < 8 || bytes[0..4] != [0x76, 0x2f, 0x31, 0x01] {
+        return Err(bad("no OpenEXR magic number"));
+    }
+    let multipart = bytes[5] & 0x10 != 0; // flag bit 12 of the version field
+    let cstr_end = |b: &[u8], from: usize| -> std::result::Result<usize, String> {
+        b.get(from..)
+            .and_then(|r| r.iter().position(|&c| c == 0))
+            .map(|k| from + k + 1)
+            .ok_or_else(|| bad("unterminated name"))
+    };
+    let mut pos = 8;
+    loop {
+        let start = pos;
+        let mut attrs: Vec<(Vec<u8>, std::ops::Range<usize>)> = Vec::new();
+        loop {
+            match bytes.get(pos) {
+                None => return Err(bad("truncated header")),
+                Some(0) => break,
+                Some(_) => {}
+            }
+            let a = pos;
+            let name_end = cstr_end(bytes, pos)?;
+            let type_end = cstr_end(bytes, name_end)?;
+            let size = bytes
+                .get(type_end..type_end + 4)
+                .map(|b| i32::from_le_bytes([b[0], b[1], b[2], b[3]]))
+                .filter(|&n| n >= 0)
+                .ok_or_else(|| bad("attribute size"))?;
+            pos = type_end + 4 + size as usize;
+            if pos > bytes.len() {
+                return Err(bad("attribute past the end"));
+            }
+            attrs.push((bytes[a..name_end].to_vec(), a..pos));
+        }
+        let end = pos; // the header's terminating null byte
+        attrs.sort_by(|x, y| x.0.cmp(&y.0));
+        let sorted: Vec<u8> = attrs
+            .iter()
+            .flat_map(|(_, r)| bytes[r.clone()].to_vec())
+            .collect();
+        bytes[start..end].copy_from_slice(&sorted);
+        pos = end + 1;
+        if !multipart || bytes.get(pos) == Some(&0) {
+            return Ok(());
+        }
+    }
 }
 
 /// Reads the f64 attributes of an EXR file's header (see [`ExrMeta`]), plus
@@ -165,7 +227,8 @@ mod tests {
     use super::*;
 
     /// The same image gives the same bytes (tiles in increasing order, declared so in the
-    /// header), whatever order the compression threads finish in; values read back.
+    /// header, whatever order the compression threads finish in; attributes in name order);
+    /// values and attributes read back.
     #[test]
     fn the_same_image_gives_the_same_bytes() {
         let dir = std::env::temp_dir().join(format!("lumenscape-exr-{}", std::process::id()));
@@ -181,22 +244,62 @@ mod tests {
             name: "brf".into(),
             channels: vec![("a".into(), vals(0.37)), ("b".into(), vals(1.1))],
         }];
+        // Custom attributes (kept by exr in a randomly seeded HashMap).
+        let meta = ExrMeta {
+            pixel_size_m: Some((0.5, 0.25)),
+            values: (0..8)
+                .map(|k| (format!("value_{k}"), k as f64 * 1.5))
+                .collect(),
+        };
         let mut first = None;
         for k in 0..6 {
             let p = dir.join(format!("img{k}.exr"));
-            write_exr_layers(&p, nx, ny, &layers).unwrap();
+            write_exr_layers_with(&p, nx, ny, &layers, &meta).unwrap();
             let bytes = std::fs::read(&p).unwrap();
             match &first {
                 None => first = Some(bytes),
                 Some(f) => assert!(f == &bytes, "write {k} differs"),
             }
         }
+        // Two layers: a multi-part file, one header per part.
+        let two = [
+            ExrLayer {
+                name: "absorbed".into(),
+                channels: vec![("red".into(), vals(0.2))],
+            },
+            ExrLayer {
+                name: "scattered".into(),
+                channels: vec![("red".into(), vals(0.9)), ("nir".into(), vals(0.4))],
+            },
+        ];
+        let mut first = None;
+        for k in 0..6 {
+            let p = dir.join(format!("two{k}.exr"));
+            write_exr_layers_with(&p, nx, ny, &two, &meta).unwrap();
+            let bytes = std::fs::read(&p).unwrap();
+            match &first {
+                None => first = Some(bytes),
+                Some(f) => assert!(f == &bytes, "two-layer write {k} differs"),
+            }
+        }
+        let (_, _, ch) = read_exr_channels(&dir.join("two0.exr")).unwrap();
+        let nir = &ch.iter().find(|c| c.0 == "scattered.nir").unwrap().1;
+        assert!(nir.iter().zip(vals(0.4)).all(|(x, y)| *x == y as f32));
         let meta = exr::meta::MetaData::read_from_file(dir.join("img0.exr"), false).unwrap();
         assert_eq!(meta.headers[0].line_order, LineOrder::Increasing);
         let (rx, ry, ch) = read_exr_channels(&dir.join("img0.exr")).unwrap();
         assert_eq!((rx, ry), (nx, ny));
         let a = &ch.iter().find(|c| c.0 == "brf.a").unwrap().1;
         assert!(a.iter().zip(vals(0.37)).all(|(x, y)| *x == y as f32));
+        let v = read_exr_values(&dir.join("img0.exr")).unwrap();
+        assert_eq!(v.len(), 1 + 2 + 8, "{v:?}");
+        assert!(v.contains(&("value_7".to_string(), 10.5)));
+        assert!(v.contains(&("pixel_size_y_m".to_string(), 0.25)));
+        // A corrupt image is an error, not a panic.
+        for cut in [0, 7, 20, 60] {
+            let mut b = std::fs::read(dir.join("img0.exr")).unwrap()[..cut].to_vec();
+            assert!(sort_header_attributes(&mut b).is_err(), "cut {cut}");
+        }
         std::fs::remove_dir_all(&dir).unwrap();
     }
 }

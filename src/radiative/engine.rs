@@ -63,7 +63,7 @@ mod batch;
 
 use super::dda::{Dda, Exit, floor_i64, skip_field};
 use super::fastmath::{HalfBarycentres, attenuation};
-use super::images::ImageGrid;
+use super::images::{ImageGrid, rem_euclid_period};
 use crate::resources::directions::DirectionSet;
 use crate::resources::facets::{Facet, FacetKind};
 use crate::resources::grid::{CellGrid, GridSpec};
@@ -1260,8 +1260,8 @@ impl Ctx<'_> {
             return;
         }
         let base = dir * self.w;
-        for (ch, v) in pw.iter().enumerate() {
-            out.escaped[base + ch] += v;
+        for (r, v) in out.escaped[base..base + pw.len()].iter_mut().zip(pw) {
+            *r += v;
         }
         let img = self.inp.image_of.get(dir).copied().unwrap_or(u32::MAX);
         if img == u32::MAX || self.omega[dir].z <= 0.0 {
@@ -1272,8 +1272,8 @@ impl Ctx<'_> {
         let mut x = p.x - (p.z - spec.origin.z) * d.x / d.z - spec.origin.x;
         let mut y = p.y - (p.z - spec.origin.z) * d.y / d.z - spec.origin.y;
         if spec.boundary != BoundaryMode::Isolated {
-            x = x.rem_euclid(self.size.0);
-            y = y.rem_euclid(self.size.1);
+            x = rem_euclid_period(x, self.size.0);
+            y = rem_euclid_period(y, self.size.1);
         } else if self.image_grid.misses((x, y), out.foot) {
             return;
         }
@@ -3148,12 +3148,23 @@ fn merge(
             let [x, y, fx, fy] = out.img_pos[n];
             let v = &out.img_val[n * w..(n + 1) * w];
             let image = &mut res.images[img as usize * npx * w..(img as usize + 1) * npx * w];
-            ctx.image_grid
-                .spread((x, y), (fx, fy), &mut scratch, |px, share| {
+            let grid = &ctx.image_grid;
+            if w == 2 {
+                // Two channels (the common case): the pixel rows as pairs, the same operations.
+                let rows = image.as_chunks_mut::<2>().0;
+                let v = [v[0], v[1]];
+                grid.spread((x, y), (fx, fy), &mut scratch, |px, share| {
+                    let r = &mut rows[px];
+                    r[0] += v[0] * share;
+                    r[1] += v[1] * share;
+                });
+            } else {
+                grid.spread((x, y), (fx, fy), &mut scratch, |px, share| {
                     for (r, p) in image[px * w..(px + 1) * w].iter_mut().zip(v) {
                         *r += p * share;
                     }
                 });
+            }
         }
         if ctx.subfaces != TurbidSubfaces::Off {
             if let Some(acc) = &out.tur {

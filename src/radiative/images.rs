@@ -64,6 +64,21 @@ impl ImageGrid {
         scratch: &mut SpreadScratch,
         mut f: impl FnMut(usize, f64),
     ) {
+        // The common case (at most FAST pixels per axis: a footprint of about a pixel) on the
+        // stack; the same shares in the same order as the general path below.
+        if let Some(ax) = axis_shares_fast(x, size.0, self.pixel_m.0, self.n.0, self.wrap) {
+            if ax.len == 0 {
+                return;
+            }
+            if let Some(ay) = axis_shares_fast(y, size.1, self.pixel_m.1, self.n.1, self.wrap) {
+                for (&j, &wy) in ay.k[..ay.len].iter().zip(&ay.w[..ay.len]) {
+                    for (&i, &wx) in ax.k[..ax.len].iter().zip(&ax.w[..ax.len]) {
+                        f(i + self.n.0 * j, wx * wy);
+                    }
+                }
+                return;
+            }
+        }
         let SpreadScratch { x: sx, y: sy } = scratch;
         axis_shares(x, size.0, self.pixel_m.0, self.n.0, self.wrap, sx);
         if sx.is_empty() {
@@ -93,41 +108,145 @@ impl ImageGrid {
     }
 }
 
+/// `⌊x⌋` as an integer, as `x.floor() as i64` (saturating, NaN gives 0) without the libm
+/// call: truncation and a correction for negative non-integers.
+#[inline(always)]
+fn floor_to_i64(x: f64) -> i64 {
+    let i = x as i64;
+    i.saturating_sub(((i as f64) > x) as i64)
+}
+
+/// Pixel index `i` placed in `0..n`: wrapped (`i mod n`, as `i.rem_euclid(n)`) when `wrap`,
+/// else `None` outside. One period either side without the integer division.
+#[inline(always)]
+fn place(i: i64, n: i64, wrap: bool) -> Option<usize> {
+    if (0..n).contains(&i) {
+        Some(i as usize)
+    } else if !wrap {
+        None
+    } else if i < 0 && i >= -n {
+        Some((i + n) as usize)
+    } else if i >= n && i - n < n {
+        Some((i - n) as usize)
+    } else {
+        Some(i.rem_euclid(n) as usize)
+    }
+}
+
+/// The interval `[a, b]` of [`axis_shares`] and its first and last pixel indices (unplaced),
+/// or `None` for a point (`len` not positive or NaN).
+#[inline(always)]
+fn axis_span(c: f64, len: f64, px: f64) -> Option<(f64, f64, i64, i64)> {
+    if len.is_nan() || len <= 0.0 {
+        return None;
+    }
+    let (a, b) = (c - 0.5 * len, c + 0.5 * len);
+    Some((a, b, floor_to_i64(a / px), floor_to_i64(b / px)))
+}
+
+/// Share of pixel `i` in the interval `[a, b]` of length `len` (see [`axis_shares`]): `None`
+/// when they do not overlap.
+#[inline(always)]
+fn pixel_share(a: f64, b: f64, len: f64, px: f64, i: i64) -> Option<f64> {
+    let lo = a.max(i as f64 * px);
+    let hi = b.min((i + 1) as f64 * px);
+    (hi > lo).then(|| (hi - lo) / len)
+}
+
+/// Pixels per axis that [`ImageGrid::spread`] handles without its scratch vectors.
+const FAST: usize = 4;
+
+/// At most [`FAST`] (pixel index, share) pairs of one axis.
+struct AxisShares {
+    k: [usize; FAST],
+    w: [f64; FAST],
+    len: usize,
+}
+
+/// [`axis_shares`] when the interval spans at most [`FAST`] pixels (`None` otherwise): the
+/// same pairs in the same order, on the stack.
+#[inline(always)]
+fn axis_shares_fast(c: f64, len: f64, px: f64, n: usize, wrap: bool) -> Option<AxisShares> {
+    let mut out = AxisShares {
+        k: [0; FAST],
+        w: [0.0; FAST],
+        len: 0,
+    };
+    if !c.is_finite() || n == 0 {
+        return Some(out);
+    }
+    let n_i = n as i64;
+    let Some((a, b, i0, i1)) = axis_span(c, len, px) else {
+        if let Some(i) = place(floor_to_i64(c / px), n_i, wrap) {
+            out.k[0] = i;
+            out.w[0] = 1.0;
+            out.len = 1;
+        }
+        return Some(out);
+    };
+    // i0 ≤ i1 (a ≤ b); a wrapped difference (an infinite interval) takes the general path.
+    if i1.wrapping_sub(i0) as u64 >= FAST as u64 {
+        return None;
+    }
+    for i in i0..=i1 {
+        if let Some(s) = pixel_share(a, b, len, px, i)
+            && let Some(k) = place(i, n_i, wrap)
+        {
+            out.k[out.len] = k;
+            out.w[out.len] = s;
+            out.len += 1;
+        }
+    }
+    Some(out)
+}
+
 /// Shares of the interval of length `len` centred on `c` in pixels `[i·px, (i+1)·px)`,
 /// `i ∈ 0..n` (indices wrapped modulo `n` when `wrap`, else pixels outside are dropped):
 /// overlap / len; `len = 0` (or not positive): the pixel holding `c`, share 1.
 fn axis_shares(c: f64, len: f64, px: f64, n: usize, wrap: bool, out: &mut Vec<(usize, f64)>) {
     out.clear();
-    let n_i = n as i64;
-    let place = |i: i64| -> Option<usize> {
-        if wrap {
-            Some(i.rem_euclid(n_i) as usize)
-        } else if (0..n_i).contains(&i) {
-            Some(i as usize)
-        } else {
-            None
-        }
-    };
     if !c.is_finite() || n == 0 {
         return;
     }
-    if len.is_nan() || len <= 0.0 {
-        if let Some(i) = place((c / px).floor() as i64) {
+    let n_i = n as i64;
+    let Some((a, b, i0, i1)) = axis_span(c, len, px) else {
+        if let Some(i) = place(floor_to_i64(c / px), n_i, wrap) {
             out.push((i, 1.0));
         }
         return;
-    }
-    let (a, b) = (c - 0.5 * len, c + 0.5 * len);
-    let (i0, i1) = ((a / px).floor() as i64, (b / px).floor() as i64);
+    };
     for i in i0..=i1 {
-        let lo = a.max(i as f64 * px);
-        let hi = b.min((i + 1) as f64 * px);
-        if hi > lo
-            && let Some(k) = place(i)
+        if let Some(s) = pixel_share(a, b, len, px, i)
+            && let Some(k) = place(i, n_i, wrap)
         {
-            out.push((k, (hi - lo) / len));
+            out.push((k, s));
         }
     }
+}
+
+/// `x.rem_euclid(s)` (s > 0), the same bits, without the libm `fmod` for `x ∈ (−2s, 2s)`:
+/// there the remainder is `x`, `x − s` or `x + s`, exact by Sterbenz's lemma (as `fmod`'s is),
+/// and the negative case adds `s` once more like `rem_euclid` (a zero remainder of a negative
+/// `x` is −0, as `fmod` gives).
+#[inline(always)]
+pub fn rem_euclid_period(x: f64, s: f64) -> f64 {
+    if !(s > 0.0) {
+        return x.rem_euclid(s);
+    }
+    if x >= 0.0 {
+        if x < s {
+            return x;
+        }
+        if x < 2.0 * s {
+            return x - s;
+        }
+    } else if x > -s {
+        return x + s;
+    } else if x > -2.0 * s {
+        let r = x + s;
+        return if r == 0.0 { -0.0 } else { r + s };
+    }
+    x.rem_euclid(s)
 }
 
 #[cfg(test)]
@@ -185,6 +304,113 @@ mod tests {
         let v = image(&g, (1.2, 3.9), (0.0, 0.0));
         assert_eq!(v[2 + 6 * 3], 1.0);
         assert!((v.iter().sum::<f64>() - 1.0).abs() < 1e-15);
+    }
+
+    /// The former `axis_shares` (libm floor, `rem_euclid`), the reference of the fast forms.
+    fn axis_shares_reference(c: f64, len: f64, px: f64, n: usize, wrap: bool) -> Vec<(usize, f64)> {
+        let mut out = Vec::new();
+        let n_i = n as i64;
+        let place = |i: i64| -> Option<usize> {
+            if wrap {
+                Some(i.rem_euclid(n_i) as usize)
+            } else if (0..n_i).contains(&i) {
+                Some(i as usize)
+            } else {
+                None
+            }
+        };
+        if !c.is_finite() || n == 0 {
+            return out;
+        }
+        if len.is_nan() || len <= 0.0 {
+            if let Some(i) = place((c / px).floor() as i64) {
+                out.push((i, 1.0));
+            }
+            return out;
+        }
+        let (a, b) = (c - 0.5 * len, c + 0.5 * len);
+        let (i0, i1) = ((a / px).floor() as i64, (b / px).floor() as i64);
+        for i in i0..=i1 {
+            let lo = a.max(i as f64 * px);
+            let hi = b.min((i + 1) as f64 * px);
+            if hi > lo
+                && let Some(k) = place(i)
+            {
+                out.push((k, (hi - lo) / len));
+            }
+        }
+        out
+    }
+
+    #[test]
+    fn fast_shares_and_remainders_are_the_reference_bits() {
+        // A fixed pseudo-random sweep (64-bit LCG) over centres, lengths (points, about a
+        // pixel, several pixels), pixel sizes and both boundary modes, plus edge values.
+        let mut s = 0x2545_f491_4f6c_dd1du64;
+        let mut u = || {
+            s = s
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            (s >> 11) as f64 / (1u64 << 53) as f64
+        };
+        let mut cases = vec![
+            (0.0, 1.0, 0.5, 4),
+            (-0.0, 0.0, 0.5, 4),
+            (2.0, 1.0, 0.5, 4),
+            (-2.0, 0.5, 0.5, 4),
+            (1e300, 0.0, 0.5, 4),
+            (-1e300, 0.0, 0.5, 4),
+            (-1e19, 0.0, 1.0, 3),
+            (0.3, f64::NAN, 0.5, 4),
+            (0.3, 1e-300, 0.5, 4),
+        ];
+        for _ in 0..20000 {
+            let px = [0.1, 0.25, 1.0 / 3.0, 0.7, 2.0][(u() * 5.0) as usize];
+            let n = 1 + (u() * 9.0) as usize;
+            let c = (u() * 6.0 - 3.0) * n as f64 * px;
+            let len = match (u() * 4.0) as usize {
+                0 => 0.0,
+                1 => px,
+                2 => u() * 2.0 * px,
+                _ => u() * 8.0 * px,
+            };
+            cases.push((c, len, px, n));
+        }
+        for &(c, len, px, n) in &cases {
+            for wrap in [false, true] {
+                let want = axis_shares_reference(c, len, px, n, wrap);
+                let mut got = Vec::new();
+                axis_shares(c, len, px, n, wrap, &mut got);
+                let bits = |v: &[(usize, f64)]| -> Vec<(usize, u64)> {
+                    v.iter().map(|&(k, w)| (k, w.to_bits())).collect()
+                };
+                assert_eq!(
+                    bits(&got),
+                    bits(&want),
+                    "c {c} len {len} px {px} n {n} {wrap}"
+                );
+                if let Some(f) = axis_shares_fast(c, len, px, n, wrap) {
+                    let fast: Vec<(usize, f64)> = (0..f.len).map(|i| (f.k[i], f.w[i])).collect();
+                    assert_eq!(bits(&fast), bits(&want), "fast c {c} len {len}");
+                }
+            }
+            let period = n as f64 * px;
+            for x in [
+                c,
+                c * 0.5,
+                -c,
+                period,
+                -period,
+                2.0 * period,
+                -2.0 * period,
+                -0.0,
+            ] {
+                let (got, want) = (rem_euclid_period(x, period), x.rem_euclid(period));
+                assert_eq!(got.to_bits(), want.to_bits(), "{x} mod {period}");
+            }
+        }
+        assert_eq!(rem_euclid_period(-1e-20, 1.0), (-1e-20f64).rem_euclid(1.0));
+        assert!(rem_euclid_period(1.0, f64::NAN).is_nan());
     }
 
     #[test]
