@@ -491,12 +491,21 @@ impl Acc {
             sink: true,
         }
     }
-    #[inline]
+    /// The record of `key` (a sink: its scratch record), inlined up to the record lookup
+    /// (every LiDAR event books into sinks).
+    #[inline(always)]
     fn get(&mut self, key: u32) -> &mut [f64] {
         let w = self.width;
         if self.sink {
             return &mut self.dense.as_mut().expect("sink buffer")[..w];
         }
+        self.record(key)
+    }
+
+    /// [`Acc::get`] of a non-sink accumulator.
+    #[inline(never)]
+    fn record(&mut self, key: u32) -> &mut [f64] {
+        let w = self.width;
         match &mut self.dense {
             Some(d) => &mut d[key as usize * w..(key as usize + 1) * w],
             None => self.sparse.entry(key).or_insert_with(|| vec![0.0; w]),
@@ -1624,7 +1633,7 @@ impl Ctx<'_> {
         let path0 = ph.path;
         let mut left = tau_star;
         let mut tau = 0.0;
-        let mut p = ph.p;
+        let p = ph.p;
         let mut skip = ph.skip_facet;
         let mut shift = ph.shift;
         let mut crossings = 0u32;
@@ -1634,10 +1643,10 @@ impl Ctx<'_> {
         // How the walk ended when no collision came first (None: stopped, fly again).
         let end: Option<Hit>;
         let mut ret = None;
-        'restart: loop {
+        'walk: {
             let Some(mut dda) = Dda::new_inline(spec, p, d) else {
                 end = Some(Hit::Lost);
-                break 'restart;
+                break 'walk;
             };
             loop {
                 io.out.crossings += 1;
@@ -1698,11 +1707,11 @@ impl Ctx<'_> {
                             ret = score.surface_ret();
                         }
                         end = Some(Hit::Facet { f, p: at.0 });
-                        break 'restart;
+                        break 'walk;
                     }
                     if score.stop(tau, coll.is_some()) {
                         end = None;
-                        break 'restart;
+                        break 'walk;
                     }
                     dda.advance()
                 };
@@ -1715,7 +1724,7 @@ impl Ctx<'_> {
                             ph.shift = shift;
                         }
                         end = Some(Hit::Escape);
-                        break 'restart;
+                        break 'walk;
                     }
                     Exit::Bottom => {
                         let at = (dda.point(dda.t), shift, path0 + travelled + dda.t);
@@ -1732,32 +1741,36 @@ impl Ctx<'_> {
                         } else {
                             Hit::Lost
                         });
-                        break 'restart;
+                        break 'walk;
                     }
                     Exit::Side(axis, s) => {
                         if spec.boundary == BoundaryMode::Isolated {
                             end = Some(Hit::Lost);
-                            break 'restart;
+                            break 'walk;
                         }
                         crossings += 1;
                         if crossings > self.inp.params.max_crossings
                             || path0 + travelled + dda.t > self.max_path
                         {
                             end = Some(Hit::Lost);
-                            break 'restart;
+                            break 'walk;
                         }
                         let e = dda.point(dda.t);
                         match self.wrap(e, axis, s) {
                             Some(q) => {
                                 travelled += dda.t;
                                 shift += e - q;
-                                p = q;
                                 skip = None;
-                                continue 'restart;
+                                // The same direction from q: restarted in place.
+                                if dda.restart(spec, q) {
+                                    continue;
+                                }
+                                end = Some(Hit::Lost);
+                                break 'walk;
                             }
                             None => {
                                 end = Some(if d.z > 0.0 { Hit::Escape } else { Hit::Lost });
-                                break 'restart;
+                                break 'walk;
                             }
                         }
                     }
@@ -2785,9 +2798,16 @@ fn bin_first_order(
     let kb = ((x1.min(n) - x0.max(0.0)) / MAX_FIRST_ORDER_STRATA)
         .ceil()
         .max(1.0);
-    // Whole strata: width kb·h, shared offset.
-    let em_full = (-alpha * kb * h).exp_m1();
-    let off_full = -(rng.next_f64() * em_full).ln_1p() / alpha;
+    // Whole strata: width kb·h, shared offset (its uniform drawn here, its two libm calls
+    // made at the first whole stratum only: a segment over one or two bins has none).
+    let v_full = rng.next_f64();
+    let mut full: Option<(f64, f64)> = None;
+    let mut full = move || {
+        *full.get_or_insert_with(|| {
+            let em_full = (-alpha * kb * h).exp_m1();
+            (em_full, -(v_full * em_full).ln_1p() / alpha)
+        })
+    };
     // Common case: one bin per stratum and the segment well inside the gate. The strata are
     // visited in the order of the general loop below, with its arithmetic (the same values
     // bit for bit), without its per-stratum gate, grouping and edge logic: stratum k is bin k,
@@ -2828,6 +2848,7 @@ fn bin_first_order(
                 break;
             }
             let (em, u) = if a > 0.0 {
+                let (em_full, off_full) = full();
                 (em_full, a + off_full)
             } else {
                 let em = (-alpha * (b - a)).exp_m1();
@@ -2873,6 +2894,7 @@ fn bin_first_order(
         }
         let whole = in_gate && a > 0.0 && xb < x1 && edge == xa + kb;
         let (em, u) = if whole {
+            let (em_full, off_full) = full();
             (em_full, a + off_full)
         } else {
             let em = (-alpha * (b - a)).exp_m1(); // e^{−α(b−a)} − 1 ≤ 0

@@ -131,6 +131,41 @@ impl Dda {
         })
     }
 
+    /// Restarts the traversal at `p` along the same direction (a flight wrapped through a
+    /// repetitive side): the state `Dda::new(spec, p, dir)` builds (the same expressions, so the
+    /// same bits), keeping the parts that depend only on the direction and the grid (`spec` is
+    /// the grid this traversal was started on). Returns false, the state then unusable, if `p`
+    /// is outside the grid box.
+    #[inline(always)]
+    pub fn restart(&mut self, spec: &GridSpec, p: DVec3) -> bool {
+        let lo = spec.origin;
+        for a in 0..3 {
+            let (n, size, d) = (self.n[a], self.size[a], self.dir[a]);
+            let rel = (p[a] - lo[a]) / size;
+            if !(rel >= -1e-9 && rel <= n as f64 + 1e-9) {
+                return false;
+            }
+            let mut idx = floor_i64(rel);
+            // On a boundary: take the cell the ray enters.
+            if rel == idx as f64 && d < 0.0 {
+                idx -= 1;
+            }
+            idx = idx.clamp(0, n - 1);
+            self.cell[a] = idx;
+            let mut t_max = f64::INFINITY;
+            if d > 0.0 {
+                t_max = ((lo[a] + (idx + 1) as f64 * size) - p[a]) * self.inv[a];
+            } else if d < 0.0 {
+                t_max = ((lo[a] + idx as f64 * size) - p[a]) * self.inv[a];
+            }
+            self.t_max[a] = t_max.max(0.0);
+        }
+        self.t = 0.0;
+        self.origin = p;
+        self.lin = self.cell[0] + self.n[0] * (self.cell[1] + self.n[1] * self.cell[2]);
+        true
+    }
+
     /// Linear index of the current cell.
     #[inline]
     pub fn index(&self) -> usize {
