@@ -251,16 +251,20 @@ mod tests {
                 .map(|k| (format!("value_{k}"), k as f64 * 1.5))
                 .collect(),
         };
-        let mut first = None;
-        for k in 0..6 {
-            let p = dir.join(format!("img{k}.exr"));
-            write_exr_layers_with(&p, nx, ny, &layers, &meta).unwrap();
-            let bytes = std::fs::read(&p).unwrap();
-            match &first {
-                None => first = Some(bytes),
-                Some(f) => assert!(f == &bytes, "write {k} differs"),
+        // Six writes of `layers` as `name{k}.exr` give the same bytes.
+        let same_bytes = |name: &str, layers: &[ExrLayer]| {
+            let mut first = None;
+            for k in 0..6 {
+                let p = dir.join(format!("{name}{k}.exr"));
+                write_exr_layers_with(&p, nx, ny, layers, &meta).unwrap();
+                let bytes = std::fs::read(&p).unwrap();
+                match &first {
+                    None => first = Some(bytes),
+                    Some(f) => assert!(f == &bytes, "{name}: write {k} differs"),
+                }
             }
-        }
+        };
+        same_bytes("img", &layers);
         // Two layers: a multi-part file, one header per part.
         let two = [
             ExrLayer {
@@ -272,16 +276,7 @@ mod tests {
                 channels: vec![("red".into(), vals(0.9)), ("nir".into(), vals(0.4))],
             },
         ];
-        let mut first = None;
-        for k in 0..6 {
-            let p = dir.join(format!("two{k}.exr"));
-            write_exr_layers_with(&p, nx, ny, &two, &meta).unwrap();
-            let bytes = std::fs::read(&p).unwrap();
-            match &first {
-                None => first = Some(bytes),
-                Some(f) => assert!(f == &bytes, "two-layer write {k} differs"),
-            }
-        }
+        same_bytes("two", &two);
         let (_, _, ch) = read_exr_channels(&dir.join("two0.exr")).unwrap();
         let nir = &ch.iter().find(|c| c.0 == "scattered.nir").unwrap().1;
         assert!(nir.iter().zip(vals(0.4)).all(|(x, y)| *x == y as f32));

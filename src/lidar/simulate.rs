@@ -535,19 +535,7 @@ pub fn simulate_lidar(
             let mut rates = background_rate_hz.drain(..);
             let mut radiances = fusion_radiance.drain(..);
             for p in &recs {
-                PulseEntry {
-                    id: p.id,
-                    emitter: p.emitter,
-                    axis: p.axis,
-                    received_j: p.received_j,
-                    first_order_j: p.first_order_j,
-                    out_of_gate_j: p.out_of_gate_j,
-                    missed_j: p.missed_j,
-                    returns: p.returns.clone(),
-                    background_rate_hz: rates.next(),
-                    fusion_radiance: radiances.next(),
-                }
-                .spool(pulse_spool)?;
+                PulseEntry::of(p, rates.next(), radiances.next()).spool(pulse_spool)?;
             }
             drop((rates, radiances));
             for c in counted.drain(..) {

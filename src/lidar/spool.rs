@@ -11,7 +11,7 @@
 //! removed when its [`ClosedSpool`] is dropped (after the run, or after an error).
 
 use crate::lidar::returns::Return;
-use crate::resources::lidar::CountedPhoton;
+use crate::resources::lidar::{CountedPhoton, PulseRecord};
 use glam::DVec3;
 use std::fs::File;
 use std::io::{BufReader, BufWriter, Read, Write};
@@ -159,6 +159,26 @@ pub struct PulseEntry {
 }
 
 impl PulseEntry {
+    /// The entry of a pulse record, with its background rate and fused radiance.
+    pub fn of(
+        p: &PulseRecord,
+        background_rate_hz: Option<f64>,
+        fusion_radiance: Option<Vec<f64>>,
+    ) -> Self {
+        Self {
+            id: p.id,
+            emitter: p.emitter,
+            axis: p.axis,
+            received_j: p.received_j,
+            first_order_j: p.first_order_j,
+            out_of_gate_j: p.out_of_gate_j,
+            missed_j: p.missed_j,
+            returns: p.returns.clone(),
+            background_rate_hz,
+            fusion_radiance,
+        }
+    }
+
     /// Appends the entry to a pulse spool: id, emitter, axis, four energies, the returns
     /// (count, then five values each), then the optional background rate and radiances (count
     /// + values; a count of `u64::MAX` for none).

@@ -123,18 +123,11 @@ impl LidarRun {
             return Ok(Box::new(PulseEntries::new(&st.pulses)?));
         }
         Ok(Box::new(self.pulses.iter().enumerate().map(|(k, p)| {
-            Ok(PulseEntry {
-                id: p.id,
-                emitter: p.emitter,
-                axis: p.axis,
-                received_j: p.received_j,
-                first_order_j: p.first_order_j,
-                out_of_gate_j: p.out_of_gate_j,
-                missed_j: p.missed_j,
-                returns: p.returns.clone(),
-                background_rate_hz: self.background_rate_hz.get(k).copied(),
-                fusion_radiance: self.fusion_radiance.as_ref().map(|f| f[k].clone()),
-            })
+            Ok(PulseEntry::of(
+                p,
+                self.background_rate_hz.get(k).copied(),
+                self.fusion_radiance.as_ref().map(|f| f[k].clone()),
+            ))
         })))
     }
 
