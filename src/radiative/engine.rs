@@ -1077,6 +1077,9 @@ struct Ctx<'a> {
     face_d: u32,
     /// Turbid points records per accumulator index: 1, or the slot count (`Blend`).
     pts_per: usize,
+    /// Per direction (sun last), what a lane of the batched walk takes at a ray start
+    /// ([`batch::LaneDir`]; empty when [`Ctx::batch`] is off).
+    lane_dirs: Vec<batch::LaneDir>,
 }
 
 /// Smallest empty-space distance from which the flux-tracking walks jump
@@ -2713,7 +2716,7 @@ pub fn run(inp: &RadiativeInput) -> RadiativeResult {
     } else {
         Vec::new()
     };
-    let ctx = Ctx {
+    let mut ctx = Ctx {
         inp,
         w,
         nb,
@@ -2764,7 +2767,11 @@ pub fn run(inp: &RadiativeInput) -> RadiativeResult {
         } else {
             1
         },
+        lane_dirs: Vec::new(),
     };
+    if ctx.batch {
+        ctx.lane_dirs = batch::lane_dirs(&ctx);
+    }
     let mut res = RadiativeResult {
         n_channels: w,
         n_bands: nb,
