@@ -436,17 +436,50 @@ pub struct Dda4 {
     n: [f64; 3],
     n_int: [i64; 3],
     stride: [i64; 3],
-    /// Per side axis, one period in metres (`n · size`, as [`Dda::wrap_sides`] forms it) and
-    /// in the linear index (`n · stride`): the constants of [`Dda4::wrap_sides_x4`], formed
-    /// once per lane start instead of at every wrap.
-    period: [f64; 2],
-    period_lin: [i64; 2],
     /// The grid's origin, cell sizes, `n + 1e-9` and `n − 1` per axis as vectors (lane 3:
     /// padding) for [`Dda4::start_with`], set by [`Dda4::set_grid`].
     lo4: [f64; 4],
     size4: [f64; 4],
     n_hi4: [f64; 4],
     n_m1_4: [f64; 4],
+    /// Per axis and lane, the cell index a step leaves the grid into (see
+    /// [`LanePlanes::exit_at`]).
+    exit_at: [[f64; 4]; 3],
+    /// Per side axis and lane, what a wrap adds to the cell index, the linear index and the
+    /// origin (see [`LanePlanes`]).
+    wrap_back: [[f64; 4]; 2],
+    wrap_lin: [[i64; 4]; 2],
+    wrap_o: [[f64; 4]; 2],
+}
+
+/// What a lane's step direction along one axis fixes for the grid exits and the repetitive
+/// wraps: a lane steps from a cell inside the grid by −1, 0 or +1, so it can leave only into
+/// the index `exit_at` (n for a step of +1, −1 for −1, never for 0: −2), and a wrap then moves
+/// it back by `back = −step · n` cells, `back · stride` in the linear index and
+/// `back as f64 · size` metres of origin (the operations of [`Dda::wrap_sides`]).
+#[derive(Debug, Clone, Copy)]
+struct LanePlanes {
+    exit_at: f64,
+    back: f64,
+    back_lin: i64,
+    back_o: f64,
+}
+
+impl LanePlanes {
+    #[inline(always)]
+    fn new(step: i64, n: i64, stride: i64, size: f64) -> Self {
+        let back = -step * n;
+        LanePlanes {
+            exit_at: match step {
+                1 => n as f64,
+                -1 => -1.0,
+                _ => -2.0,
+            },
+            back: back as f64,
+            back_lin: back * stride,
+            back_o: back as f64 * size,
+        }
+    }
 }
 
 /// `1.5 · 2⁵²`: `v + SHIFT` holds the integer-valued double v (|v| < 2⁵¹) in its low mantissa
@@ -475,6 +508,11 @@ pub struct DirStart {
     down: [u64; 4],
     /// All ones where the ray steps along the axis (`d ≠ 0`).
     moves: [u64; 4],
+    /// [`LanePlanes`] of the direction per axis (the wraps: side axes only).
+    exit_at: [f64; 4],
+    wrap_back: [f64; 2],
+    wrap_lin: [i64; 2],
+    wrap_o: [f64; 2],
 }
 
 impl DirStart {
@@ -491,6 +529,10 @@ impl DirStart {
             dlin: [0; 4],
             down: [0; 4],
             moves: [0; 4],
+            exit_at: [0.0; 4],
+            wrap_back: [0.0; 2],
+            wrap_lin: [0; 2],
+            wrap_o: [0.0; 2],
         };
         for a in 0..3 {
             let (up, down) = (d[a] > 0.0, d[a] < 0.0);
@@ -501,6 +543,13 @@ impl DirStart {
             c.dlin[a] = (up as i64 - down as i64) * stride[a];
             c.down[a] = if down { u64::MAX } else { 0 };
             c.moves[a] = if up || down { u64::MAX } else { 0 };
+            let pl = LanePlanes::new(up as i64 - down as i64, n[a], stride[a], spec.cell[a]);
+            c.exit_at[a] = pl.exit_at;
+            if a < 2 {
+                c.wrap_back[a] = pl.back;
+                c.wrap_lin[a] = pl.back_lin;
+                c.wrap_o[a] = pl.back_o;
+            }
         }
         c
     }
@@ -523,8 +572,14 @@ impl Dda4 {
             self.n[a] = d.n[a] as f64;
             self.n_int[a] = d.n[a];
             self.stride[a] = d.stride[a];
+            let pl = LanePlanes::new(d.step[a], d.n[a], d.stride[a], d.size[a]);
+            self.exit_at[a][l] = pl.exit_at;
+            if a < 2 {
+                self.wrap_back[a][l] = pl.back;
+                self.wrap_lin[a][l] = pl.back_lin;
+                self.wrap_o[a][l] = pl.back_o;
+            }
         }
-        self.set_periods();
         self.t[l] = d.t;
         self.lin[l] = d.lin;
     }
@@ -541,7 +596,7 @@ impl Dda4 {
         self.start_with(simd, l, p, &DirStart::new(spec, d))
     }
 
-    /// The grid's constants (cell sizes, counts, strides, periods, origin), the same for every
+    /// The grid's constants (cell sizes, counts, strides, origin), the same for every
     /// lane: set once per walk instead of at every lane start.
     pub fn set_grid(&mut self, spec: &GridSpec) {
         let n = [spec.n[0] as i64, spec.n[1] as i64, spec.n[2] as i64];
@@ -557,7 +612,6 @@ impl Dda4 {
         }
         // Padding lane 3 (never read): as `Dda4::start` always had it.
         (self.lo4[3], self.size4[3], self.n_hi4[3], self.n_m1_4[3]) = (0.0, 1.0, 1.0 + 1e-9, 0.0);
-        self.set_periods();
     }
 
     /// [`Dda::new`] written straight into lane `l` on the grid of [`Dda4::set_grid`], along
@@ -621,20 +675,17 @@ impl Dda4 {
             self.inv[a][l] = dc.inv[a];
             self.b_base[a][l] = dc.b_base[a];
             self.dlin[a][l] = dc.dlin[a];
+            self.exit_at[a][l] = dc.exit_at[a];
+        }
+        for a in 0..2 {
+            self.wrap_back[a][l] = dc.wrap_back[a];
+            self.wrap_lin[a][l] = dc.wrap_lin[a];
+            self.wrap_o[a][l] = dc.wrap_o[a];
         }
         self.t[l] = 0.0;
         let n = self.n_int;
         self.lin[l] = idx_i[0] + n[0] * (idx_i[1] + n[1] * idx_i[2]);
         true
-    }
-
-    /// [`Dda4::period`] and [`Dda4::period_lin`] from the grid's counts, sizes and strides.
-    #[inline(always)]
-    fn set_periods(&mut self) {
-        for a in 0..2 {
-            self.period[a] = self.n_int[a] as f64 * self.size[a];
-            self.period_lin[a] = self.n_int[a] * self.stride[a];
-        }
     }
 
     /// Parks lane `l` on cell 0 (an idle lane: [`Dda4::step_at`] leaves it alone when it is
@@ -746,11 +797,10 @@ impl Dda4 {
                 simd.select_i64x4(m, dlin, simd.splat_i64x4(0)),
             );
             self.lin = cast(lin);
-            let inside_a = simd.and_m64x4(
-                simd.cmp_ge_f64x4(c, zero),
-                simd.cmp_lt_f64x4(c, simd.splat_f64x4(self.n[a])),
-            );
-            outside = simd.or_m64x4(outside, simd.andnot_m64x4(inside_a, m));
+            // A stepped lane left the grid iff its cell is now the lane's exit index (it
+            // stepped by ±1 from a cell inside; see `LanePlanes`).
+            let left = simd.cmp_eq_f64x4(c, cast(self.exit_at[a]));
+            outside = simd.or_m64x4(outside, simd.and_m64x4(left, m));
             // Dda::boundary_t of the new index (the value of an axis that left the grid is
             // never read: the lane is taken out).
             let bt = simd.mul_f64x4(
@@ -769,16 +819,15 @@ impl Dda4 {
         outside
     }
 
-    /// Lanes whose cell lies below or above the grid (they left through the bottom or the
-    /// top; [`Dda::exit_kind`] reports those before a side).
+    /// Of the lanes that [`Dda4::step_at`] just stepped out of the grid, those whose cell lies
+    /// below or above it (they left through the bottom or the top; [`Dda::exit_kind`] reports
+    /// those before a side). Meaningless for the other lanes.
     #[cfg(target_arch = "x86_64")]
     #[inline(always)]
     pub fn z_outside(&self, simd: V3) -> m64x4 {
-        let c: f64x4 = cast(self.cell[2]);
-        simd.or_m64x4(
-            simd.cmp_lt_f64x4(c, simd.splat_f64x4(0.0)),
-            simd.cmp_ge_f64x4(c, simd.splat_f64x4(self.n[2])),
-        )
+        // A lane that stepped out along z has its cell at the exit index (see `LanePlanes`);
+        // inside, it is neither −1 nor n.
+        simd.cmp_eq_f64x4(cast(self.cell[2]), cast(self.exit_at[2]))
     }
 
     /// [`Dda4::wrap_sides`] on every lane of `m` at once (lanes that left the grid through a
@@ -795,26 +844,17 @@ impl Dda4 {
         let mut count = zero;
         for a in 0..2 {
             let c: f64x4 = cast(self.cell[a]);
-            let n = sp(self.n[a]);
-            let below = simd.and_m64x4(m, simd.cmp_lt_f64x4(c, zero));
-            let above = simd.and_m64x4(m, simd.cmp_ge_f64x4(c, n));
-            let w = simd.or_m64x4(below, above);
+            // The lanes of `m` that left along this axis (their cell is the exit index, see
+            // `LanePlanes`: below the grid for a step of −1, above for +1).
+            let w = simd.and_m64x4(m, simd.cmp_eq_f64x4(c, cast(self.exit_at[a])));
             // back = ±n cells (exact in doubles), ±n · stride in the linear index, ±n · size in
-            // metres (`back as f64 * size` in the scalar form).
-            let back = simd.select_f64x4(below, n, simd.select_f64x4(above, sp(-self.n[a]), zero));
-            let c = simd.add_f64x4(c, back);
+            // metres (`back as f64 * size` in the scalar form), per lane.
+            let c = simd.add_f64x4(c, simd.select_f64x4(w, cast(self.wrap_back[a]), zero));
             self.cell[a] = cast(c);
-            let nl = self.period_lin[a];
-            let dl = simd.select_i64x4(
-                below,
-                simd.splat_i64x4(nl),
-                simd.select_i64x4(above, simd.splat_i64x4(-nl), simd.splat_i64x4(0)),
-            );
+            let dl = simd.select_i64x4(w, cast(self.wrap_lin[a]), simd.splat_i64x4(0));
             self.lin = cast(simd.wrapping_add_i64x4(cast(self.lin), dl));
-            let period = self.period[a];
             let o0: f64x4 = cast(self.origin[a]);
-            let o1 = simd.add_f64x4(o0, simd.select_f64x4(below, sp(period), sp(-period)));
-            let o = simd.select_f64x4(w, o1, o0);
+            let o = simd.select_f64x4(w, simd.add_f64x4(o0, cast(self.wrap_o[a])), o0);
             self.origin[a] = cast(o);
             let bt = simd.mul_f64x4(
                 simd.sub_f64x4(
