@@ -37,7 +37,7 @@ use lumenscape::lidar::returns::ReturnsMethod;
 use lumenscape::lidar::waveform::Waveform;
 use lumenscape::photon::engine::SamplerKind;
 use lumenscape::resources::lidar::{LidarProducts, LidarRun};
-use lumenscape::resources::scene::{RunSettings, Solver};
+use lumenscape::resources::scene::{RunSettings, SceneInfo, Solver};
 use lumenscape::scene::SceneSource;
 use lumenscape::scene::desc::{
     DEFAULT_LIDAR_PHOTONS, LidarDesc, LidarEstimator, LidarPlatform, LidarSampler, PulsePattern,
@@ -251,10 +251,22 @@ fn digest(r: &LidarRun, name: &str, dump: Option<&mut std::fs::File>) -> u64 {
 
 /// Runs the scene with one LiDAR (its products in the `LidarProducts` resource).
 fn simulate(
+    d: SceneDesc,
+    l: LidarDesc,
+    opt: &Options,
+    out: Option<&std::path::Path>,
+) -> Simulation {
+    simulate_seeded(d, l, opt, out, None)
+}
+
+/// [`simulate`] with the LiDAR's random seed replaced by `seed` when given (the scene itself,
+/// tree placement included, is still built from the description's seed: same forest).
+fn simulate_seeded(
     mut d: SceneDesc,
     l: LidarDesc,
     opt: &Options,
     out: Option<&std::path::Path>,
+    seed: Option<u64>,
 ) -> Simulation {
     d.lidars = Some(vec![l]);
     let mut sim = Simulation::from_desc(
@@ -275,13 +287,33 @@ fn simulate(
         },
     )
     .unwrap();
+    if let Some(seed) = seed {
+        sim.world.resource_mut::<SceneInfo>().seed = seed;
+    }
     sim.run(out).unwrap();
     sim
 }
 
 /// Runs the scene with one LiDAR and returns its products.
 fn run_products(d: SceneDesc, l: LidarDesc, opt: &Options) -> LidarRun {
-    simulate(d, l, opt, None).resource::<LidarProducts>().0[0].clone()
+    run_products_seeded(d, l, opt, None)
+}
+
+/// [`run_products`] with the LiDAR's random seed replaced by `seed` when given.
+fn run_products_seeded(d: SceneDesc, l: LidarDesc, opt: &Options, seed: Option<u64>) -> LidarRun {
+    simulate_seeded(d, l, opt, None, seed)
+        .resource::<LidarProducts>()
+        .0[0]
+        .clone()
+}
+
+/// SplitMix64's output function (Steele, Lea & Flood 2014): a bijection of 64-bit words whose
+/// outputs for consecutive inputs are statistically independent.
+fn splitmix64(x: u64) -> u64 {
+    let mut z = x.wrapping_add(0x9E37_79B9_7F4A_7C15);
+    z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
+    z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
+    z ^ (z >> 31)
 }
 
 fn run(d: SceneDesc, l: LidarDesc, name: &str, opt: &mut Options) -> Outcome {
@@ -631,8 +663,9 @@ fn waveform_errors(a: &Waveform, r: &Waveform) -> [f64; 4] {
 /// `--error`: speed against waveform error on 64 forest ALS pulses (8 × 8 grid over the 40 m
 /// forest, the speed rows' instrument, discrete sampler, peak detection). Reference: the
 /// `Legacy` estimator at `--ref-photons` photons per pulse (default 1e5), with the pulses listed
-/// in reverse order so that its random streams (one per pulse index) differ from the
-/// settings' (same scene seed). Per pulse: relative L2 error of the convolved waveform (the
+/// in reverse order; each realization of a setting draws from its own LiDAR seed (SplitMix64 of
+/// the scene seed and the realization index; the scene is built from the scene seed), so the
+/// realizations are independent of each other and of the reference. Per pulse: relative L2 error of the convolved waveform (the
 /// product) and of the raw one, total, first order and multiple scattering (total − first),
 /// and the relative error of the pulse energy; the table gives their means over the pulses.
 /// The reference's own noise adds (N_set/N_ref) of each setting's error variance (1 % at
@@ -704,7 +737,6 @@ fn error_study(f: &SceneDesc, opt: &mut Options) {
         opt.settings.clone()
     };
     let threads = rayon::current_num_threads() as f64;
-    let p = centres.len();
     let reps = opt.reps.max(1);
     println!(
         "error study: 64 forest pulses × {reps} realizations; mean over pulses of the relative L2 error of the convolved (raw) waveform: total, first order, multiple scattering; mean |energy error|"
@@ -731,16 +763,15 @@ fn error_study(f: &SceneDesc, opt: &mut Options) {
         let (mut seconds, mut pulses) = (0.0, 0);
         let mut per_rep = Vec::new();
         for k in 0..reps {
-            // Realization k: centre i gets pulse index (i + 2k) mod P (its random stream);
-            // never the reference's P − 1 − i (P even).
-            let rot = (2 * k) % p;
-            let list: Vec<(f64, f64)> = (0..p).map(|j| centres[(j + p - rot) % p]).collect();
-            let l = desc(est, photons, scattering, list);
-            let r = run_products(f.clone(), l, opt);
+            // Realization k: the LiDAR's random streams come from its own seed, SplitMix64 of
+            // (scene seed, k), so every realization is independent of the others and of the
+            // reference (scene seed, pulses reversed); the forest itself is the same.
+            let seed = splitmix64(f.seed ^ splitmix64(k as u64 + 1));
+            let l = desc(est, photons, scattering, centres.clone());
+            let r = run_products_seeded(f.clone(), l, opt, Some(seed));
             seconds += r.seconds;
             pulses += r.pulses.len();
-            let mut w = waveforms_of(&r);
-            w.rotate_left(rot);
+            let w = waveforms_of(&r);
             let mut e_rep = 0.0;
             for ((wr, wc), (rr, rc)) in w.iter().zip(&reference) {
                 let ec = waveform_errors(wc, rc);
