@@ -436,11 +436,123 @@ pub struct Dda4 {
     n: [f64; 3],
     n_int: [i64; 3],
     stride: [i64; 3],
-    /// Per side axis, one period in metres (`n · size`, as [`Dda::wrap_sides`] forms it) and
-    /// in the linear index (`n · stride`): the constants of [`Dda4::wrap_sides_x4`], formed
-    /// once per lane start instead of at every wrap.
-    period: [f64; 2],
-    period_lin: [i64; 2],
+    /// The grid's origin, cell sizes, `n + 1e-9` and `n − 1` per axis as vectors (lane 3:
+    /// padding) for [`Dda4::start_with`], set by [`Dda4::set_grid`].
+    lo4: [f64; 4],
+    size4: [f64; 4],
+    n_hi4: [f64; 4],
+    n_m1_4: [f64; 4],
+    /// Per axis and lane, the cell index a step leaves the grid into (see
+    /// [`LanePlanes::exit_at`]).
+    exit_at: [[f64; 4]; 3],
+    /// Per side axis and lane, what a wrap adds to the cell index, the linear index and the
+    /// origin (see [`LanePlanes`]).
+    wrap_back: [[f64; 4]; 2],
+    wrap_lin: [[i64; 4]; 2],
+    wrap_o: [[f64; 4]; 2],
+}
+
+/// What a lane's step direction along one axis fixes for the grid exits and the repetitive
+/// wraps: a lane steps from a cell inside the grid by −1, 0 or +1, so it can leave only into
+/// the index `exit_at` (n for a step of +1, −1 for −1, never for 0: −2), and a wrap then moves
+/// it back by `back = −step · n` cells, `back · stride` in the linear index and
+/// `back as f64 · size` metres of origin (the operations of [`Dda::wrap_sides`]).
+#[derive(Debug, Clone, Copy)]
+struct LanePlanes {
+    exit_at: f64,
+    back: f64,
+    back_lin: i64,
+    back_o: f64,
+}
+
+impl LanePlanes {
+    #[inline(always)]
+    fn new(step: i64, n: i64, stride: i64, size: f64) -> Self {
+        let back = -step * n;
+        LanePlanes {
+            exit_at: match step {
+                1 => n as f64,
+                -1 => -1.0,
+                _ => -2.0,
+            },
+            back: back as f64,
+            back_lin: back * stride,
+            back_o: back as f64 * size,
+        }
+    }
+}
+
+/// `1.5 · 2⁵²`: `v + SHIFT` holds the integer-valued double v (|v| < 2⁵¹) in its low mantissa
+/// bits.
+#[cfg(target_arch = "x86_64")]
+const SHIFT: f64 = 6755399441055744.0;
+
+/// What [`Dda::new`] forms from the direction alone (and the grid), per axis x, y, z (index 3:
+/// padding), for [`Dda4::start_with`]: formed once per discrete direction instead of at every
+/// ray start, by the same expressions, so the same bits.
+#[derive(Debug, Clone, Copy, Default)]
+pub struct DirStart {
+    /// The unit direction.
+    dir: [f64; 4],
+    /// `1/d` (±∞ for a zero component).
+    inv: [f64; 4],
+    /// Step −1, 0 or 1.
+    step: [f64; 4],
+    /// 1 where the step is +1, else 0.
+    upf: [f64; 4],
+    /// `lo + upf · size` (see [`Dda::b_base`]).
+    b_base: [f64; 4],
+    /// Linear-index increment of one step (`step × stride`).
+    dlin: [i64; 4],
+    /// All ones where `d < 0` (a start on a boundary takes the cell below).
+    down: [u64; 4],
+    /// All ones where the ray steps along the axis (`d ≠ 0`).
+    moves: [u64; 4],
+    /// [`LanePlanes`] of the direction per axis (the wraps: side axes only).
+    exit_at: [f64; 4],
+    wrap_back: [f64; 2],
+    wrap_lin: [i64; 2],
+    wrap_o: [f64; 2],
+}
+
+impl DirStart {
+    /// The constants of unit direction `d` on the grid `spec`.
+    pub fn new(spec: &GridSpec, d: DVec3) -> Self {
+        let n = [spec.n[0] as i64, spec.n[1] as i64, spec.n[2] as i64];
+        let stride = [1, n[0], n[0] * n[1]];
+        let mut c = DirStart {
+            dir: [d.x, d.y, d.z, 1.0],
+            inv: [1.0; 4],
+            upf: [0.0; 4],
+            step: [0.0; 4],
+            b_base: [0.0; 4],
+            dlin: [0; 4],
+            down: [0; 4],
+            moves: [0; 4],
+            exit_at: [0.0; 4],
+            wrap_back: [0.0; 2],
+            wrap_lin: [0; 2],
+            wrap_o: [0.0; 2],
+        };
+        for a in 0..3 {
+            let (up, down) = (d[a] > 0.0, d[a] < 0.0);
+            c.inv[a] = 1.0 / d[a];
+            c.upf[a] = if up { 1.0 } else { 0.0 };
+            c.step[a] = c.upf[a] - if down { 1.0 } else { 0.0 };
+            c.b_base[a] = spec.origin[a] + c.upf[a] * spec.cell[a];
+            c.dlin[a] = (up as i64 - down as i64) * stride[a];
+            c.down[a] = if down { u64::MAX } else { 0 };
+            c.moves[a] = if up || down { u64::MAX } else { 0 };
+            let pl = LanePlanes::new(up as i64 - down as i64, n[a], stride[a], spec.cell[a]);
+            c.exit_at[a] = pl.exit_at;
+            if a < 2 {
+                c.wrap_back[a] = pl.back;
+                c.wrap_lin[a] = pl.back_lin;
+                c.wrap_o[a] = pl.back_o;
+            }
+        }
+        c
+    }
 }
 
 impl Dda4 {
@@ -460,53 +572,84 @@ impl Dda4 {
             self.n[a] = d.n[a] as f64;
             self.n_int[a] = d.n[a];
             self.stride[a] = d.stride[a];
+            let pl = LanePlanes::new(d.step[a], d.n[a], d.stride[a], d.size[a]);
+            self.exit_at[a][l] = pl.exit_at;
+            if a < 2 {
+                self.wrap_back[a][l] = pl.back;
+                self.wrap_lin[a][l] = pl.back_lin;
+                self.wrap_o[a][l] = pl.back_o;
+            }
         }
-        self.set_periods();
         self.t[l] = d.t;
         self.lin[l] = d.lin;
     }
 
     /// [`Dda::new`] written straight into lane `l` (the same operations, so the same state as
-    /// `set_lane(l, &Dda::new(spec, p, d)?)`), the three axes side by side in one vector
-    /// (`⌊rel⌋` by `vroundpd`, equal to [`floor_i64`] on the grid's range); false, with the
-    /// lane left to be refilled or parked, if `p` is outside the grid box.
+    /// `set_lane(l, &Dda::new(spec, p, d)?)`); false, with the lane left to be refilled or
+    /// parked, if `p` is outside the grid box. The batched walk sets the grid once
+    /// ([`Dda4::set_grid`]) and starts its rays with [`Dda4::start_with`] and a per-direction
+    /// [`DirStart`]; this form does both for one ray.
     #[cfg(target_arch = "x86_64")]
     #[inline(always)]
     pub fn start(&mut self, simd: V3, l: usize, spec: &GridSpec, p: DVec3, d: DVec3) -> bool {
+        self.set_grid(spec);
+        self.start_with(simd, l, p, &DirStart::new(spec, d))
+    }
+
+    /// The grid's constants (cell sizes, counts, strides, origin), the same for every
+    /// lane: set once per walk instead of at every lane start.
+    pub fn set_grid(&mut self, spec: &GridSpec) {
+        let n = [spec.n[0] as i64, spec.n[1] as i64, spec.n[2] as i64];
+        self.stride = [1, n[0], n[0] * n[1]];
+        for a in 0..3 {
+            self.size[a] = spec.cell[a];
+            self.n[a] = n[a] as f64;
+            self.n_int[a] = n[a];
+            self.lo4[a] = spec.origin[a];
+            self.size4[a] = spec.cell[a];
+            self.n_hi4[a] = n[a] as f64 + 1e-9;
+            self.n_m1_4[a] = n[a] as f64 - 1.0;
+        }
+        // Padding lane 3 (never read): as `Dda4::start` always had it.
+        (self.lo4[3], self.size4[3], self.n_hi4[3], self.n_m1_4[3]) = (0.0, 1.0, 1.0 + 1e-9, 0.0);
+    }
+
+    /// [`Dda::new`] written straight into lane `l` on the grid of [`Dda4::set_grid`], along
+    /// the direction of `dc` (built on the same grid): the per-ray part only, the three axes
+    /// side by side in one vector (`⌊rel⌋` by `vroundpd`, equal to [`floor_i64`] on the grid's
+    /// range); the parts that depend only on the direction (`1/d`, steps, `b_base`, linear
+    /// steps) are read from `dc`, formed by the same expressions. False, with the lane left to
+    /// be refilled or parked, if `p` is outside the grid box.
+    #[cfg(target_arch = "x86_64")]
+    #[inline(always)]
+    pub fn start_with(&mut self, simd: V3, l: usize, p: DVec3, dc: &DirStart) -> bool {
         let sp = |v: f64| simd.splat_f64x4(v);
         let zero = sp(0.0);
         // Axes x, y, z in lanes 0..2 (lane 3 is padding, never read).
-        let v3 = |v: DVec3, pad: f64| -> f64x4 { cast([v.x, v.y, v.z, pad]) };
-        let n = [spec.n[0] as i64, spec.n[1] as i64, spec.n[2] as i64];
-        let n_f: f64x4 = cast([n[0] as f64, n[1] as f64, n[2] as f64, 1.0]);
-        let size = v3(spec.cell, 1.0);
-        let lo = v3(spec.origin, 0.0);
-        let pv = v3(p, 0.0);
-        let dv = v3(d, 1.0);
+        let size: f64x4 = cast(self.size4);
+        let lo: f64x4 = cast(self.lo4);
+        let pv: f64x4 = cast([p.x, p.y, p.z, 0.0]);
         let rel = simd.div_f64x4(simd.sub_f64x4(pv, lo), size);
         // `rel >= −1e-9 && rel <= n + 1e-9` on every axis (false for NaN).
         let ok = simd.and_m64x4(
             simd.cmp_ge_f64x4(rel, sp(-1e-9)),
-            simd.cmp_le_f64x4(rel, simd.add_f64x4(n_f, sp(1e-9))),
+            simd.cmp_le_f64x4(rel, cast(self.n_hi4)),
         );
         if simd.avx._mm256_movemask_pd(cast(ok)) & 7 != 7 {
             return false;
         }
         let fl: f64x4 = cast(simd.avx._mm256_floor_pd(cast(rel)));
         // On a boundary: take the cell the ray enters.
-        let enter_below = simd.and_m64x4(simd.cmp_eq_f64x4(rel, fl), simd.cmp_lt_f64x4(dv, zero));
+        let enter_below = simd.and_m64x4(simd.cmp_eq_f64x4(rel, fl), cast(dc.down));
         let idx = simd.select_f64x4(enter_below, simd.sub_f64x4(fl, sp(1.0)), fl);
         // clamp(0, n − 1)
-        let idx = simd.min_f64x4(simd.max_f64x4(idx, zero), simd.sub_f64x4(n_f, sp(1.0)));
-        let inv = simd.div_f64x4(sp(1.0), dv);
-        let up = simd.cmp_gt_f64x4(dv, zero);
-        let down = simd.cmp_lt_f64x4(dv, zero);
-        let upf = simd.select_f64x4(up, sp(1.0), zero);
+        let idx = simd.min_f64x4(simd.max_f64x4(idx, zero), cast(self.n_m1_4));
+        let inv: f64x4 = cast(dc.inv);
         let t_max = simd.select_f64x4(
-            simd.or_m64x4(up, down),
+            cast(dc.moves),
             simd.mul_f64x4(
                 simd.sub_f64x4(
-                    simd.add_f64x4(lo, simd.mul_f64x4(simd.add_f64x4(idx, upf), size)),
+                    simd.add_f64x4(lo, simd.mul_f64x4(simd.add_f64x4(idx, cast(dc.upf)), size)),
                     pv,
                 ),
                 inv,
@@ -515,48 +658,34 @@ impl Dda4 {
         );
         // `t_max.max(0.0)` (t_max is never NaN).
         let t_max = simd.max_f64x4(t_max, zero);
-        let step = simd.sub_f64x4(upf, simd.select_f64x4(down, sp(1.0), zero));
-        let b_base = simd.add_f64x4(lo, simd.mul_f64x4(upf, size));
-        // The integer-valued idx and step as integers, by the 1.5 · 2⁵² shift (v + 1.5 · 2⁵²
-        // has the integer v in its low mantissa bits for |v| < 2⁵¹; cell indices and steps are
-        // far inside): the same values as `v as i64`, without its saturation checks.
-        const SHIFT: f64 = 6755399441055744.0;
-        let to_int = |v: f64x4| -> [i64; 4] {
-            cast(simd.wrapping_sub_u64x4(
-                cast(simd.add_f64x4(v, sp(SHIFT))),
-                simd.splat_u64x4(SHIFT.to_bits()),
-            ))
-        };
-        let (idx_i, step_i) = (to_int(idx), to_int(step));
-        let (idx, step, t_max, inv, b_base): ([f64; 4], [f64; 4], [f64; 4], [f64; 4], [f64; 4]) =
-            (cast(idx), cast(step), cast(t_max), cast(inv), cast(b_base));
-        self.stride = [1, n[0], n[0] * n[1]];
+        // The integer-valued idx as integers, by the 1.5 · 2⁵² shift (v + 1.5 · 2⁵² has the
+        // integer v in its low mantissa bits for |v| < 2⁵¹; cell indices are far inside): the
+        // same values as `v as i64`, without its saturation checks.
+        let idx_i: [i64; 4] = cast(simd.wrapping_sub_u64x4(
+            cast(simd.add_f64x4(idx, sp(SHIFT))),
+            simd.splat_u64x4(SHIFT.to_bits()),
+        ));
+        let (idx, t_max): ([f64; 4], [f64; 4]) = (cast(idx), cast(t_max));
         for a in 0..3 {
             self.cell[a][l] = idx[a];
-            self.step[a][l] = step[a];
+            self.step[a][l] = dc.step[a];
             self.t_max[a][l] = t_max[a];
             self.origin[a][l] = p[a];
-            self.dir[a][l] = d[a];
-            self.inv[a][l] = inv[a];
-            self.b_base[a][l] = b_base[a];
-            self.dlin[a][l] = step_i[a] * self.stride[a];
-            self.size[a] = spec.cell[a];
-            self.n[a] = n[a] as f64;
-            self.n_int[a] = n[a];
+            self.dir[a][l] = dc.dir[a];
+            self.inv[a][l] = dc.inv[a];
+            self.b_base[a][l] = dc.b_base[a];
+            self.dlin[a][l] = dc.dlin[a];
+            self.exit_at[a][l] = dc.exit_at[a];
         }
-        self.set_periods();
+        for a in 0..2 {
+            self.wrap_back[a][l] = dc.wrap_back[a];
+            self.wrap_lin[a][l] = dc.wrap_lin[a];
+            self.wrap_o[a][l] = dc.wrap_o[a];
+        }
         self.t[l] = 0.0;
+        let n = self.n_int;
         self.lin[l] = idx_i[0] + n[0] * (idx_i[1] + n[1] * idx_i[2]);
         true
-    }
-
-    /// [`Dda4::period`] and [`Dda4::period_lin`] from the grid's counts, sizes and strides.
-    #[inline(always)]
-    fn set_periods(&mut self) {
-        for a in 0..2 {
-            self.period[a] = self.n_int[a] as f64 * self.size[a];
-            self.period_lin[a] = self.n_int[a] * self.stride[a];
-        }
     }
 
     /// Parks lane `l` on cell 0 (an idle lane: [`Dda4::step_at`] leaves it alone when it is
@@ -668,11 +797,10 @@ impl Dda4 {
                 simd.select_i64x4(m, dlin, simd.splat_i64x4(0)),
             );
             self.lin = cast(lin);
-            let inside_a = simd.and_m64x4(
-                simd.cmp_ge_f64x4(c, zero),
-                simd.cmp_lt_f64x4(c, simd.splat_f64x4(self.n[a])),
-            );
-            outside = simd.or_m64x4(outside, simd.andnot_m64x4(inside_a, m));
+            // A stepped lane left the grid iff its cell is now the lane's exit index (it
+            // stepped by ±1 from a cell inside; see `LanePlanes`).
+            let left = simd.cmp_eq_f64x4(c, cast(self.exit_at[a]));
+            outside = simd.or_m64x4(outside, simd.and_m64x4(left, m));
             // Dda::boundary_t of the new index (the value of an axis that left the grid is
             // never read: the lane is taken out).
             let bt = simd.mul_f64x4(
@@ -691,16 +819,15 @@ impl Dda4 {
         outside
     }
 
-    /// Lanes whose cell lies below or above the grid (they left through the bottom or the
-    /// top; [`Dda::exit_kind`] reports those before a side).
+    /// Of the lanes that [`Dda4::step_at`] just stepped out of the grid, those whose cell lies
+    /// below or above it (they left through the bottom or the top; [`Dda::exit_kind`] reports
+    /// those before a side). Meaningless for the other lanes.
     #[cfg(target_arch = "x86_64")]
     #[inline(always)]
     pub fn z_outside(&self, simd: V3) -> m64x4 {
-        let c: f64x4 = cast(self.cell[2]);
-        simd.or_m64x4(
-            simd.cmp_lt_f64x4(c, simd.splat_f64x4(0.0)),
-            simd.cmp_ge_f64x4(c, simd.splat_f64x4(self.n[2])),
-        )
+        // A lane that stepped out along z has its cell at the exit index (see `LanePlanes`);
+        // inside, it is neither −1 nor n.
+        simd.cmp_eq_f64x4(cast(self.cell[2]), cast(self.exit_at[2]))
     }
 
     /// [`Dda4::wrap_sides`] on every lane of `m` at once (lanes that left the grid through a
@@ -717,26 +844,17 @@ impl Dda4 {
         let mut count = zero;
         for a in 0..2 {
             let c: f64x4 = cast(self.cell[a]);
-            let n = sp(self.n[a]);
-            let below = simd.and_m64x4(m, simd.cmp_lt_f64x4(c, zero));
-            let above = simd.and_m64x4(m, simd.cmp_ge_f64x4(c, n));
-            let w = simd.or_m64x4(below, above);
+            // The lanes of `m` that left along this axis (their cell is the exit index, see
+            // `LanePlanes`: below the grid for a step of −1, above for +1).
+            let w = simd.and_m64x4(m, simd.cmp_eq_f64x4(c, cast(self.exit_at[a])));
             // back = ±n cells (exact in doubles), ±n · stride in the linear index, ±n · size in
-            // metres (`back as f64 * size` in the scalar form).
-            let back = simd.select_f64x4(below, n, simd.select_f64x4(above, sp(-self.n[a]), zero));
-            let c = simd.add_f64x4(c, back);
+            // metres (`back as f64 * size` in the scalar form), per lane.
+            let c = simd.add_f64x4(c, simd.select_f64x4(w, cast(self.wrap_back[a]), zero));
             self.cell[a] = cast(c);
-            let nl = self.period_lin[a];
-            let dl = simd.select_i64x4(
-                below,
-                simd.splat_i64x4(nl),
-                simd.select_i64x4(above, simd.splat_i64x4(-nl), simd.splat_i64x4(0)),
-            );
+            let dl = simd.select_i64x4(w, cast(self.wrap_lin[a]), simd.splat_i64x4(0));
             self.lin = cast(simd.wrapping_add_i64x4(cast(self.lin), dl));
-            let period = self.period[a];
             let o0: f64x4 = cast(self.origin[a]);
-            let o1 = simd.add_f64x4(o0, simd.select_f64x4(below, sp(period), sp(-period)));
-            let o = simd.select_f64x4(w, o1, o0);
+            let o = simd.select_f64x4(w, simd.add_f64x4(o0, cast(self.wrap_o[a])), o0);
             self.origin[a] = cast(o);
             let bt = simd.mul_f64x4(
                 simd.sub_f64x4(

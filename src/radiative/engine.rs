@@ -554,6 +554,13 @@ impl KeyAcc {
         }
     }
 
+    /// Forgets every record (keeping the allocations).
+    fn clear(&mut self) {
+        self.index.clear();
+        self.keys.clear();
+        self.data.clear();
+    }
+
     #[inline(always)]
     fn get(&mut self, key: u64) -> &mut [f64] {
         let w = self.width;
@@ -693,6 +700,35 @@ impl TurAcc {
                 touched,
             }),
             TurAcc::Sparse { .. } => None,
+        }
+    }
+
+    /// Back to the state [`TurAcc::new`] builds: the dense arrays zeroed on the touched
+    /// indices (the only ones written), the sparse maps emptied.
+    fn reset(&mut self) {
+        match self {
+            TurAcc::Dense {
+                ns,
+                w,
+                np,
+                tur,
+                pts,
+                flag,
+                touched,
+            } => {
+                let (rec, prec) = (*ns * *w, *np * 7);
+                for &e in touched.iter() {
+                    let e = e as usize;
+                    tur[e * rec..(e + 1) * rec].fill(0.0);
+                    pts[e * prec..(e + 1) * prec].fill(0.0);
+                    flag[e] = false;
+                }
+                touched.clear();
+            }
+            TurAcc::Sparse { tur, pts, .. } => {
+                tur.clear();
+                pts.clear();
+            }
         }
     }
 
@@ -861,6 +897,60 @@ struct ChunkOut {
     /// Rays waiting for the batched walk ([`Ctx::queue`], walked by [`Ctx::flush`] before the
     /// chunk ends).
     queue: Vec<batch::Queued>,
+}
+
+impl ChunkOut {
+    /// Empties a merged output for another chunk: the state [`new_out`] builds (zeroed sums,
+    /// empty event lists, no counts, threshold factor 1), the arrays keeping their allocations.
+    /// The dense turbid accumulator is zeroed on its touched entries only (the only ones ever
+    /// written, see [`DenseView::add_power`]).
+    fn reset(&mut self) {
+        // Every field named, so that a new one cannot be forgotten here.
+        let ChunkOut {
+            tur,
+            fac_key,
+            fac_val,
+            gnd_key,
+            gnd_val,
+            escaped,
+            foot,
+            img_key,
+            img_pos,
+            img_val,
+            lost,
+            absorbed_turbid,
+            absorbed_facet,
+            absorbed_ground,
+            absorbed_val,
+            rays,
+            crossings,
+            skipped,
+            kernel_seconds,
+            ray_scale,
+            queue,
+        } = self;
+        if let Some(t) = tur.as_deref_mut() {
+            t.reset();
+        }
+        fac_key.clear();
+        fac_val.clear();
+        gnd_key.clear();
+        gnd_val.clear();
+        escaped.fill(0.0);
+        *foot = (0.0, 0.0);
+        img_key.clear();
+        img_pos.clear();
+        img_val.clear();
+        lost.fill(0.0);
+        absorbed_turbid.clear();
+        absorbed_facet.clear();
+        absorbed_ground.clear();
+        absorbed_val.clear();
+        (*rays, *crossings, *skipped) = (0, 0, 0);
+        *kernel_seconds = 0.0;
+        *ray_scale = 1.0;
+        queue.clear();
+    }
 }
 
 /// Mutable per-iteration element stores.
@@ -1077,6 +1167,9 @@ struct Ctx<'a> {
     face_d: u32,
     /// Turbid points records per accumulator index: 1, or the slot count (`Blend`).
     pts_per: usize,
+    /// Per direction (sun last), what a lane of the batched walk takes at a ray start
+    /// ([`batch::LaneDir`]; empty when [`Ctx::batch`] is off).
+    lane_dirs: Vec<batch::LaneDir>,
 }
 
 /// Smallest empty-space distance from which the flux-tracking walks jump
@@ -2713,7 +2806,7 @@ pub fn run(inp: &RadiativeInput) -> RadiativeResult {
     } else {
         Vec::new()
     };
-    let ctx = Ctx {
+    let mut ctx = Ctx {
         inp,
         w,
         nb,
@@ -2764,7 +2857,11 @@ pub fn run(inp: &RadiativeInput) -> RadiativeResult {
         } else {
             1
         },
+        lane_dirs: Vec::new(),
     };
+    if ctx.batch {
+        ctx.lane_dirs = batch::lane_dirs(&ctx);
+    }
     let mut res = RadiativeResult {
         n_channels: w,
         n_bands: nb,
@@ -2871,7 +2968,8 @@ pub fn run(inp: &RadiativeInput) -> RadiativeResult {
     );
     let mut stores = new_stores(&ctx);
     let mut last = vec![0.0; w]; // escaped in the last iteration
-    merge(&ctx, outs, &mut stores, &mut res, &mut last);
+    let mut pool: Vec<ChunkOut> = Vec::new();
+    merge(&ctx, outs, &mut stores, &mut res, &mut last, &mut pool);
     res.escaped_per_iteration.push(last.clone());
     res.iterations = 1;
     // Facet fractions fallback (renormalised cosine) computed once if not provided.
@@ -2916,10 +3014,17 @@ pub fn run(inp: &RadiativeInput) -> RadiativeResult {
             break;
         }
         let before = Increments::new(&res);
-        let outs = emit(&ctx, &stores, res.iterations == 1, fractions, &ground_fr);
+        let outs = emit(
+            &ctx,
+            &stores,
+            res.iterations == 1,
+            fractions,
+            &ground_fr,
+            &mut pool,
+        );
         let mut new_stores = new_stores(&ctx);
         let mut esc = vec![0.0; w];
-        merge(&ctx, outs, &mut new_stores, &mut res, &mut esc);
+        merge(&ctx, outs, &mut new_stores, &mut res, &mut esc, &mut pool);
         // Absorption at emission: intercepted − emitted, booked in `emit` via res? (see below)
         stores = new_stores;
         res.iterations += 1;
@@ -3121,17 +3226,21 @@ impl Increments {
 }
 
 /// Merges chunk outputs (in order) into the stores and the result.
+/// Each output is then emptied ([`ChunkOut::reset`]) into `pool`, for the next iteration's
+/// chunks (its arrays keep their allocations: no new zeroed accumulator, no regrowth of the
+/// event lists).
 fn merge(
     ctx: &Ctx,
     outs: Vec<ChunkOut>,
     st: &mut Stores,
     res: &mut RadiativeResult,
     esc: &mut [f64],
+    pool: &mut Vec<ChunkOut>,
 ) {
     let w = ctx.w;
     let ns = ctx.n_slots;
     let mut scratch = super::images::SpreadScratch::default();
-    for out in outs {
+    for mut out in outs {
         debug_assert!(out.queue.is_empty(), "every queued ray walked");
         res.rays += out.rays;
         res.crossings += out.crossings;
@@ -3289,6 +3398,8 @@ fn merge(
         for (k, &(c, ch)) in out.absorbed_ground.iter().enumerate() {
             res.absorbed_ground[c as usize * w + ch] += out.absorbed_val[off + k];
         }
+        out.reset();
+        pool.push(out);
     }
     st.fac_pts.finish(ctx.inp.grid.facet_ids.len());
     st.trec.finish();
@@ -3365,6 +3476,7 @@ fn emit(
     first: bool,
     fractions: &[(Vec<f32>, Vec<f32>)],
     ground_fr: &[f64],
+    pool: &mut Vec<ChunkOut>,
 ) -> Vec<ChunkOut> {
     let w = ctx.w;
     let nb = ctx.nb;
@@ -3424,10 +3536,16 @@ fn emit(
             }
         })
         .collect();
+    // One output per chunk, recycled from the previous iterations' merged ones (emptied: the
+    // state `new_out` builds) or new.
+    let cl = chunk_len(active.len());
+    let outs: Vec<ChunkOut> = (0..active.len().div_ceil(cl))
+        .map(|_| pool.pop().unwrap_or_else(|| new_out(ctx)))
+        .collect();
     active
-        .par_chunks(chunk_len(active.len()))
-        .map(|chunk| {
-            let mut out = new_out(ctx);
+        .par_chunks(cl)
+        .zip(outs)
+        .map(|(chunk, mut out)| {
             let mut outgoing = vec![0.0; n_dirs * w];
             let mut pw = vec![0.0; w];
             let mut intercepted = vec![0.0; w];

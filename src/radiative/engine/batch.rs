@@ -22,6 +22,7 @@
 use super::{ChunkOut, Ctx, TurAcc};
 #[cfg(target_arch = "x86_64")]
 use super::{DenseView, add};
+use crate::radiative::dda::DirStart;
 #[cfg(target_arch = "x86_64")]
 use crate::radiative::dda::{Dda4, Exit};
 #[cfg(target_arch = "x86_64")]
@@ -46,6 +47,30 @@ pub(super) struct Queued {
     pw: [f64; 4],
     ray_scale: f64,
     foot: (f64, f64),
+}
+
+/// What a lane takes at the start of a ray along one direction: the traversal's direction
+/// constants, the power threshold before the ray's own factor (`min_ray · ray_factor`, the
+/// first product of the one-ray walk's threshold), the single material's G (read only when
+/// the scene has exactly one) and the interception slot.
+#[derive(Debug, Clone, Copy, Default)]
+pub(super) struct LaneDir {
+    start: DirStart,
+    min_ray: f64,
+    g: f64,
+    slot: usize,
+}
+
+/// [`LaneDir`] of every direction of `ctx` (sun last).
+pub(super) fn lane_dirs(ctx: &Ctx) -> Vec<LaneDir> {
+    (0..ctx.omega.len())
+        .map(|dir| LaneDir {
+            start: DirStart::new(ctx.inp.spec, ctx.omega[dir]),
+            min_ray: ctx.min_ray * ctx.ray_factor[dir],
+            g: ctx.g_dir.get(dir * ctx.n_tm).copied().unwrap_or(0.0),
+            slot: ctx.slot_of(dir),
+        })
+        .collect()
 }
 
 /// Whether this CPU runs the batched walk (x86-64 with AVX2 and FMA).
@@ -208,6 +233,7 @@ impl Ctx<'_> {
             wraps: [0.0; 4],
             next: 0,
         };
+        ln.dda.set_grid(spec);
         let mut n_cross = 0u64;
         let mut n_skip = 0u64;
         let foot_saved = out.foot;
@@ -443,7 +469,8 @@ impl<const W: usize> Lanes<W> {
             self.next += 1;
             out.rays += 1;
             let dir = q.dir as usize;
-            if !self.dda.start(simd, l, ctx.inp.spec, q.p, ctx.omega[dir]) {
+            let ld = &ctx.lane_dirs[dir];
+            if !self.dda.start_with(simd, l, q.p, &ld.start) {
                 add(&mut out.lost, &q.pw[..W]);
                 continue;
             }
@@ -453,11 +480,11 @@ impl<const W: usize> Lanes<W> {
             }
             self.psum[l] = q.pw[..W].iter().sum();
             // The same threshold as the one-ray walk's.
-            self.min_ray[l] = ctx.min_ray * ctx.ray_factor[dir] * q.ray_scale;
+            self.min_ray[l] = ld.min_ray * q.ray_scale;
             self.g_row[l] = dir * ctx.n_tm;
             // The single material's G (read only when the scene has exactly one).
-            self.g[l] = ctx.g_dir.get(dir * ctx.n_tm).copied().unwrap_or(0.0);
-            self.slot[l] = ctx.slot_of(dir);
+            self.g[l] = ld.g;
+            self.slot[l] = ld.slot;
             self.dirs[l] = dir;
             self.foot[l] = q.foot;
             self.wraps[l] = 0.0;
