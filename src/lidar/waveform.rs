@@ -279,6 +279,17 @@ pub struct WaveformBinner {
     rejected: u64,
 }
 
+/// Whether an energy packet (J) can be binned: finite and ≥ 0 (−0 included). The same as
+/// `e.is_finite() && e >= 0.0` for every value, NaN included, on the bits: +0 up to the
+/// largest finite value, or −0. (LLVM turns the float form, and `0 ≤ e < ∞`, into a class
+/// test of ~20 integer instructions on x86-64 without SSE4.1, paid per packet in the
+/// binning loops.)
+#[inline(always)]
+pub fn bookable(e: f64) -> bool {
+    let b = e.to_bits();
+    b < 0x7FF0_0000_0000_0000 || b == 0x8000_0000_0000_0000
+}
+
 impl WaveformBinner {
     /// Gate from path length `path_min_m` to `path_max_m` (m, two-way path, `path_min_m ≥ 0`,
     /// `path_max_m > path_min_m`) with bins of `dt_ns` (ns). The bin count is
@@ -363,7 +374,7 @@ impl WaveformBinner {
     /// is not finite and ≥ 0.
     #[inline]
     pub fn add_first_order_at(&mut self, i: usize, energy_j: f64) {
-        if !(energy_j.is_finite() && energy_j >= 0.0) || i >= self.first.len() {
+        if !bookable(energy_j) || i >= self.first.len() {
             self.rejected += 1;
             return;
         }
@@ -388,7 +399,7 @@ impl WaveformBinner {
     /// scattering events (1 = single scattering; 0 is accepted for a direct emitter→receiver
     /// path and counted in the total only). Hot-loop method: never fails, reports what it did.
     pub fn add(&mut self, path_length_m: f64, energy_j: f64, order: u32) -> BinOutcome {
-        if !(energy_j.is_finite() && energy_j >= 0.0) {
+        if !bookable(energy_j) {
             self.rejected += 1;
             return BinOutcome::Rejected;
         }
@@ -640,6 +651,29 @@ pub fn bare_ground_energy_j(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// `bookable` accepts exactly the values `is_finite() && ≥ 0` accepts (a packet test in
+    /// the binning loops; the products must not change).
+    #[test]
+    fn bookable_is_finite_and_non_negative() {
+        for e in [
+            0.0,
+            -0.0,
+            5e-324,
+            -5e-324,
+            f64::MIN_POSITIVE,
+            1.0,
+            -1.0,
+            f64::MAX,
+            f64::MIN,
+            f64::INFINITY,
+            f64::NEG_INFINITY,
+            f64::NAN,
+            -f64::NAN,
+        ] {
+            assert_eq!(bookable(e), e.is_finite() && e >= 0.0, "{e:e}");
+        }
+    }
 
     /// Trimming keeps every non-zero bin at its time and the energies bit for bit; convolving a
     /// trimmed waveform gives the trimmed convolution of the full one.

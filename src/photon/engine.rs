@@ -2905,7 +2905,7 @@ fn bin_first_order(
         // A packet as `WaveformBinner::add_first_order_at` books it (finite and ≥ 0, else
         // counted as rejected).
         let mut book = |i: usize, e: f64| {
-            if e.is_finite() && e >= 0.0 {
+            if crate::lidar::waveform::bookable(e) {
                 bins[i].add(e);
             } else {
                 rejected += 1;
