@@ -706,29 +706,18 @@ impl TurAcc {
     /// Back to the state [`TurAcc::new`] builds: the dense arrays zeroed on the touched
     /// indices (the only ones written), the sparse maps emptied.
     fn reset(&mut self) {
-        match self {
-            TurAcc::Dense {
-                ns,
-                w,
-                np,
-                tur,
-                pts,
-                flag,
-                touched,
-            } => {
-                let (rec, prec) = (*ns * *w, *np * 7);
-                for &e in touched.iter() {
-                    let e = e as usize;
-                    tur[e * rec..(e + 1) * rec].fill(0.0);
-                    pts[e * prec..(e + 1) * prec].fill(0.0);
-                    flag[e] = false;
-                }
-                touched.clear();
+        if let Some(v) = self.view() {
+            let (rec, prec) = (v.ns * v.w, v.np * 7);
+            for &e in v.touched.iter() {
+                let e = e as usize;
+                v.tur[e * rec..(e + 1) * rec].fill(0.0);
+                v.pts[e * prec..(e + 1) * prec].fill(0.0);
+                v.flag[e] = false;
             }
-            TurAcc::Sparse { tur, pts, .. } => {
-                tur.clear();
-                pts.clear();
-            }
+            v.touched.clear();
+        } else if let TurAcc::Sparse { tur, pts, .. } = self {
+            tur.clear();
+            pts.clear();
         }
     }
 
