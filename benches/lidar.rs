@@ -665,9 +665,10 @@ fn waveform_errors(a: &Waveform, r: &Waveform) -> [f64; 4] {
 /// `Legacy` estimator at `--ref-photons` photons per pulse (default 1e5), with the pulses listed
 /// in reverse order; each realization of a setting draws from its own LiDAR seed (SplitMix64 of
 /// the scene seed and the realization index; the scene is built from the scene seed), so the
-/// realizations are independent of each other and of the reference. Per pulse: relative L2 error of the convolved waveform (the
-/// product) and of the raw one, total, first order and multiple scattering (total − first),
-/// and the relative error of the pulse energy; the table gives their means over the pulses.
+/// realizations are independent of each other and of the reference. Per pulse: relative L2
+/// error of the convolved waveform (the product) and of the raw one, total, first order and
+/// multiple scattering (total − first), and the relative error of the pulse energy; the table
+/// gives their means over the pulses.
 /// The reference's own noise adds (N_set/N_ref) of each setting's error variance (1 % at
 /// 1000 vs 1e5 photons: +0.5 % on the error).
 fn error_study(f: &SceneDesc, opt: &mut Options) {

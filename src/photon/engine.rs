@@ -2809,10 +2809,10 @@ fn trunc_exp_moments(alpha: f64, ia: f64, w: f64, em: f64) -> (f64, f64) {
 /// (`r = l0 + μ`, m) and variance `var` (m²), from the Taylor expansion of `(r + x)⁻²` about
 /// `x = 0`: `E = r⁻²(1 + 3σ²/r² − 4m₃/r³ + 5m₄/r⁴ − …)` with the central moments `m_n`; the
 /// first two terms are kept. For the truncated exponential of a stratum of width `w` (any
-/// `αw > 0`): `|m₃| ≤ 0.01325 w³` (largest, 0.0132455 w³, at `αw = 2.745`), `m₄ ≤ w⁴/80` (the uniform
-/// limit), and `|m_n| ≤ w^{n−2}σ² ≤ w^n/12` (`|x| ≤ w`, `σ² ≤ w²/12`); the unit test checks the
-/// first two by quadrature. With `ρ = w/r ≤ 1e-3` the dropped terms are at most
-/// `0.053ρ³ + 0.0625ρ⁴ + Σ_{n≥5}(n+1)ρⁿ/12 < 5.4e-11` relative. `var = 0`: `1/r²`.
+/// `αw > 0`): `|m₃| ≤ 0.01325 w³` (largest, 0.0132455 w³, at `αw = 2.745`), `m₄ ≤ w⁴/80`
+/// (the uniform limit), and `|m_n| ≤ w^{n−2}σ² ≤ w^n/12` (`|x| ≤ w`, `σ² ≤ w²/12`); the
+/// unit test checks the first two by quadrature. With `ρ = w/r ≤ 1e-3` the dropped terms are
+/// at most `0.053ρ³ + 0.0625ρ⁴ + Σ_{n≥5}(n+1)ρⁿ/12 < 5.4e-11` relative. `var = 0`: `1/r²`.
 #[inline(always)]
 fn inv_sq_mean(r: f64, var: f64) -> f64 {
     let q = 1.0 / (r * r);

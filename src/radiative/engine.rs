@@ -3216,8 +3216,8 @@ impl Increments {
 
 /// Merges chunk outputs (in order) into the stores and the result.
 /// Each output with a dense turbid accumulator is then emptied ([`ChunkOut::reset`]) into
-/// `pool`, for the next iteration's chunks (its arrays keep their allocations: no new zeroed accumulator, no regrowth of the
-/// event lists).
+/// `pool`, for the next iteration's chunks (its arrays keep their allocations: no new zeroed
+/// accumulator, no regrowth of the event lists).
 fn merge(
     ctx: &Ctx,
     outs: Vec<ChunkOut>,
