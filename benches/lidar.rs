@@ -5,7 +5,8 @@
 //! `continuous-gauss`, `discrete-gauss`, `discrete-peak`, `continuous-peak` or `urban`;
 //! repeatable); `--estimator legacy|stratified|expected`, `--photons N`, `--scattering N` (estimator,
 //! beam rays and rays continued into multiple scattering of the forest rows, e.g. under
-//! callgrind; the estimator also of the urban scan); `--no-skip` (empty-space skipping off: every cell visited, for comparisons);
+//! callgrind; the estimator also of the urban scan); `--no-skip` (empty-space skipping off: every cell visited, for comparisons); `--no-far-roulette`
+//! (the expected-value estimator's far-photon roulette off);
 //! `--digest` (print an FNV-1a hash of every product of each row — raw and convolved
 //! waveforms, gate losses, returns — to prove bit-identity across code changes); `--dump FILE`
 //! (write those products as text, one pulse per line, rows one after another);
@@ -112,6 +113,8 @@ struct Options {
     out: Option<std::path::PathBuf>,
     /// `--no-stream`: every pulse in one chunk (no streaming with `--out`), for comparisons.
     no_stream: bool,
+    /// `--no-far-roulette`: the expected-value estimator's far-photon roulette off.
+    no_far_roulette: bool,
 }
 
 impl Options {
@@ -121,6 +124,7 @@ impl Options {
             reps: 4,
             out: None,
             no_stream: false,
+            no_far_roulette: false,
             ..Default::default()
         };
         let mut args = std::env::args().skip(1);
@@ -130,6 +134,7 @@ impl Options {
                 "--digest" => o.digest = true,
                 "--no-skip" => o.no_skip = true,
                 "--no-stream" => o.no_stream = true,
+                "--no-far-roulette" => o.no_far_roulette = true,
                 "--out" => {
                     o.out = Some(args.next().expect("--out DIR").into());
                 }
@@ -278,6 +283,7 @@ fn simulate_seeded(
                 sampler: SamplerKind::Continuous,
             },
             skip_empty: !opt.no_skip,
+            lidar_far_roulette: !opt.no_far_roulette,
             lidar_chunk_pulses: if opt.no_stream {
                 usize::MAX
             } else {

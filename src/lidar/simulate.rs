@@ -268,6 +268,11 @@ pub struct LidarChunks {
     pub stream_dir: Option<std::path::PathBuf>,
     /// A progress bar of the pulses on stderr (advanced per chunk).
     pub progress: bool,
+    /// The far-photon roulette of the expected-value estimator (default on; ρ₀ = the grid's
+    /// horizontal cell size, see [`crate::photon::engine::Beam::far_roulette_m`]). Off: every
+    /// multiple-scattering photon goes on (same expectation; for the equality tests and for
+    /// measuring).
+    pub far_roulette: bool,
 }
 
 impl Default for LidarChunks {
@@ -276,6 +281,7 @@ impl Default for LidarChunks {
             chunk_pulses: DEFAULT_CHUNK_PULSES,
             stream_dir: None,
             progress: false,
+            far_roulette: true,
         }
     }
 }
@@ -361,6 +367,11 @@ pub fn simulate_lidar(
         scattering_photons: desc
             .scattering_photons_per_pulse
             .unwrap_or(desc.photons_per_pulse),
+        far_roulette_m: if chunks.far_roulette {
+            crate::photon::engine::FAR_ROULETTE_CELLS * input.spec.cell[0].max(input.spec.cell[1])
+        } else {
+            0.0
+        },
     };
     let shape = PulseShape::from_fwhm_ns(desc.pulse_fwhm_ns, 3.0)
         .map_err(|e| format!("lidar `{}`: {e}", desc.name))?;
