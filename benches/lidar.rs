@@ -283,7 +283,11 @@ fn simulate_seeded(
                 sampler: SamplerKind::Continuous,
             },
             skip_empty: !opt.no_skip,
-            lidar_far_roulette: !opt.no_far_roulette,
+            lidar_far_roulette: if opt.no_far_roulette {
+                lumenscape::lidar::simulate::FarRoulette::Off
+            } else {
+                lumenscape::lidar::simulate::FarRoulette::Auto
+            },
             lidar_chunk_pulses: if opt.no_stream {
                 usize::MAX
             } else {

@@ -134,7 +134,7 @@ impl SceneOpts {
             skip_empty: true,
             batch_walk: true,
             lidar_chunk_pulses: crate::lidar::simulate::DEFAULT_CHUNK_PULSES,
-            lidar_far_roulette: true,
+            lidar_far_roulette: Default::default(),
         }
     }
 

@@ -268,11 +268,22 @@ pub struct LidarChunks {
     pub stream_dir: Option<std::path::PathBuf>,
     /// A progress bar of the pulses on stderr (advanced per chunk).
     pub progress: bool,
-    /// The far-photon roulette of the expected-value estimator (default on; ρ₀ = the grid's
-    /// horizontal cell size, see [`crate::photon::engine::Beam::far_roulette_m`]). Off: every
-    /// multiple-scattering photon goes on (same expectation; for the equality tests and for
-    /// measuring).
-    pub far_roulette: bool,
+    /// The far-photon roulette of the expected-value estimator
+    /// ([`crate::photon::engine::Beam::far_roulette_m`]).
+    pub far_roulette: FarRoulette,
+}
+
+/// The expected-value estimator's far-photon roulette of multiple scattering
+/// ([`crate::photon::engine::Beam::far_roulette_m`]); every setting has the same expectation.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub enum FarRoulette {
+    /// Distance scale ρ₀ from the scene ([`far_roulette_scale_m`]; the default).
+    #[default]
+    Auto,
+    /// A given distance scale ρ₀ (m, > 0): for tests and studies.
+    ScaleM(f64),
+    /// Every multiple-scattering photon goes on (for the equality tests and for measuring).
+    Off,
 }
 
 impl Default for LidarChunks {
@@ -281,9 +292,38 @@ impl Default for LidarChunks {
             chunk_pulses: DEFAULT_CHUNK_PULSES,
             stream_dir: None,
             progress: false,
-            far_roulette: true,
+            far_roulette: FarRoulette::Auto,
         }
     }
+}
+
+/// Distance scale ρ₀ (m) of the expected-value estimator's far-photon roulette
+/// ([`crate::photon::engine::Beam::far_roulette_m`]): the larger of
+/// [`crate::photon::engine::FAR_ROULETTE_CELLS`] horizontal cell sizes and the mean free path
+/// `1/k̄` in the vegetation, `k̄ = ½ ū_f` with `ū_f` the mean leaf-area density (m²/m³) of the
+/// cells that hold turbid vegetation (½: the mean of G(Ω) over all directions, for every leaf
+/// angle distribution). A survival scale below a mean free path costs variance: on the LAI-4
+/// layer of the roulette's test (0.25 m cells, mean free path 1 m), ρ₀ = 0.5 m raises the
+/// standard error of the multiple-scattering energy from 0.22 to 0.36 %, ρ₀ = 1, 2 or 4 m
+/// leaves it at 0.20–0.22 %.
+fn far_roulette_scale_m(input: &PhotonInput) -> f64 {
+    let grid = input.grid;
+    let (mut sum, mut cells) = (0.0, 0u64);
+    for c in 0..grid.turbid_start.len().saturating_sub(1) {
+        let e = grid.turbid_of(c);
+        if !e.is_empty() {
+            cells += 1;
+            sum += e.iter().map(|e| e.density as f64).sum::<f64>();
+        }
+    }
+    let cells_m =
+        crate::photon::engine::FAR_ROULETTE_CELLS * input.spec.cell[0].max(input.spec.cell[1]);
+    let mfp = if sum > 0.0 {
+        cells as f64 / (0.5 * sum)
+    } else {
+        0.0
+    };
+    cells_m.max(mfp)
 }
 
 /// Runs one instrument. `input` must carry the laser band's optics only (one band); `band` is
@@ -367,10 +407,10 @@ pub fn simulate_lidar(
         scattering_photons: desc
             .scattering_photons_per_pulse
             .unwrap_or(desc.photons_per_pulse),
-        far_roulette_m: if chunks.far_roulette {
-            crate::photon::engine::FAR_ROULETTE_CELLS * input.spec.cell[0].max(input.spec.cell[1])
-        } else {
-            0.0
+        far_roulette_m: match chunks.far_roulette {
+            FarRoulette::Auto => far_roulette_scale_m(input),
+            FarRoulette::ScaleM(m) if m > 0.0 => m,
+            _ => 0.0,
         },
     };
     let shape = PulseShape::from_fwhm_ns(desc.pulse_fwhm_ns, 3.0)

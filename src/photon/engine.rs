@@ -3926,8 +3926,9 @@ fn brdf_event(
 /// c = 2 has the lowest error² × cost (README, LiDAR speed against error).
 const MS_STOP_FACTOR: f64 = 2.0;
 
-/// Distance scale ρ₀ of the far-photon roulette ([`far_roulette_survival`]) in horizontal cell
-/// sizes (the larger of x and y): 2 (see there).
+/// Smallest distance scale ρ₀ of the far-photon roulette ([`far_roulette_survival`]), in
+/// horizontal cell sizes (the larger of x and y); the scene's mean free path in the vegetation
+/// raises it (`crate::lidar::simulate::far_roulette_scale_m`).
 pub const FAR_ROULETTE_CELLS: f64 = 2.0;
 
 /// Smallest survival probability of the far-photon roulette ([`far_roulette_survival`]): a
@@ -3943,13 +3944,14 @@ const FAR_ROULETTE_MIN_SURVIVAL: f64 = 1.0 / 64.0;
 /// carry `w/q`, so every expectation is unchanged; Lux & Koblinger 1991, ch. 6, weight
 /// windows): a photon there can only reach the waveform again by further scattering back into
 /// the cone, which its distance makes unlikely. On the forest ALS bench (1 m cells, 0.3 m
-/// footprint) the multiple-scattering flights that start more than 2 m outside the cone are
-/// 37 % of them but carry 1.6 % of the multiple-scattering return (their later orders
-/// included). ρ₀ = [`FAR_ROULETTE_CELLS`] horizontal cells (2 m there): the error study's
-/// total waveform error 0.997 → 1.001 % (384 realizations, standard error 0.003 %) for 13 %
-/// fewer instructions per pulse; ρ₀ = 1 cell saves 16 % but adds rare large errors (1.024 ±
-/// 0.010 %) (README, LiDAR speed against error). `(ρ₀, tan θ_FOV)` as stored in
-/// [`Ctx::far_roulette`].
+/// footprint, 0.9 m FOV radius) the multiple-scattering flights that start more than 2 m
+/// outside the cone are 37 % of them but carry 1.6 % of the multiple-scattering return (their
+/// later orders included). The scale: `max(2 cells, mean free path)` (4.6 m there): total
+/// waveform error of the error study 0.997 → 1.002 % (384 realizations, standard error
+/// 0.003 %) for 7.5 % fewer instructions per pulse; ρ₀ = 2 m saves 13 % (1.001 %), 1 m 16 % but
+/// with rare large errors (1.024 ± 0.010 %); on a denser layer (mean free path 1 m) ρ₀ = 0.5 m
+/// raises the noise of the multiple-scattering energy 1.6-fold (README, LiDAR speed against
+/// error). `(ρ₀, tan θ_FOV)` as stored in [`Ctx::far_roulette`].
 #[inline]
 fn far_roulette_survival(rx: &Receiver, m: DVec3, (rho0, tan_fov): (f64, f64)) -> f64 {
     let v = m - rx.position;
@@ -4254,7 +4256,11 @@ fn run_pulse(base: &Ctx, beam: &Beam, pl: &Pulse) -> PulseResult {
 
 #[cfg(test)]
 mod tests {
-    use super::{FIRST_ORDER_MOMENT_RATIO, ceil_small, inv_sq_mean, trunc_exp_moments, unit_fract};
+    use super::{
+        FAR_ROULETTE_MIN_SURVIVAL, FIRST_ORDER_MOMENT_RATIO, Receiver, ceil_small,
+        far_roulette_survival, inv_sq_mean, trunc_exp_moments, unit_fract,
+    };
+    use glam::DVec3;
 
     /// The truncation forms give the libm values bit for bit where they are used:
     /// `ceil_small(v).max(1)` = `v.ceil().max(1)` for every finite `v` below 2⁶³ (and far
@@ -4433,5 +4439,53 @@ mod tests {
             }
         }
         println!("worst relative error {worst:e}");
+    }
+
+    /// The far-photon roulette's survival probability from the receiver's field-of-view cone:
+    /// 1 inside the cone and up to ρ₀ beyond its edge, (ρ₀/e)² beyond (e the distance outside
+    /// the cone, m), never below the floor; a nadir airborne receiver (cone radius grows with
+    /// the range below it) and a horizontal terrestrial one (behind the scanner, the lateral
+    /// distance alone).
+    #[test]
+    fn far_roulette_survival_follows_the_distance_outside_the_fov_cone() {
+        let tan = 1e-3; // FOV half-angle tangent: radius 1 m at 1000 m
+        let rho0 = 2.0;
+        let nadir = Receiver {
+            position: DVec3::new(10.0, 20.0, 1000.0),
+            axis: -DVec3::Z,
+            cos_fov: 1.0 / (1.0f64 + tan * tan).sqrt(),
+            aperture_m2: 0.1,
+        };
+        let q = |rx: &Receiver, m: DVec3| far_roulette_survival(rx, m, (rho0, tan));
+        let close = |a: f64, b: f64| (a - b).abs() <= 1e-12 * b;
+        // On the axis, inside the cone, and at the cone edge + ρ₀ (cone radius 1 m at z = 0).
+        assert_eq!(q(&nadir, DVec3::new(10.0, 20.0, 0.0)), 1.0);
+        assert_eq!(q(&nadir, DVec3::new(10.9, 20.0, 0.0)), 1.0);
+        assert_eq!(q(&nadir, DVec3::new(12.9, 20.0, 0.0)), 1.0);
+        // e = 4 m outside the cone at z = 0 (lateral 5 m): (2/4)².
+        assert!(close(q(&nadir, DVec3::new(10.0, 25.0, 0.0)), 0.25));
+        // The cone is narrower higher up: lateral 5 m at z = 500 m is e = 4.5 m.
+        assert!(close(
+            q(&nadir, DVec3::new(15.0, 20.0, 500.0)),
+            (2.0f64 / 4.5).powi(2)
+        ));
+        // Far away: the floor.
+        assert_eq!(
+            q(&nadir, DVec3::new(500.0, 20.0, 0.0)),
+            FAR_ROULETTE_MIN_SURVIVAL
+        );
+        // Terrestrial, looking along +x from (0, 0, 1.5): 3 m behind the scanner, 6 m to the
+        // side: e = 6 m (no cone behind the apex).
+        let tls = Receiver {
+            position: DVec3::new(0.0, 0.0, 1.5),
+            axis: DVec3::X,
+            ..nadir
+        };
+        assert!(close(
+            q(&tls, DVec3::new(-3.0, 6.0, 1.5)),
+            (2.0f64 / 6.0).powi(2)
+        ));
+        // In front, 10 m along the axis (cone radius 0.01 m), 1.01 m to the side: e = 1 m ≤ ρ₀.
+        assert_eq!(q(&tls, DVec3::new(10.0, 0.0, 2.51)), 1.0);
     }
 }

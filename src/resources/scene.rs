@@ -93,10 +93,10 @@ pub struct RunSettings {
     /// chunk streams its waveforms to disk chunk by chunk (memory bounded by a chunk, same
     /// products; [`crate::lidar::simulate::LidarChunks`]).
     pub lidar_chunk_pulses: usize,
-    /// The LiDAR expected-value estimator's far-photon roulette (default on; same expectation,
-    /// see [`crate::lidar::simulate::LidarChunks::far_roulette`]). Off: for the equality tests
-    /// and for measuring.
-    pub lidar_far_roulette: bool,
+    /// The LiDAR expected-value estimator's far-photon roulette (default: its distance scale
+    /// from the scene; every setting has the same expectation,
+    /// [`crate::lidar::simulate::FarRoulette`]).
+    pub lidar_far_roulette: crate::lidar::simulate::FarRoulette,
 }
 
 /// Passive solver.
@@ -139,7 +139,7 @@ impl Default for RunSettings {
             skip_empty: true,
             batch_walk: true,
             lidar_chunk_pulses: crate::lidar::simulate::DEFAULT_CHUNK_PULSES,
-            lidar_far_roulette: true,
+            lidar_far_roulette: Default::default(),
         }
     }
 }

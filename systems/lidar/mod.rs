@@ -224,7 +224,9 @@ pub fn run_lidars(
                 .map_or(DEFAULT_CHUNK_PULSES, |r| r.lidar_chunk_pulses),
             stream_dir: out.as_ref().map(|o| o.0.join("lidar").join(&l.name)),
             progress: run.as_ref().is_some_and(|r| r.progress),
-            far_roulette: run.as_ref().is_none_or(|r| r.lidar_far_roulette),
+            far_roulette: run
+                .as_ref()
+                .map_or(Default::default(), |r| r.lidar_far_roulette),
         };
         match simulate_lidar(l, band, &input, box_lo, box_hi, pr.as_ref(), &chunks) {
             Ok(r) => runs.push(r),
