@@ -5,8 +5,9 @@
 //! `continuous-gauss`, `discrete-gauss`, `discrete-peak`, `continuous-peak` or `urban`;
 //! repeatable); `--estimator legacy|stratified|expected`, `--photons N`, `--scattering N` (estimator,
 //! beam rays and rays continued into multiple scattering of the forest rows, e.g. under
-//! callgrind; the estimator also of the urban scan); `--no-skip` (empty-space skipping off: every cell visited, for comparisons); `--no-far-roulette`
-//! (the expected-value estimator's far-photon roulette off);
+//! callgrind; the estimator also of the urban scan); `--no-skip` (empty-space skipping off:
+//! every cell visited, for comparisons); `--no-far-roulette` (the expected-value estimator's
+//! far-photon roulette off);
 //! `--digest` (print an FNV-1a hash of every product of each row — raw and convolved
 //! waveforms, gate losses, returns — to prove bit-identity across code changes); `--dump FILE`
 //! (write those products as text, one pulse per line, rows one after another);
