@@ -139,7 +139,9 @@ impl Waveform {
             0
         };
         let n = out.n_bins();
-        let end = (off + self.n_bins() + kernel.weights.len() - 1).min(n);
+        let end = off
+            .saturating_add(self.n_bins() + kernel.weights.len() - 1)
+            .min(n);
         if end <= off {
             return Ok(0..0);
         }
