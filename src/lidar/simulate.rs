@@ -473,11 +473,12 @@ pub fn simulate_lidar(
                         .cloned()
                         .fold(0.0, f64::max);
                     let returns = if peak > 0.0 {
-                        crate::lidar::returns::detect_returns_method(
+                        crate::lidar::returns::detect_returns_method_within(
                             padded,
                             1e-3 * peak,
                             desc.returns,
                             &pipeline_decomposition_settings(),
+                            reached.clone(),
                         )
                         .map_err(|e| format!("lidar `{}` pulse {}: {e}", desc.name, r.id))
                     } else {
