@@ -2908,11 +2908,11 @@ fn bin_first_order(
     // the offset.
     if kb == 1.0 && x0 >= 0.0 && x1 < n - 1.0 {
         let mut k = (x0 as i64) as f64; // ⌊x0⌋ (0 ≤ x0 < n)
-        // The bins from ⌊x0⌋ to ⌊x1⌋ (k < x1 < n − 1 throughout); `ki` indexes them from 0.
-        let mut ki = 0;
+        let k0 = k as usize;
+        let mut ki = k0; // the same bin as an index (k < x1 < n − 1 throughout)
         let (mut a, mut ea) = (0.0, 1.0);
         let mut rejected = 0;
-        let bins = wave.first_order_bins_mut(k as usize, x1 as usize + 1);
+        let bins = wave.first_order_bins_mut();
         // A packet as `WaveformBinner::add_first_order_at` books it (finite and ≥ 0, else
         // counted as rejected).
         let mut book = |i: usize, e: f64| {
@@ -2955,6 +2955,8 @@ fn bin_first_order(
             k = edge;
             ki += 1;
         }
+        // Bins k0..=ki (ki < n − 1): the last one booked, or the one after it.
+        wave.mark_written(k0, ki + 1);
         wave.reject(rejected);
         return;
     }
