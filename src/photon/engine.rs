@@ -483,6 +483,13 @@ impl Acc {
             sink: false,
         }
     }
+    /// All records back to zero (a sink reused for the next pulse).
+    fn reset(&mut self) {
+        if let Some(d) = self.dense.as_mut() {
+            d.fill(0.0);
+        }
+        self.sparse.clear();
+    }
     fn sink(width: usize) -> Self {
         Self {
             width,
@@ -2901,7 +2908,8 @@ fn bin_first_order(
     // the offset.
     if kb == 1.0 && x0 >= 0.0 && x1 < n - 1.0 {
         let mut k = (x0 as i64) as f64; // ⌊x0⌋ (0 ≤ x0 < n)
-        let mut ki = k as usize; // the same bin as an index (k < x1 < n − 1 throughout)
+        let k0 = k as usize;
+        let mut ki = k0; // the same bin as an index (k < x1 < n − 1 throughout)
         let (mut a, mut ea) = (0.0, 1.0);
         let mut rejected = 0;
         let bins = wave.first_order_bins_mut();
@@ -2947,6 +2955,8 @@ fn bin_first_order(
             k = edge;
             ki += 1;
         }
+        // Bins k0..=ki (ki < n − 1): the last one booked, or the one after it.
+        wave.mark_written(k0, ki + 1);
         wave.reject(rejected);
         return;
     }
@@ -4073,69 +4083,138 @@ pub fn run_lidar_chunks(
         }
         let results = part
             .par_iter()
-            .map(|pl| run_pulse(&base, beam, pl))
+            .map_init(
+                || PulseState::new(&base, beam),
+                |st, pl| run_pulse(st, beam, pl),
+            )
             .collect();
         each(&part, results)?;
     }
 }
 
-fn run_pulse(base: &Ctx, beam: &Beam, pl: &Pulse) -> PulseResult {
-    let inp = base.inp;
+/// What the pulses of one worker reuse (built once per rayon task, not per pulse): the
+/// receiver-mode context (only the receiver's position and axis change from pulse to pulse),
+/// the tallies with their waveform binner, and the tracking scratch. Every pulse starts from
+/// the state of a new one ([`PulseState::reset`]), so the products do not depend on which
+/// pulses a thread ran before (the same bits on any number of threads).
+struct PulseState<'a> {
+    ctx: Ctx<'a>,
+    out: BatchOut,
+    g_cur: Vec<f64>,
+    scratch: Vec<f64>,
+    tr: Vec<f64>,
+}
+
+impl<'a> PulseState<'a> {
+    fn new(base: &Ctx<'a>, beam: &Beam) -> Self {
+        let ctx = Ctx {
+            receiver: Some(Receiver {
+                position: DVec3::ZERO,
+                axis: DVec3::NEG_Z,
+                cos_fov: beam.cos_fov,
+                aperture_m2: beam.aperture_m2,
+            }),
+            max_path: beam.gate_m.1,
+            stratified: beam.estimator != LidarEstimator::Legacy,
+            ms_stop: match beam.estimator {
+                LidarEstimator::ExpectedValue => MS_STOP_FACTOR,
+                _ => 0.0,
+            },
+            far_roulette: match beam.estimator {
+                LidarEstimator::ExpectedValue
+                    if beam.far_roulette_m > 0.0 && beam.cos_fov > 0.0 =>
+                {
+                    (
+                        beam.far_roulette_m,
+                        (1.0 - beam.cos_fov * beam.cos_fov).max(0.0).sqrt() / beam.cos_fov,
+                    )
+                }
+                _ => (0.0, 0.0),
+            },
+            continue_prob: match beam.estimator {
+                LidarEstimator::Stratified | LidarEstimator::ExpectedValue if beam.photons > 0 => {
+                    (beam.scattering_photons as f64 / beam.photons as f64).clamp(0.0, 1.0)
+                }
+                _ => 1.0,
+            },
+            ..base.clone()
+        };
+        let binner =
+            crate::lidar::waveform::WaveformBinner::new(beam.gate_m.0, beam.gate_m.1, beam.bin_ns)
+                .expect("validated gate");
+        let out = BatchOut {
+            summary: vec![0.0; ctx.sum.len()],
+            abs_tur: Acc::sink(1),
+            int_tur: Acc::sink(1),
+            abs_fac: Acc::sink(1),
+            int_fac: Acc::sink(1),
+            abs_gnd: Acc::sink(1),
+            int_gnd: Acc::sink(1),
+            abs_fluid: HashMap::new(),
+            lost: vec![0.0],
+            roulette: vec![0.0],
+            events: 0,
+            crossings: 0,
+            skipped: 0,
+            wave: Some(binner),
+        };
+        let g_cur = vec![0.0; ctx.tur_ids.len()];
+        Self {
+            ctx,
+            out,
+            g_cur,
+            scratch: vec![0.0; 1],
+            tr: vec![0.0; 1],
+        }
+    }
+
+    /// Back to the state of [`PulseState::new`] for the pulse `pl` (its receiver). The binner
+    /// is left as [`WaveformBinner::take_trimmed`] leaves it: as new.
+    ///
+    /// [`WaveformBinner::take_trimmed`]: crate::lidar::waveform::WaveformBinner::take_trimmed
+    fn reset(&mut self, pl: &Pulse) {
+        if let Some(r) = self.ctx.receiver.as_mut() {
+            r.position = pl.emitter;
+            r.axis = pl.axis;
+        }
+        let o = &mut self.out;
+        o.summary.fill(0.0);
+        for a in [
+            &mut o.abs_tur,
+            &mut o.int_tur,
+            &mut o.abs_fac,
+            &mut o.int_fac,
+            &mut o.abs_gnd,
+            &mut o.int_gnd,
+        ] {
+            a.reset();
+        }
+        o.abs_fluid.clear();
+        o.lost.fill(0.0);
+        o.roulette.fill(0.0);
+        (o.events, o.crossings, o.skipped) = (0, 0, 0);
+        self.g_cur.fill(0.0);
+        self.scratch.fill(0.0);
+        self.tr.fill(0.0);
+    }
+}
+
+fn run_pulse(st: &mut PulseState, beam: &Beam, pl: &Pulse) -> PulseResult {
+    st.reset(pl);
+    let PulseState {
+        ctx,
+        out,
+        g_cur,
+        scratch,
+        tr,
+    } = st;
+    let ctx = &*ctx;
+    let inp = ctx.inp;
     let spec = inp.spec;
-    let ctx = Ctx {
-        receiver: Some(Receiver {
-            position: pl.emitter,
-            axis: pl.axis,
-            cos_fov: beam.cos_fov,
-            aperture_m2: beam.aperture_m2,
-        }),
-        max_path: beam.gate_m.1,
-        stratified: beam.estimator != LidarEstimator::Legacy,
-        ms_stop: match beam.estimator {
-            LidarEstimator::ExpectedValue => MS_STOP_FACTOR,
-            _ => 0.0,
-        },
-        far_roulette: match beam.estimator {
-            LidarEstimator::ExpectedValue if beam.far_roulette_m > 0.0 && beam.cos_fov > 0.0 => (
-                beam.far_roulette_m,
-                (1.0 - beam.cos_fov * beam.cos_fov).max(0.0).sqrt() / beam.cos_fov,
-            ),
-            _ => (0.0, 0.0),
-        },
-        continue_prob: match beam.estimator {
-            LidarEstimator::Stratified | LidarEstimator::ExpectedValue if beam.photons > 0 => {
-                (beam.scattering_photons as f64 / beam.photons as f64).clamp(0.0, 1.0)
-            }
-            _ => 1.0,
-        },
-        ..base.clone()
-    };
-    let binner =
-        crate::lidar::waveform::WaveformBinner::new(beam.gate_m.0, beam.gate_m.1, beam.bin_ns)
-            .expect("validated gate");
-    let mut out = BatchOut {
-        summary: vec![0.0; ctx.sum.len()],
-        abs_tur: Acc::sink(1),
-        int_tur: Acc::sink(1),
-        abs_fac: Acc::sink(1),
-        int_fac: Acc::sink(1),
-        abs_gnd: Acc::sink(1),
-        int_gnd: Acc::sink(1),
-        abs_fluid: HashMap::new(),
-        lost: vec![0.0],
-        roulette: vec![0.0],
-        events: 0,
-        crossings: 0,
-        skipped: 0,
-        wave: Some(binner),
-    };
     let mut rng = crate::scene::spawn::stream(inp.params.seed, LIDAR_STREAM, pl.id);
     let (e1, e2) = crate::photon::sampling::orthonormal_basis(pl.axis);
     let w0 = beam.energy_j / beam.photons.max(1) as f64;
     let mut missed = 0.0;
-    let mut g_cur = vec![0.0; ctx.tur_ids.len()];
-    let mut scratch = vec![0.0; 1];
-    let mut tr = vec![0.0; 1];
     let top = spec.top();
     let inside = |q: DVec3| {
         (0..3).all(|a| {
@@ -4231,21 +4310,11 @@ fn run_pulse(base: &Ctx, beam: &Beam, pl: &Pulse) -> PulseResult {
         };
         // Discrete mode: the pulse keeps its exact direction (its first scattering uses the
         // rows of the sector that contains it); later orders follow the discrete directions.
-        trace_photon(
-            &ctx,
-            &mut ph,
-            &mut rng,
-            &mut out,
-            &mut g_cur,
-            &mut scratch,
-            &mut tr,
-        );
+        trace_photon(ctx, &mut ph, &mut rng, out, g_cur, scratch, tr);
     }
-    let binner = out.wave.take().expect("binner");
-    let l = binner.losses();
-    // Only the bins between the first and last return are kept (memory of long scans).
-    let mut waveform = binner.waveform();
-    waveform.trim();
+    // Only the bins between the first and last return are kept (memory of long scans); the
+    // binner is left as new for the thread's next pulse.
+    let (waveform, l) = out.wave.as_mut().expect("binner").take_trimmed();
     PulseResult {
         id: pl.id,
         waveform,
