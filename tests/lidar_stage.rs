@@ -722,8 +722,8 @@ fn pulse_stats(a: &[Waveform], b: &[Waveform]) -> (MeanSe, MeanSe, usize) {
 /// within 4.5 combined standard errors (as `stratified_estimator_agrees_with_the_legacy_one`),
 /// and the multiple-scattering energy within 5 %. The roulette must have acted: the waveforms
 /// differ. Sensitivity: without the survivors' weight correction the ρ₀ = 0.25 m mean of the
-/// multiple-scattering energy falls 5.7 % (18 combined standard errors; the scene's own scale:
-/// 0.65 %, 2 σ), so this test fails then.
+/// multiple-scattering energy falls 5.4 % (18 combined standard errors; the scene's own scale:
+/// 0.8 %, 2.5 σ), so this test fails then.
 #[test]
 fn far_photon_roulette_keeps_the_expected_waveform() {
     use lumenscape::lidar::simulate::FarRoulette;

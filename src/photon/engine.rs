@@ -3930,11 +3930,15 @@ fn brdf_event(
 // ---------------------------------------------------------------------------------------------
 
 /// Stop factor `c` of [`LidarEstimator::ExpectedValue`] ([`Ctx::scatter_flight`]): the walk of
-/// a multiple-scattering flight goes on to `c` times its collision's optical depth. On the forest
-/// ALS error study (600 photons, 8 realizations) c = 1 (track length), 1.5, 2, 3, 4 and ∞
-/// give 0.82, 0.79, 0.73, 0.74, 0.76 and 0.75 % total error; with the instructions per pulse,
-/// c = 2 has the lowest error² × cost (README, LiDAR speed against error).
-const MS_STOP_FACTOR: f64 = 2.0;
+/// a multiple-scattering flight goes on to `c` times its collision's optical depth; c = 1: the
+/// track-length estimator (the return integrated along the flight up to its collision). On the
+/// forest ALS error study of session 10 (600 photons, 8 realizations) c = 1, 1.5, 2, 3, 4 and ∞
+/// gave 0.82, 0.79, 0.73, 0.74, 0.76 and 0.75 % total error, and c = 2 was chosen. Re-measured
+/// with today's default (72 rays, far-photon roulette; 768 realizations, standard error
+/// 0.002 %): c = 1 0.996 % at 711.1k instructions per pulse, c = 2 1.003 % at 752.0k (384: c =
+/// 1.25 1.001 % at 729.2k, 1.5 0.999 % at 738.3k): c = 1 has the lowest error and cost (README,
+/// LiDAR speed against error).
+const MS_STOP_FACTOR: f64 = 1.0;
 
 /// Smallest distance scale ρ₀ of the far-photon roulette ([`far_roulette_survival`]), in
 /// horizontal cell sizes (the larger of x and y); the scene's mean free path in the vegetation
@@ -3958,7 +3962,7 @@ const FAR_ROULETTE_MIN_SURVIVAL: f64 = 1.0 / 64.0;
 /// outside the cone are 37 % of them but carry 1.6 % of the multiple-scattering return (their
 /// later orders included). The scale: `max(2 cells, mean free path)` (4.6 m there): total
 /// waveform error of the error study 0.997 → 1.002 % (384 realizations, standard error
-/// 0.003 %) for 7.5 % fewer instructions per pulse; ρ₀ = 2 m saves 13 % (1.001 %), 1 m 16 % but
+/// 0.003 %, with the stop factor c = 2 of the time) for 7.9 % fewer instructions per pulse; ρ₀ = 2 m saves 13 % (1.001 %), 1 m 16 % but
 /// with rare large errors (1.024 ± 0.010 %); on a denser layer (mean free path 1 m) ρ₀ = 0.5 m
 /// raises the noise of the multiple-scattering energy 1.6-fold (README, LiDAR speed against
 /// error). `(ρ₀, tan θ_FOV)` as stored in [`Ctx::far_roulette`].
