@@ -3806,19 +3806,11 @@ fn trace_photon(
         }
         // Receiver mode: Russian roulette into multiple scattering after the first interaction
         // (its first-order return is already recorded), survival `continue_prob`.
-        if ph.order == 1 && ctx.continue_prob < 1.0 {
-            let q = ctx.continue_prob;
-            if rng.next_f64() < q {
-                for b in 0..nb {
-                    out.roulette[off + b] -= ph.w[b] * (1.0 / q - 1.0);
-                    ph.w[b] /= q;
-                }
-            } else {
-                for b in 0..nb {
-                    out.roulette[off + b] += ph.w[b];
-                }
-                return;
-            }
+        if ph.order == 1
+            && ctx.continue_prob < 1.0
+            && !roulette_survives(ph, ctx.continue_prob, rng, &mut out.roulette[off..off + nb])
+        {
+            return;
         }
         if ph.order > inp.params.max_order {
             for b in 0..nb {
@@ -3832,18 +3824,8 @@ fn trace_photon(
             && let Some(rx) = &ctx.receiver
         {
             let q = far_roulette_survival(rx, ph.p + ph.shift, ctx.far_roulette);
-            if q < 1.0 {
-                if rng.next_f64() < q {
-                    for b in 0..nb {
-                        out.roulette[off + b] -= ph.w[b] * (1.0 / q - 1.0);
-                        ph.w[b] /= q;
-                    }
-                } else {
-                    for b in 0..nb {
-                        out.roulette[off + b] += ph.w[b];
-                    }
-                    return;
-                }
+            if q < 1.0 && !roulette_survives(ph, q, rng, &mut out.roulette[off..off + nb]) {
+                return;
             }
         }
         let r = wmax / ph.w0;
@@ -3862,6 +3844,30 @@ fn trace_photon(
                 return;
             }
         }
+    }
+}
+
+/// Russian roulette with survival probability `q` (0 < q < 1): the photon goes on with its
+/// weights divided by `q` (returns true) or stops (false); `balance` (one entry per band, W)
+/// books killed minus added weight, whose expectation is 0.
+#[inline]
+fn roulette_survives(
+    ph: &mut Photon,
+    q: f64,
+    rng: &mut Xoshiro256PlusPlus,
+    balance: &mut [f64],
+) -> bool {
+    if rng.next_f64() < q {
+        for (r, w) in balance.iter_mut().zip(ph.w.iter_mut()) {
+            *r -= *w * (1.0 / q - 1.0);
+            *w /= q;
+        }
+        true
+    } else {
+        for (r, w) in balance.iter_mut().zip(ph.w.iter()) {
+            *r += *w;
+        }
+        false
     }
 }
 
