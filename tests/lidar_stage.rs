@@ -637,25 +637,10 @@ fn stratified_estimator_agrees_with_the_legacy_one() {
             }
             let strat = waveforms(estimator, scattering);
             let ((ma, sa), (mb, sb), na) = pulse_stats(&legacy, &strat);
-            let peak = ma[2 + na..].iter().cloned().fold(0.0, f64::max);
-            let mut worst: f64 = 0.0;
-            let mut compared = 0;
-            for i in 0..ma.len() {
-                if i >= 2 && ma[i] < 0.05 * peak {
-                    continue;
-                }
-                let z = (mb[i] - ma[i]).abs() / (sa[i] * sa[i] + sb[i] * sb[i]).sqrt().max(1e-300);
-                worst = worst.max(z);
-                compared += 1;
-                assert!(
-                    z < 4.5,
-                    "{lad_desc:?} leaf {leaf} {sampler:?} building {building} {estimator:?} scattering {scattering:?}: quantity {i}: {:e} ± {:e} vs legacy {:e} ± {:e} ({z:.1} σ)",
-                    mb[i],
-                    sb[i],
-                    ma[i],
-                    sa[i]
-                );
-            }
+            let label = format!(
+                "{lad_desc:?} leaf {leaf} {sampler:?} building {building} {estimator:?} scattering {scattering:?}"
+            );
+            let (compared, worst) = assert_means_agree(&label, (&ma, &sa), (&mb, &sb), na);
             let rel = |i: usize| mb[i] / ma[i] - 1.0;
             eprintln!(
                 "{lad_desc:?} leaf {leaf} {sampler:?} building {building} {estimator:?} scattering {scattering:?}: {compared} quantities, worst {worst:.2} σ; first order {:+.3} % (SE {:.3} % vs {:.3} %), multiple scattering {:+.2} % (SE {:.2} % vs {:.2} %)",
@@ -670,6 +655,37 @@ fn stratified_estimator_agrees_with_the_legacy_one() {
             assert!(rel(0).abs() < 0.02 && rel(1).abs() < 0.05);
         }
     }
+}
+
+/// Asserts that the means `a` and `b` (each with its standard errors, laid out as
+/// [`pulse_stats`] gives them, `n` bins) of E1, E_ms and of every bin whose mean in `a` is above
+/// 5 % of the peak total bin agree within 4.5 combined standard errors. Returns the number of
+/// quantities compared and the largest deviation (in combined standard errors).
+fn assert_means_agree(
+    label: &str,
+    (ma, sa): (&[f64], &[f64]),
+    (mb, sb): (&[f64], &[f64]),
+    n: usize,
+) -> (usize, f64) {
+    let peak = ma[2 + n..].iter().cloned().fold(0.0, f64::max);
+    let (mut compared, mut worst) = (0, 0.0f64);
+    for i in 0..ma.len() {
+        if i >= 2 && ma[i] < 0.05 * peak {
+            continue;
+        }
+        let z = (mb[i] - ma[i]).abs() / (sa[i] * sa[i] + sb[i] * sb[i]).sqrt().max(1e-300);
+        worst = worst.max(z);
+        compared += 1;
+        assert!(
+            z < 4.5,
+            "{label}: quantity {i}: {:e} ± {:e} vs reference {:e} ± {:e} ({z:.1} σ)",
+            mb[i],
+            sb[i],
+            ma[i],
+            sa[i]
+        );
+    }
+    (compared, worst)
 }
 
 /// Mean and standard error over the pulses of `a` and of `b` of E1, E_ms, then the first-order
@@ -758,23 +774,7 @@ fn far_photon_roulette_keeps_the_expected_waveform() {
             "{setting:?}: the roulette changed no waveform"
         );
         let ((ma, sa), (mb, sb), n) = pulse_stats(&off, &on);
-        let peak = ma[2 + n..].iter().cloned().fold(0.0, f64::max);
-        let mut compared = 0;
-        for i in 0..ma.len() {
-            if i >= 2 && ma[i] < 0.05 * peak {
-                continue;
-            }
-            let z = (mb[i] - ma[i]).abs() / (sa[i] * sa[i] + sb[i] * sb[i]).sqrt().max(1e-300);
-            compared += 1;
-            assert!(
-                z < 4.5,
-                "{setting:?}: quantity {i}: {:e} ± {:e} with the roulette vs {:e} ± {:e} ({z:.1} σ)",
-                mb[i],
-                sb[i],
-                ma[i],
-                sa[i]
-            );
-        }
+        let (compared, _) = assert_means_agree(&format!("{setting:?}"), (&ma, &sa), (&mb, &sb), n);
         let rel_ms = mb[1] / ma[1] - 1.0;
         eprintln!(
             "far roulette {setting:?}: {compared} quantities; multiple scattering {:+.2} % ({:+.1} σ; SE {:.2} % vs {:.2} % without)",

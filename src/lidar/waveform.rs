@@ -242,7 +242,7 @@ impl Waveform {
         if self.is_empty() {
             return Ok(self.clone());
         }
-        self.convolve_kernel(&pulse.kernel(self.dt_ns)?, receiver_response)
+        self.convolve_valid(&pulse.kernel(self.dt_ns)?, receiver_response)
     }
 
     /// [`Waveform::convolve`] with the pulse's kernel on this waveform's bins computed by the
@@ -256,6 +256,15 @@ impl Waveform {
         if self.is_empty() {
             return Ok(self.clone());
         }
+        self.convolve_valid(kernel, receiver_response)
+    }
+
+    /// The convolution of [`Waveform::convolve_kernel`] on a validated, non-empty waveform.
+    fn convolve_valid(
+        &self,
+        kernel: &PulseKernel,
+        receiver_response: Option<&[f64]>,
+    ) -> Result<Waveform, LidarError> {
         let mut total = convolve_full(&self.total, &kernel.weights);
         let mut first = convolve_full(&self.first_order, &kernel.weights);
         let t0 = self.t0_ns - kernel.centre as f64 * self.dt_ns;
