@@ -7,7 +7,7 @@
 //! beam rays and rays continued into multiple scattering of the forest rows, e.g. under
 //! callgrind; the estimator also of the urban scan); `--no-skip` (empty-space skipping off:
 //! every cell visited, for comparisons); `--no-far-roulette` (the expected-value estimator's
-//! far-photon roulette off);
+//! far-photon roulette off); `--no-columns` (its column quadrature of the first order off);
 //! `--digest` (print an FNV-1a hash of every product of each row — raw and convolved
 //! waveforms, gate losses, returns — to prove bit-identity across code changes); `--dump FILE`
 //! (write those products as text, one pulse per line, rows one after another);
@@ -116,6 +116,8 @@ struct Options {
     no_stream: bool,
     /// `--no-far-roulette`: the expected-value estimator's far-photon roulette off.
     no_far_roulette: bool,
+    /// `--no-columns`: the expected-value estimator's column quadrature of the first order off.
+    no_columns: bool,
 }
 
 impl Options {
@@ -136,6 +138,7 @@ impl Options {
                 "--no-skip" => o.no_skip = true,
                 "--no-stream" => o.no_stream = true,
                 "--no-far-roulette" => o.no_far_roulette = true,
+                "--no-columns" => o.no_columns = true,
                 "--out" => {
                     o.out = Some(args.next().expect("--out DIR").into());
                 }
@@ -284,6 +287,7 @@ fn simulate_seeded(
                 sampler: SamplerKind::Continuous,
             },
             skip_empty: !opt.no_skip,
+            lidar_first_order_columns: !opt.no_columns,
             lidar_far_roulette: if opt.no_far_roulette {
                 lumenscape::lidar::simulate::FarRoulette::Off
             } else {

@@ -134,6 +134,7 @@ impl SceneOpts {
             skip_empty: true,
             batch_walk: true,
             lidar_chunk_pulses: crate::lidar::simulate::DEFAULT_CHUNK_PULSES,
+            lidar_first_order_columns: true,
             lidar_far_roulette: Default::default(),
         }
     }

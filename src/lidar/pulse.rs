@@ -744,6 +744,26 @@ impl FootprintSampler {
         }
     }
 
+    /// Largest [`Self::relative_intensity`] over the distances `[r0_m, r1_m]` (m, `0 ≤ r0 ≤ r1`)
+    /// from the axis, ignoring the truncation: Gaussian at `r0`, uniform 1 if `r0 ≤ R`, table
+    /// at the ends and the nodes in between (piecewise linear, so the largest is at one of
+    /// them). A bound for rejection sampling over a region of the footprint.
+    pub fn max_relative_intensity_within(&self, r0_m: f64, r1_m: f64) -> f64 {
+        let end = self
+            .relative_intensity(r0_m)
+            .max(self.relative_intensity(r1_m));
+        match &self.shape {
+            RadialShape::Tabulated(t) => {
+                let (x0, x1) = (r0_m / self.radius_m, r1_m / self.radius_m);
+                t.x.iter()
+                    .zip(&t.intensity)
+                    .filter(|(x, _)| (x0..=x1).contains(*x))
+                    .fold(end, |m, (_, i)| m.max(*i))
+            }
+            _ => end,
+        }
+    }
+
     /// Fraction of the (untruncated) beam energy per unit area at distance `rho_m` from the axis
     /// (m⁻²); integrates to 1 over the plane.
     pub fn energy_density_per_m2(&self, rho_m: f64) -> f64 {

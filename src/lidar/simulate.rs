@@ -271,6 +271,9 @@ pub struct LidarChunks {
     /// The far-photon roulette of the expected-value estimator
     /// ([`crate::photon::engine::Beam::far_roulette_m`]).
     pub far_roulette: FarRoulette,
+    /// The expected-value estimator's column quadrature of the first-order return where it
+    /// applies ([`crate::photon::engine::Beam::first_order_columns`]; default true).
+    pub first_order_columns: bool,
 }
 
 /// The expected-value estimator's far-photon roulette of multiple scattering
@@ -293,6 +296,7 @@ impl Default for LidarChunks {
             stream_dir: None,
             progress: false,
             far_roulette: FarRoulette::Auto,
+            first_order_columns: true,
         }
     }
 }
@@ -412,6 +416,7 @@ pub fn simulate_lidar(
             FarRoulette::ScaleM(m) if m > 0.0 => m,
             _ => 0.0,
         },
+        first_order_columns: chunks.first_order_columns,
     };
     let shape = PulseShape::from_fwhm_ns(desc.pulse_fwhm_ns, 3.0)
         .map_err(|e| format!("lidar `{}`: {e}", desc.name))?;

@@ -855,6 +855,10 @@ struct Photon {
     /// Receiver mode: the uniform of the first flight's free path (`τ* = −ln(1 − u)`), from
     /// the pulse's beam-ray lattice ([`Ctx::first_flight`]); `None`: drawn from the stream.
     first_u: Option<f64>,
+    /// Receiver mode: a beam ray whose first-order return is part of the pulse's column
+    /// quadrature ([`FirstOrderColumns`]): its first flight only samples the collision (the
+    /// first-order return of its whole flight, surface included, is not scored again).
+    first_order_done: bool,
 }
 
 impl<'a> Ctx<'a> {
@@ -1529,6 +1533,23 @@ impl Ctx<'_> {
             return (self.fly(ph, g_cur, rng, out), None);
         };
         let tau_star = -(1.0 - ph.first_u.unwrap_or_else(|| rng.next_f64())).ln();
+        let mut score = self.first_order_score(rx, ph, g_cur);
+        let mut io = FlightIo {
+            rng,
+            out,
+            scratch,
+            tr,
+        };
+        self.walk_flight(ph, g_cur, tau_star, &mut io, &mut score)
+    }
+
+    /// The first-order scoring of a flight from the emitter ([`FirstOrderScore`]).
+    fn first_order_score<'g>(
+        &self,
+        rx: Receiver,
+        ph: &Photon,
+        g_cur: &'g [f64],
+    ) -> FirstOrderScore<'g> {
         let d = ph.d;
         let cos_rx = d.dot(rx.axis);
         // Exact-backscatter intensity per unit intercepted weight, per turbid material.
@@ -1540,7 +1561,7 @@ impl Ctx<'_> {
                 _ => 0.0,
             }
         });
-        let mut score = FirstOrderScore {
+        FirstOrderScore {
             rx,
             d,
             cos_rx,
@@ -1552,14 +1573,33 @@ impl Ctx<'_> {
             exact: true,
             kr: 0.0,
             kf: 0.0,
+        }
+    }
+
+    /// The first-order return of a column ray of [`FirstOrderColumns`] (weight `ph.w`, from
+    /// the emitter): [`Ctx::first_flight`]'s walk and scoring with no collision (τ* = ∞), so
+    /// the whole flight is walked to the ground, the top or the optical depth 30 and nothing
+    /// goes on into multiple scattering. `g_cur` must hold G(ph.d) per turbid material.
+    fn column_first_order(
+        &self,
+        ph: &mut Photon,
+        g_cur: &[f64],
+        rng: &mut Xoshiro256PlusPlus,
+        out: &mut BatchOut,
+        scratch: &mut [f64],
+        tr: &mut [f64],
+    ) {
+        let Some(rx) = self.receiver else {
+            return;
         };
+        let mut score = self.first_order_score(rx, ph, g_cur);
         let mut io = FlightIo {
             rng,
             out,
             scratch,
             tr,
         };
-        self.walk_flight(ph, g_cur, tau_star, &mut io, &mut score)
+        self.walk_flight(ph, g_cur, f64::INFINITY, &mut io, &mut score);
     }
 
     /// A LiDAR flight past the first scattering (receiver mode, `ph.order ≥ 1`, one band, no
@@ -1796,6 +1836,8 @@ impl Ctx<'_> {
         }
         match end {
             Some(hit) => (hit, ret),
+            // A walk with no collision to sample (τ* = ∞, [`Ctx::column_first_order`]).
+            None if tau_star == f64::INFINITY => (Hit::Lost, None),
             // Stopped before the free path ran out (the first flight's forced walk at τ > 30,
             // probability e^{−30}): the flight goes on from its start with the same free path.
             None => (self.fly_to(ph, g_cur, tau_star, io.rng, io.out), None),
@@ -3277,6 +3319,7 @@ fn run_batch(ctx: &Ctx, batch: u64, n: u64, source: &[f64]) -> BatchOut {
         ret: None,
         surface_scored: false,
         first_u: None,
+        first_order_done: false,
     };
     let n_dirs = ctx.omega.len();
     let discrete = inp.params.sampler.is_discrete();
@@ -3399,10 +3442,20 @@ fn trace_photon(
             && inp.fluid.is_none()
             && ctx.receiver.is_some()
         {
-            // One walk: collision and stratified first-order return (`Ctx::first_flight`).
-            let (hit, ret) = ctx.first_flight(ph, g_cur, rng, out, scratch, tr);
-            ph.ret = ret.map(|t| Small::from_elem(return_transmittance(t), 1));
-            hit
+            if ph.first_order_done {
+                // The first-order return is the column quadrature's: the collision only (the
+                // same free path and hit as `Ctx::first_flight`'s), and no peel-off of the
+                // surface it may end on.
+                let tau_star = -(1.0 - ph.first_u.unwrap_or_else(|| rng.next_f64())).ln();
+                let hit = ctx.fly_to(ph, g_cur, tau_star, rng, out);
+                ph.surface_scored = true;
+                hit
+            } else {
+                // One walk: collision and stratified first-order return (`Ctx::first_flight`).
+                let (hit, ret) = ctx.first_flight(ph, g_cur, rng, out, scratch, tr);
+                ph.ret = ret.map(|t| Small::from_elem(return_transmittance(t), 1));
+                hit
+            }
         } else {
             let walk_end = if (ctx.receiver.is_some() && ph.order == 0)
                 || (ctx.receiver.is_none() && forced_fluid && !inp.views.is_empty())
@@ -4027,6 +4080,251 @@ pub struct Beam {
     /// `ExpectedValue`: distance scale ρ₀ (m) of the far-photon roulette of multiple scattering
     /// ([`far_roulette_survival`]); 0: off.
     pub far_roulette_m: f64,
+    /// `ExpectedValue`: the first-order return by the column quadrature where it applies
+    /// ([`FirstOrderColumns`]); false: every beam ray scores its own (for the equality tests
+    /// and for measuring).
+    pub first_order_columns: bool,
+}
+
+/// Most grid columns a pulse's footprint window may span for the column quadrature of its
+/// first-order return ([`FirstOrderColumns`]; also at most half the beam rays).
+const MAX_FIRST_ORDER_COLUMNS: usize = 64;
+
+/// Column quadrature of the first-order return of near-nadir pulses
+/// ([`LidarEstimator::ExpectedValue`]). The first-order return of a beam ray that stays inside
+/// one grid column from the top of the grid to its bottom, and whose column holds no facet and
+/// no fluid, depends only on that column: turbid cells are horizontally homogeneous and the
+/// ground is flat, so every such ray crosses the same cells over the same lengths, to within
+/// the relative path difference ρ²/(2R²) of its transverse offset ρ at the reference range R
+/// (m). For a vertical beam axis the set of offsets whose ray stays in column c is a rectangle
+/// (the column's sides scaled to the top and the bottom planes: the ray reaches height z at the
+/// emitter's x, y plus the offset times (z_e − z)/R), so the pulse's first-order return is
+/// `Σ_c m₀(c) F_c` with `m₀(c)` the beam energy fraction over that rectangle (exact, from the
+/// footprint profile, [`crate::lidar::pulse::FootprintMoments`]) and `F_c` the first-order
+/// return of one ray of the column (the walk and scoring of [`Ctx::first_flight`], weight
+/// `E m₀(c)`), taken at an offset whose ρ² is the column's mean ρ² under the profile, so the
+/// path-length and angle terms, linear in ρ² to O(ρ⁴/R⁴), are those of the column's mean.
+/// The beam rays in those rectangles then only sample their collision (their first order is
+/// not scored again, [`Photon::first_order_done`]); the rays outside (near column sides, in
+/// columns with facets or fluids, outside an isolated grid) score their own as before, an
+/// unbiased estimate of the rest. The first-order error of the pulse then comes from those
+/// rays only (DART 5 paper §4 computes the first order by forced peel-off along each ray; this
+/// is that integral over the footprint done by quadrature instead of by sampling).
+///
+/// Used when the estimator is `ExpectedValue`, one band, no fluid, the flat ground (if any)
+/// is Lambertian, no continuous-topography offset, the column sums exist ([`ColumnDepth`]),
+/// every beam ray lies inside the receiver's FOV (relative slack 1e-12 on the cosine), and,
+/// per pulse, the axis is exactly vertical (downward), the emitter above the grid and the
+/// footprint's window at the bottom plane spans at most [`MAX_FIRST_ORDER_COLUMNS`] columns
+/// and half the beam rays.
+pub(crate) struct FirstOrderColumns {
+    /// The footprint's moments over rectangles.
+    moments: crate::lidar::pulse::FootprintMoments,
+    /// Radius beyond which the footprint has no energy, m (at the reference range).
+    reach: f64,
+    /// Most window columns per pulse.
+    max_columns: usize,
+}
+
+/// One pulse's window of grid columns for [`FirstOrderColumns`].
+struct PulseColumns {
+    /// Emitter x, y, m.
+    e: (f64, f64),
+    /// Scale of the transverse offset at the grid's top and bottom planes (distance from the
+    /// emitter's height over the reference range).
+    s_top: f64,
+    s_bot: f64,
+    /// Lower corner (x, y) of the window's first column, m (unwrapped coordinates).
+    lo: (f64, f64),
+    /// Cell sides, m.
+    cell: (f64, f64),
+    /// Window columns along x and y.
+    ni: usize,
+    nj: usize,
+    /// Bit `j·ni + i`: window column (i, j) is in the grid and holds no facet and no fluid.
+    clear: u64,
+}
+
+impl FirstOrderColumns {
+    fn new(ctx: &Ctx, beam: &Beam) -> Option<Self> {
+        let inp = ctx.inp;
+        if !beam.first_order_columns
+            || beam.estimator != LidarEstimator::ExpectedValue
+            || beam.photons == 0
+            || ctx.nb != 1
+            || inp.fluid.is_some()
+            || ctx.columns.is_none()
+            || (inp.flat_ground.is_some() && ctx.lambert_ground().is_none())
+            || inp.spec.topography_offset != (0.0, 0.0)
+        {
+            return None;
+        }
+        let moments = beam.footprint.moments();
+        let reach = moments.reach_m();
+        let r = beam.reference_range_m;
+        if !(reach.is_finite() && reach > 0.0 && r > 0.0 && r.is_finite()) {
+            return None;
+        }
+        // Every beam ray inside the receiver's FOV (the default FOV is the truncated footprint).
+        if r / (r * r + reach * reach).sqrt() < beam.cos_fov * (1.0 - 1e-12) {
+            return None;
+        }
+        Some(Self {
+            moments,
+            reach,
+            max_columns: MAX_FIRST_ORDER_COLUMNS.min((beam.photons as usize / 2).max(1)),
+        })
+    }
+
+    /// The window of columns of pulse `pl`, when the quadrature applies to it.
+    fn pulse(&self, ctx: &Ctx, beam: &Beam, pl: &Pulse) -> Option<PulseColumns> {
+        let spec = ctx.inp.spec;
+        let (top, bottom) = (spec.top(), spec.origin.z);
+        if pl.axis.x != 0.0 || pl.axis.y != 0.0 || !(pl.axis.z < 0.0) || !(pl.emitter.z > top) {
+            return None;
+        }
+        let r = beam.reference_range_m;
+        let (s_top, s_bot) = ((pl.emitter.z - top) / r, (pl.emitter.z - bottom) / r);
+        let cell = (spec.cell.x, spec.cell.y);
+        let rb = self.reach * s_bot;
+        let i0 = ((pl.emitter.x - rb - spec.origin.x) / cell.0).floor();
+        let i1 = ((pl.emitter.x + rb - spec.origin.x) / cell.0).floor();
+        let j0 = ((pl.emitter.y - rb - spec.origin.y) / cell.1).floor();
+        let j1 = ((pl.emitter.y + rb - spec.origin.y) / cell.1).floor();
+        if !(i0.is_finite() && i1.is_finite() && j0.is_finite() && j1.is_finite())
+            || i1 - i0 >= 64.0
+            || j1 - j0 >= 64.0
+            || i0.abs() > 1e15
+            || j0.abs() > 1e15
+        {
+            return None;
+        }
+        let (ni, nj) = ((i1 - i0) as usize + 1, (j1 - j0) as usize + 1);
+        if ni * nj > self.max_columns {
+            return None;
+        }
+        let depth = ctx.columns.as_deref()?;
+        let (nx, ny) = (spec.n[0] as i64, spec.n[1] as i64);
+        let isolated = spec.boundary == BoundaryMode::Isolated;
+        let mut clear = 0u64;
+        for kj in 0..nj {
+            for ki in 0..ni {
+                let (i, j) = (i0 as i64 + ki as i64, j0 as i64 + kj as i64);
+                let (iw, jw) = if isolated {
+                    if !(0..nx).contains(&i) || !(0..ny).contains(&j) {
+                        continue;
+                    }
+                    (i, j)
+                } else {
+                    (i.rem_euclid(nx), j.rem_euclid(ny))
+                };
+                if depth.clear[spec.index(iw as usize, jw as usize, 0)] {
+                    clear |= 1 << (kj * ni + ki);
+                }
+            }
+        }
+        Some(PulseColumns {
+            e: (pl.emitter.x, pl.emitter.y),
+            s_top,
+            s_bot,
+            lo: (spec.origin.x + i0 * cell.0, spec.origin.y + j0 * cell.1),
+            cell,
+            ni,
+            nj,
+            clear,
+        })
+    }
+}
+
+impl PulseColumns {
+    /// Interval `k` (of `2n − 1`) of transverse offsets (m, at the reference range) along one
+    /// axis (`lo`: the window's lower side on it minus the emitter's coordinate, `cell` the
+    /// cell side, `n` window columns): `k = 2i`, the offsets whose rays stay in column `i`
+    /// from the top plane to the bottom one; `k = 2i + 1`, those whose rays cross the side
+    /// between columns `i` and `i + 1` in between (a strip). May be empty (`a ≥ b`).
+    fn interval(&self, lo: f64, cell: f64, k: usize) -> (f64, f64) {
+        let (t, b) = (self.s_top, self.s_bot);
+        // Column i's interval.
+        let stay = |i: usize| {
+            let x0 = lo + i as f64 * cell;
+            let x1 = x0 + cell;
+            ((x0 / t).max(x0 / b), (x1 / t).min(x1 / b))
+        };
+        if k % 2 == 0 {
+            stay(k / 2)
+        } else {
+            (stay(k / 2).1, stay(k / 2 + 1).0)
+        }
+    }
+
+    /// Rectangle `[x0, x1, y0, y1]` (m) of cell `(kx, ky)` of the window's
+    /// `(2ni − 1) × (2nj − 1)` partition of transverse offsets ([`PulseColumns::interval`]).
+    fn rect(&self, kx: usize, ky: usize) -> [f64; 4] {
+        let (x0, x1) = self.interval(self.lo.0 - self.e.0, self.cell.0, kx);
+        let (y0, y1) = self.interval(self.lo.1 - self.e.1, self.cell.1, ky);
+        [x0, x1, y0, y1]
+    }
+}
+
+/// Footprint mass below which a strip rectangle of [`FirstOrderColumns`] is sampled by Russian
+/// roulette (probability m/`STRIP_ROULETTE_MASS`, weight `STRIP_ROULETTE_MASS`) instead of
+/// always: its variance is at most `STRIP_ROULETTE_MASS` × m × E[F²] per rectangle.
+const STRIP_ROULETTE_MASS: f64 = 1e-4;
+
+/// A transverse offset drawn from the footprint's density restricted to the rectangle
+/// `[x0, x1, y0, y1]` ∩ the footprint's disk of radius `reach` (m), by rejection from the
+/// uniform density over the rectangle's part of the disk's bounding square, with the bound
+/// [`crate::lidar::pulse::FootprintSampler::max_relative_intensity_within`] over the
+/// rectangle's distances from the axis (von Neumann 1951). `None` after 4096 rejections (a
+/// rectangle whose mass is a sliver of the disk's edge; its caller then skips it).
+fn sample_in_rect(
+    fp: &crate::lidar::pulse::FootprintSampler,
+    reach: f64,
+    [x0, x1, y0, y1]: [f64; 4],
+    rng: &mut Xoshiro256PlusPlus,
+) -> Option<(f64, f64)> {
+    let (x0, x1, y0, y1) = (x0.max(-reach), x1.min(reach), y0.max(-reach), y1.min(reach));
+    if !(x0 < x1 && y0 < y1) {
+        return None;
+    }
+    let near = (0.0f64.clamp(x0, x1), 0.0f64.clamp(y0, y1));
+    let far = (x0.abs().max(x1.abs()), y0.abs().max(y1.abs()));
+    let r0 = (near.0 * near.0 + near.1 * near.1).sqrt();
+    let r1 = (far.0 * far.0 + far.1 * far.1).sqrt().min(reach);
+    let bound = fp.max_relative_intensity_within(r0, r1);
+    if !(bound > 0.0) {
+        return None;
+    }
+    for _ in 0..4096 {
+        let x = x0 + (x1 - x0) * rng.next_f64();
+        let y = y0 + (y1 - y0) * rng.next_f64();
+        let r2 = x * x + y * y;
+        if r2 <= reach * reach && rng.next_f64() * bound < fp.relative_intensity(r2.sqrt()) {
+            return Some((x, y));
+        }
+    }
+    None
+}
+
+/// A point of the rectangle `[x0, x1, y0, y1]` (non-empty) at squared distance `r2` (m²) from
+/// the origin when one exists (for `r2` between the rectangle's least and largest squared
+/// distances, as the mean ρ² over it is), else its nearest: on the segment from the
+/// rectangle's nearest point to its farthest corner, along which the squared distance grows.
+fn point_at_squared_distance([x0, x1, y0, y1]: [f64; 4], r2: f64) -> (f64, f64) {
+    let c = (0.0f64.clamp(x0, x1), 0.0f64.clamp(y0, y1));
+    let f = (
+        if x0.abs() > x1.abs() { x0 } else { x1 },
+        if y0.abs() > y1.abs() { y0 } else { y1 },
+    );
+    let dl = (f.0 - c.0, f.1 - c.1);
+    let a = dl.0 * dl.0 + dl.1 * dl.1;
+    let b = c.0 * dl.0 + c.1 * dl.1;
+    let cc = c.0 * c.0 + c.1 * c.1 - r2;
+    if !(a > 0.0) || !(cc < 0.0) {
+        return c;
+    }
+    let t = ((-b + (b * b - a * cc).max(0.0).sqrt()) / a).clamp(0.0, 1.0);
+    (c.0 + t * dl.0, c.1 + t * dl.1)
 }
 
 /// Result of one pulse.
@@ -4082,6 +4380,7 @@ pub fn run_lidar_chunks(
 ) -> Result<(), String> {
     let mut base = Ctx::new(inp, 1, 1);
     base.columns = ColumnDepth::new(&base).map(std::sync::Arc::new);
+    let first_order = FirstOrderColumns::new(&base, beam).map(std::sync::Arc::new);
     // Validate the binner once.
     crate::lidar::waveform::WaveformBinner::new(beam.gate_m.0, beam.gate_m.1, beam.bin_ns)
         .map_err(|e| e.to_string())?;
@@ -4094,7 +4393,7 @@ pub fn run_lidar_chunks(
         let results = part
             .par_iter()
             .map_init(
-                || PulseState::new(&base, beam),
+                || PulseState::new(&base, beam, first_order.clone()),
                 |st, pl| run_pulse(st, beam, pl),
             )
             .collect();
@@ -4113,10 +4412,16 @@ struct PulseState<'a> {
     g_cur: Vec<f64>,
     scratch: Vec<f64>,
     tr: Vec<f64>,
+    /// The run's column quadrature of the first order, when it applies.
+    first_order: Option<std::sync::Arc<FirstOrderColumns>>,
 }
 
 impl<'a> PulseState<'a> {
-    fn new(base: &Ctx<'a>, beam: &Beam) -> Self {
+    fn new(
+        base: &Ctx<'a>,
+        beam: &Beam,
+        first_order: Option<std::sync::Arc<FirstOrderColumns>>,
+    ) -> Self {
         let ctx = Ctx {
             receiver: Some(Receiver {
                 position: DVec3::ZERO,
@@ -4175,6 +4480,7 @@ impl<'a> PulseState<'a> {
             g_cur,
             scratch: vec![0.0; 1],
             tr: vec![0.0; 1],
+            first_order,
         }
     }
 
@@ -4217,6 +4523,7 @@ fn run_pulse(st: &mut PulseState, beam: &Beam, pl: &Pulse) -> PulseResult {
         g_cur,
         scratch,
         tr,
+        first_order,
     } = st;
     let ctx = &*ctx;
     let inp = ctx.inp;
@@ -4231,34 +4538,9 @@ fn run_pulse(st: &mut PulseState, beam: &Beam, pl: &Pulse) -> PulseResult {
             q[a] >= spec.origin[a] && q[a] <= spec.origin[a] + spec.n[a] as f64 * spec.cell[a]
         })
     };
-    // Stratified: beam rays on the R2 lattice (Roberts 2018: additive recurrence with the
-    // plastic number φ₂, low discrepancy for every count) shifted by one uniform per axis
-    // (Cranley & Patterson 1976), so each ray is uniform on the unit square (unbiased) while
-    // the set covers the footprint evenly. The uniform of each ray's first free path
-    // (τ* = −ln(1 − u₃), [`Ctx::first_flight`]) follows its own shifted golden-ratio sequence
-    // (Weyl), so the first collision depths of a pulse's rays cover [0, ∞) evenly too: each u₃
-    // is uniform (unbiased). On the forest error study it takes the multiple-scattering part of
-    // the error from 213 % to 152 % of itself at 90 rays (the R3 lattice over all three
-    // coordinates instead: 170 %, and the footprint coverage, hence the first order, worsens).
-    const PHI2: f64 = 1.324_717_957_244_746;
-    const INV_GOLDEN: f64 = 0.618_033_988_749_894_9;
-    let lattice = ctx.stratified.then(|| {
-        (
-            [1.0 / PHI2, 1.0 / (PHI2 * PHI2), INV_GOLDEN],
-            [rng.next_f64(), rng.next_f64(), rng.next_f64()],
-        )
-    });
-    for i in 0..beam.photons {
-        let (u1, u2, u3) = match lattice {
-            Some((a, s)) => (
-                unit_fract(s[0] + i as f64 * a[0]),
-                unit_fract(s[1] + i as f64 * a[1]),
-                Some(unit_fract(s[2] + i as f64 * a[2])),
-            ),
-            None => (rng.next_f64(), rng.next_f64(), None),
-        };
-        let [dx, dy] = beam.footprint.sample_footprint_point(u1, u2);
-        let d = (pl.axis * beam.reference_range_m + e1 * dx + e2 * dy).normalize();
+    // A beam ray's entry into the grid: the wrapped start point, its path from the emitter
+    // (m) and its shift (unwrapped minus wrapped); `None`: it misses the scene.
+    let enter = |d: DVec3| -> Option<(DVec3, f64, DVec3)> {
         // Entry point: the emitter itself inside the grid (terrestrial), else the top plane.
         let (start, s) = if inside(pl.emitter) {
             (pl.emitter, 0.0)
@@ -4266,8 +4548,7 @@ fn run_pulse(st: &mut PulseState, beam: &Beam, pl: &Pulse) -> PulseResult {
             let s = (pl.emitter.z - top) / -d.z;
             (pl.emitter + d * s, s)
         } else {
-            missed += w0;
-            continue;
+            return None;
         };
         let mut q = start;
         let mut shift = DVec3::ZERO;
@@ -4295,9 +4576,49 @@ fn run_pulse(st: &mut PulseState, beam: &Beam, pl: &Pulse) -> PulseResult {
                 shift.z += dz;
             }
         } else if !inside(DVec3::new(q.x, q.y, top.min(q.z))) {
+            return None;
+        }
+        Some((q, s, shift))
+    };
+    // The column quadrature of this pulse's first-order return, when it applies.
+    let columns = first_order
+        .as_deref()
+        .and_then(|fo| fo.pulse(ctx, beam, pl).map(|pc| (fo, pc)));
+    // Stratified: beam rays on the R2 lattice (Roberts 2018: additive recurrence with the
+    // plastic number φ₂, low discrepancy for every count) shifted by one uniform per axis
+    // (Cranley & Patterson 1976), so each ray is uniform on the unit square (unbiased) while
+    // the set covers the footprint evenly. The uniform of each ray's first free path
+    // (τ* = −ln(1 − u₃), [`Ctx::first_flight`]) follows its own shifted golden-ratio sequence
+    // (Weyl), so the first collision depths of a pulse's rays cover [0, ∞) evenly too: each u₃
+    // is uniform (unbiased). On the forest error study it takes the multiple-scattering part of
+    // the error from 213 % to 152 % of itself at 90 rays (the R3 lattice over all three
+    // coordinates instead: 170 %, and the footprint coverage, hence the first order, worsens).
+    const PHI2: f64 = 1.324_717_957_244_746;
+    const INV_GOLDEN: f64 = 0.618_033_988_749_894_9;
+    let lattice = ctx.stratified.then(|| {
+        (
+            [1.0 / PHI2, 1.0 / (PHI2 * PHI2), INV_GOLDEN],
+            [rng.next_f64(), rng.next_f64(), rng.next_f64()],
+        )
+    });
+    for i in 0..beam.photons {
+        let (u1, u2, u3) = match lattice {
+            Some((a, s)) => (
+                unit_fract(s[0] + i as f64 * a[0]),
+                unit_fract(s[1] + i as f64 * a[1]),
+                Some(unit_fract(s[2] + i as f64 * a[2])),
+            ),
+            None => (rng.next_f64(), rng.next_f64(), None),
+        };
+        let [dx, dy] = beam.footprint.sample_footprint_point(u1, u2);
+        let offset = e1 * dx + e2 * dy;
+        let d = (pl.axis * beam.reference_range_m + offset).normalize();
+        let Some((q, s, shift)) = enter(d) else {
             missed += w0;
             continue;
-        }
+        };
+        // With the column quadrature, the beam rays only sample their collisions.
+        let first_order_done = columns.is_some();
         let mut ph = Photon {
             p: q,
             d,
@@ -4317,10 +4638,85 @@ fn run_pulse(st: &mut PulseState, beam: &Beam, pl: &Pulse) -> PulseResult {
             ret: None,
             surface_scored: false,
             first_u: u3,
+            first_order_done,
         };
         // Discrete mode: the pulse keeps its exact direction (its first scattering uses the
         // rows of the sector that contains it); later orders follow the discrete directions.
         trace_photon(ctx, &mut ph, &mut rng, out, g_cur, scratch, tr);
+    }
+    // The first-order return of the rays that stay in one clear column: one column ray each.
+    if let Some((fo, pc)) = &columns {
+        for k in 0..(2 * pc.ni - 1) * (2 * pc.nj - 1) {
+            let (kx, ky) = (k % (2 * pc.ni - 1), k / (2 * pc.ni - 1));
+            let rect = pc.rect(kx, ky);
+            if !(rect[0] < rect[1] && rect[2] < rect[3]) {
+                continue;
+            }
+            let column = kx % 2 == 0 && ky % 2 == 0;
+            let clear = column && pc.clear >> (ky / 2 * pc.ni + kx / 2) & 1 == 1;
+            let (m0, m2) = fo.moments.rect(rect[0], rect[1], rect[2], rect[3]);
+            if !(m0 > 0.0) {
+                continue;
+            }
+            // Rays of this rectangle: (count, weight fraction each); a clear column's is one
+            // column ray at its mean ρ², the others are drawn from the footprint over it.
+            let (count, mass) = if clear {
+                (1, m0)
+            } else if column {
+                // A column with facets or fluids (or outside an isolated grid): as many rays
+                // as the beam rays it holds on average (at least one).
+                let k = ceil_small(m0 * beam.photons as f64).max(1.0);
+                (k as u32, m0 / k)
+            } else if m0 < STRIP_ROULETTE_MASS {
+                // A light strip: Russian roulette.
+                if rng.next_f64() * STRIP_ROULETTE_MASS >= m0 {
+                    continue;
+                }
+                (1, STRIP_ROULETTE_MASS)
+            } else {
+                (1, m0)
+            };
+            for _ in 0..count {
+                let p = if clear {
+                    point_at_squared_distance(rect, m2 / m0)
+                } else {
+                    match sample_in_rect(&beam.footprint, fo.reach, rect, &mut rng) {
+                        Some(p) => p,
+                        None => continue,
+                    }
+                };
+                let d = (pl.axis * beam.reference_range_m + DVec3::new(p.0, p.1, 0.0)).normalize();
+                let Some((q, s, shift)) = enter(d) else {
+                    continue;
+                };
+                let w = beam.energy_j * mass;
+                let mut ph = Photon {
+                    p: q,
+                    d,
+                    path: s,
+                    shift,
+                    di: if inp.params.sampler.is_discrete() {
+                        inp.dirs.find_sector(d)
+                    } else {
+                        0
+                    },
+                    w: Bands::from_elem(w, 1),
+                    w0: w,
+                    off: 0,
+                    order: 0,
+                    skip_facet: None,
+                    direct: true,
+                    ret: None,
+                    surface_scored: false,
+                    first_u: None,
+                    first_order_done: false,
+                };
+                for (tm, g) in g_cur.iter_mut().enumerate() {
+                    *g = ctx.g_of(tm, d.z);
+                }
+                ctx.column_first_order(&mut ph, g_cur, &mut rng, out, scratch, tr);
+            }
+        }
     }
     // Only the bins between the first and last return are kept (memory of long scans); the
     // binner is left as new for the thread's next pulse.

@@ -97,6 +97,10 @@ pub struct RunSettings {
     /// from the scene; every setting has the same expectation,
     /// [`crate::lidar::simulate::FarRoulette`]).
     pub lidar_far_roulette: crate::lidar::simulate::FarRoulette,
+    /// The LiDAR expected-value estimator's column quadrature of the first-order return
+    /// (default on; off: every beam ray scores its own first order, the same expectation,
+    /// [`crate::photon::engine::Beam::first_order_columns`]).
+    pub lidar_first_order_columns: bool,
 }
 
 /// Passive solver.
@@ -140,6 +144,7 @@ impl Default for RunSettings {
             batch_walk: true,
             lidar_chunk_pulses: crate::lidar::simulate::DEFAULT_CHUNK_PULSES,
             lidar_far_roulette: Default::default(),
+            lidar_first_order_columns: true,
         }
     }
 }

@@ -227,6 +227,7 @@ pub fn run_lidars(
             far_roulette: run
                 .as_ref()
                 .map_or(Default::default(), |r| r.lidar_far_roulette),
+            first_order_columns: run.as_ref().is_none_or(|r| r.lidar_first_order_columns),
         };
         match simulate_lidar(l, band, &input, box_lo, box_hi, pr.as_ref(), &chunks) {
             Ok(r) => runs.push(r),
