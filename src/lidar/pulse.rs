@@ -810,13 +810,13 @@ impl FootprintSampler {
 /// Mathematical Functions*, Table 25.4).
 const GL8_X: [f64; 4] = [
     0.183_434_642_495_649_8,
-    0.525_532_409_916_329_0,
+    0.525_532_409_916_329,
     0.796_666_477_413_626_7,
     0.960_289_856_497_536_2,
 ];
 /// Weights of [`GL8_X`] (A&S Table 25.4).
 const GL8_W: [f64; 4] = [
-    0.362_683_783_378_362_0,
+    0.362_683_783_378_362,
     0.313_706_645_877_887_3,
     0.222_381_034_453_374_5,
     0.101_228_536_290_376_3,
@@ -1124,8 +1124,8 @@ impl FootprintMoments {
         self.total_m2
     }
 
-    /// Cell and local coordinates `(cell index, s, u-coordinate base)` for a corner radius
-    /// `r0 < reach`.
+    /// Row of cells (interval k, u-cell iu) and local u-coordinate `s ∈ [0, 1]` of the cell for
+    /// a corner radius `r0 < reach` (m).
     #[inline]
     fn locate(&self, r0: f64) -> (usize, f64) {
         let n = self.tau.len() - 1;
@@ -1801,5 +1801,45 @@ mod tests {
                 );
             }
         }
+    }
+
+    /// Cost probe (ignored): build time per profile, then `MOMENTS_CALLS` (env, default 0)
+    /// `rect` calls on the annular table over random rectangles of a voxel-like size; run under
+    /// `valgrind --tool=callgrind` with 0 and N calls, the instruction difference / N is the
+    /// per-call cost.
+    #[test]
+    #[ignore]
+    fn footprint_moments_cost() {
+        let calls: usize = std::env::var("MOMENTS_CALLS")
+            .ok()
+            .and_then(|v| v.parse().ok())
+            .unwrap_or(0);
+        let which: usize = std::env::var("MOMENTS_PROFILE")
+            .ok()
+            .and_then(|v| v.parse().ok())
+            .unwrap_or(4);
+        let profiles = moment_profiles();
+        for (name, s, _) in &profiles {
+            let t = std::time::Instant::now();
+            let m = s.moments();
+            println!("{name}: build {:.1} ms", t.elapsed().as_secs_f64() * 1e3);
+            std::hint::black_box(&m);
+        }
+        let (_, s, _) = &profiles[which];
+        let m = s.moments();
+        let reach = m.reach_m();
+        let mut state = 0x1234_5678u64;
+        let mut acc = 0.0;
+        for _ in 0..calls {
+            state = state
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            let x0 = ((state >> 11) as f64 / (1u64 << 53) as f64 * 2.4 - 1.2) * reach;
+            let y0 = ((state >> 20) as f64 / (1u64 << 44) as f64 * 2.4 - 1.2) * reach;
+            let (m0, m2) =
+                std::hint::black_box(&m).rect(x0, x0 + 0.2 * reach, y0, y0 + 0.2 * reach);
+            acc += m0 + m2;
+        }
+        println!("acc {acc}");
     }
 }
