@@ -1206,10 +1206,12 @@ impl FootprintMoments {
         (k * (p0 + q0), k * (p2 + q2))
     }
 
-    /// Moments of the corner `{x > a, y > b}` for any a, b (±∞ allowed), from [`Self::half`] and
-    /// [`Self::quadrant`] by the mirror symmetries of the radial density.
+    /// Moments `(m0, m2)` of the corner `{x > a, y > b}` for any a, b (±∞ allowed), from
+    /// [`Self::half`] and [`Self::quadrant`] by the mirror symmetries of the radial density:
+    /// [`Self::rect`] is the signed sum of four (callers with many rectangles on one grid of
+    /// lines share them).
     #[inline]
-    fn corner(&self, a: f64, b: f64) -> (f64, f64) {
+    pub fn corner(&self, a: f64, b: f64) -> (f64, f64) {
         match (a >= 0.0, b >= 0.0) {
             (true, true) => self.quadrant(a, b),
             (false, true) => {
