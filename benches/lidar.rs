@@ -21,7 +21,9 @@
 //! `--error` runs the speed-against-error study instead of the speed rows (see
 //! `error_study`): `--setting EST:PHOTONS[:SCATTERING]` (repeatable; default `legacy:1000`,
 //! `stratified:600` and `expected` at the default photons), `--reps R` realizations per setting (default 4), `--ref-photons N`
-//! (reference photons per pulse, default 1e5), `--ref-cache FILE` (reuse the reference).
+//! (reference photons per pulse, default 1e5), `--ref-cache FILE` (reuse the reference),
+//! `--error-urban` (the study's 8 × 8 pulse centres over the 60 m urban scene instead of the
+//! 40 m forest).
 //!
 //! 1. ALS on the 40 m forest (24 trees, 1 m cells): pulses per second per core at the default
 //!    photons per pulse (`DEFAULT_LIDAR_PHOTONS`, `ExpectedValue` estimator; row `legacy-peak`: 1000 photons of the
@@ -118,6 +120,8 @@ struct Options {
     no_far_roulette: bool,
     /// `--no-columns`: the expected-value estimator's column quadrature of the first order off.
     no_columns: bool,
+    /// `--error-urban`: the error study on the urban scene (60 m) instead of the forest.
+    error_urban: bool,
 }
 
 impl Options {
@@ -139,6 +143,7 @@ impl Options {
                 "--no-stream" => o.no_stream = true,
                 "--no-far-roulette" => o.no_far_roulette = true,
                 "--no-columns" => o.no_columns = true,
+                "--error-urban" => o.error_urban = true,
                 "--out" => {
                     o.out = Some(args.next().expect("--out DIR").into());
                 }
@@ -555,7 +560,15 @@ fn main() {
     }
     println!("peak RSS {:.0} MiB", peak_rss_mib());
     if opt.error {
-        error_study(&f, &mut opt);
+        if opt.error_urban {
+            error_study(
+                &urban::urban(&urban::UrbanParams::default()),
+                60.0,
+                &mut opt,
+            );
+        } else {
+            error_study(&f, 40.0, &mut opt);
+        }
     }
     if !opt.wants("urban") {
         return;
@@ -686,14 +699,14 @@ fn waveform_errors(a: &Waveform, r: &Waveform) -> [f64; 4] {
 /// gives their means over the pulses.
 /// The reference's own noise adds (N_set/N_ref) of each setting's error variance (1 % at
 /// 1000 vs 1e5 photons: +0.5 % on the error).
-fn error_study(f: &SceneDesc, opt: &mut Options) {
+fn error_study(f: &SceneDesc, size_m: f64, opt: &mut Options) {
     let side = 8usize;
     let centres: Vec<(f64, f64)> = (0..side * side)
         .map(|k| {
             let (i, j) = (k % side, k / side);
             (
-                1.0 + 38.0 * i as f64 / (side - 1) as f64,
-                1.0 + 38.0 * j as f64 / (side - 1) as f64,
+                1.0 + (size_m - 2.0) * i as f64 / (side - 1) as f64,
+                1.0 + (size_m - 2.0) * j as f64 / (side - 1) as f64,
             )
         })
         .collect();

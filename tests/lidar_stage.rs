@@ -807,13 +807,16 @@ fn far_photon_roulette_keeps_the_expected_waveform() {
 /// checkerboard of plots, the standard error of the first-order waveform (root sum of squares
 /// over its bins) falls below 0.35 of the beam rays' own (measured 0.04–0.21: what is left is
 /// the sampling of the strips and of the building's columns). Sensitivity: without the strip
-/// samples the corner pulse's first-order energy falls 1.4 % (93 σ) and this test fails.
+/// samples the corner pulse's first-order energy falls 1.4 % (93 σ) and this test fails. A
+/// pulse whose footprint lies on one roof cell keeps its beam rays' own first order: the same
+/// waveforms with the quadrature on and off.
 #[test]
 fn first_order_column_quadrature_keeps_the_expected_waveform() {
     let n_pulses = 160;
     let centres = [(2.5, 2.5), (2.0, 1.3), (3.65, 0.8), (1.1, 1.05)];
-    let waveforms = |centre: (f64, f64), columns: bool| {
-        let l = lidar("col", 30.0, PulsePattern::List(vec![centre; n_pulses]), 48);
+    let waveforms = |centre: (f64, f64), columns: bool, radius: f64| {
+        let mut l = lidar("col", 30.0, PulsePattern::List(vec![centre; n_pulses]), 48);
+        l.footprint_radius_m = Some(radius);
         let mut d = scene(0.0, 0.3, l);
         // A checkerboard of 1 m plots of LAI 0.5 and 3 (so columns differ), the last row
         // ending mid-cell.
@@ -850,9 +853,16 @@ fn first_order_column_quadrature_keeps_the_expected_waveform() {
             .map(|p| p.raw.clone())
             .collect::<Vec<Waveform>>()
     };
+    // A footprint inside one roof cell: a column with facets under most of the footprint
+    // makes the pulse keep its beam rays' own first order (`HEAVY_COLUMN_RAYS`).
+    assert_eq!(
+        waveforms((2.75, 2.75), true, 0.05),
+        waveforms((2.75, 2.75), false, 0.05),
+        "roof pulse"
+    );
     for &centre in &centres {
-        let off = waveforms(centre, false);
-        let on = waveforms(centre, true);
+        let off = waveforms(centre, false, 0.3);
+        let on = waveforms(centre, true, 0.3);
         let ((ma, sa), (mb, sb), n) = pulse_stats(&off, &on);
         let label = format!("centre {centre:?}");
         let (compared, worst) = assert_means_agree(&label, (&ma, &sa), (&mb, &sb), n);

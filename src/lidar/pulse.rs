@@ -1006,6 +1006,27 @@ impl RadialMoments<'_> {
 }
 
 impl FootprintSampler {
+    /// [`Self::moments`] through a process-wide cache of the last
+    /// [`FOOTPRINT_MOMENTS_CACHE`] samplers (equal samplers share one table): a table costs
+    /// 10–40 ms to build, which runs that each simulate one instrument (look-up tables, the
+    /// tests) would otherwise pay again and again.
+    pub fn moments_shared(&self) -> std::sync::Arc<FootprintMoments> {
+        type Cache = Vec<(FootprintSampler, std::sync::Arc<FootprintMoments>)>;
+        static CACHE: std::sync::Mutex<Cache> = std::sync::Mutex::new(Vec::new());
+        let lock = || CACHE.lock().unwrap_or_else(|e| e.into_inner());
+        if let Some((_, m)) = lock().iter().find(|(s, _)| s == self) {
+            return m.clone();
+        }
+        // Built outside the lock (two threads may both build one; either is kept).
+        let m = std::sync::Arc::new(self.moments());
+        let mut c = lock();
+        if c.len() >= FOOTPRINT_MOMENTS_CACHE {
+            c.remove(0);
+        }
+        c.push((self.clone(), m.clone()));
+        m
+    }
+
     /// Precomputes the rectangle moments of this sampler's truncated, renormalised distribution
     /// (see [`FootprintMoments`]); a few ms to a few tens of ms (tables with many nodes take
     /// longer: one set of grids per radial interval between nodes).
@@ -1082,45 +1103,50 @@ impl FootprintSampler {
             (s0 / k0, s2 / k0)
         };
         let nc = MOMENT_CELLS;
-        let mut cells = Vec::with_capacity((tau.len() - 1) * nc * nc);
-        let mut inv_len = Vec::with_capacity(tau.len() - 1);
-        for k in 0..tau.len() - 1 {
-            let (lo, hi) = (tau[k], tau[k + 1]);
-            inv_len.push(1.0 / (hi - lo));
-            // Grid values [moment][i_u][i_w].
-            let mut val = vec![vec![vec![0.0; nc + 1]; nc + 1]; 2];
-            for i in 0..=nc {
-                let u = i as f64 / nc as f64;
-                let r0 = if i == nc { lo } else { hi - (hi - lo) * u * u };
-                for j in 0..=nc {
-                    let (p0, p2) = p_of(r0, j as f64 / nc as f64);
-                    val[0][i][j] = p0;
-                    val[1][i][j] = p2;
-                }
-            }
-            let mut coef = vec![[0.0; 32]; nc * nc];
-            for (mo, v) in val.iter().enumerate() {
-                let dw: Vec<Vec<f64>> = v.iter().map(|row| fd_derivative(row)).collect();
-                let col = |g: &Vec<Vec<f64>>, j: usize| -> Vec<f64> {
-                    fd_derivative(&g.iter().map(|row| row[j]).collect::<Vec<_>>())
-                };
-                let du: Vec<Vec<f64>> = (0..=nc).map(|j| col(v, j)).collect(); // [j][i]
-                let duw: Vec<Vec<f64>> = (0..=nc).map(|j| col(&dw, j)).collect();
-                for iu in 0..nc {
-                    for iw in 0..nc {
-                        let (i0, i1, j0, j1) = (iu, iu + 1, iw, iw + 1);
-                        let a = hermite_cell([
-                            [v[i0][j0], v[i0][j1], dw[i0][j0], dw[i0][j1]],
-                            [v[i1][j0], v[i1][j1], dw[i1][j0], dw[i1][j1]],
-                            [du[j0][i0], du[j1][i0], duw[j0][i0], duw[j1][i0]],
-                            [du[j0][i1], du[j1][i1], duw[j0][i1], duw[j1][i1]],
-                        ]);
-                        coef[iu * nc + iw][16 * mo..16 * mo + 16].copy_from_slice(&a);
+        let inv_len: Vec<f64> = tau.windows(2).map(|t| 1.0 / (t[1] - t[0])).collect();
+        // The intervals' cells in parallel (each interval's values depend on it alone, so the
+        // table is the same on any number of threads).
+        use rayon::prelude::*;
+        let per_interval: Vec<Vec<[f64; 32]>> = (0..tau.len() - 1)
+            .into_par_iter()
+            .map(|k| {
+                let (lo, hi) = (tau[k], tau[k + 1]);
+                // Grid values [moment][i_u][i_w].
+                let mut val = vec![vec![vec![0.0; nc + 1]; nc + 1]; 2];
+                for i in 0..=nc {
+                    let u = i as f64 / nc as f64;
+                    let r0 = if i == nc { lo } else { hi - (hi - lo) * u * u };
+                    for j in 0..=nc {
+                        let (p0, p2) = p_of(r0, j as f64 / nc as f64);
+                        val[0][i][j] = p0;
+                        val[1][i][j] = p2;
                     }
                 }
-            }
-            cells.extend(coef);
-        }
+                let mut coef = vec![[0.0; 32]; nc * nc];
+                for (mo, v) in val.iter().enumerate() {
+                    let dw: Vec<Vec<f64>> = v.iter().map(|row| fd_derivative(row)).collect();
+                    let col = |g: &Vec<Vec<f64>>, j: usize| -> Vec<f64> {
+                        fd_derivative(&g.iter().map(|row| row[j]).collect::<Vec<_>>())
+                    };
+                    let du: Vec<Vec<f64>> = (0..=nc).map(|j| col(v, j)).collect(); // [j][i]
+                    let duw: Vec<Vec<f64>> = (0..=nc).map(|j| col(&dw, j)).collect();
+                    for iu in 0..nc {
+                        for iw in 0..nc {
+                            let (i0, i1, j0, j1) = (iu, iu + 1, iw, iw + 1);
+                            let a = hermite_cell([
+                                [v[i0][j0], v[i0][j1], dw[i0][j0], dw[i0][j1]],
+                                [v[i1][j0], v[i1][j1], dw[i1][j0], dw[i1][j1]],
+                                [du[j0][i0], du[j1][i0], duw[j0][i0], duw[j1][i0]],
+                                [du[j0][i1], du[j1][i1], duw[j0][i1], duw[j1][i1]],
+                            ]);
+                            coef[iu * nc + iw][16 * mo..16 * mo + 16].copy_from_slice(&a);
+                        }
+                    }
+                }
+                coef
+            })
+            .collect();
+        let cells: Vec<[f64; 32]> = per_interval.into_iter().flatten().collect();
         FootprintMoments {
             reach_m: reach,
             total_m2,
@@ -1249,6 +1275,9 @@ impl FootprintMoments {
         (a.0 - b.0 - c.0 + d.0, a.1 - b.1 - c.1 + d.1)
     }
 }
+
+/// Footprint samplers whose moment tables [`FootprintSampler::moments_shared`] keeps.
+pub const FOOTPRINT_MOMENTS_CACHE: usize = 8;
 
 /// Checks a truncation radius: > 0 or +∞.
 fn check_truncation(truncation_radius_m: f64) -> Result<(), LidarError> {

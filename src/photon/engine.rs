@@ -4104,22 +4104,28 @@ const MAX_FIRST_ORDER_COLUMNS: usize = 64;
 /// return of one ray of the column (the walk and scoring of [`Ctx::first_flight`], weight
 /// `E m₀(c)`), taken at an offset whose ρ² is the column's mean ρ² under the profile, so the
 /// path-length and angle terms, linear in ρ² to O(ρ⁴/R⁴), are those of the column's mean.
-/// The beam rays in those rectangles then only sample their collision (their first order is
-/// not scored again, [`Photon::first_order_done`]); the rays outside (near column sides, in
-/// columns with facets or fluids, outside an isolated grid) score their own as before, an
-/// unbiased estimate of the rest. The first-order error of the pulse then comes from those
-/// rays only (DART 5 paper §4 computes the first order by forced peel-off along each ray; this
-/// is that integral over the footprint done by quadrature instead of by sampling).
+/// The rest of the footprint is stratified the same way: each strip of offsets whose rays
+/// cross a column side between the two planes (the rectangles between the columns' ones) gets
+/// one ray drawn from the footprint over it, weight `E m₀` (strips lighter than
+/// [`STRIP_ROULETTE_MASS`] by Russian roulette), and each column with facets or fluids (or
+/// outside an isolated grid) `⌈m₀ N⌉` rays drawn over it (N beam rays), weight `E m₀/⌈m₀ N⌉`:
+/// unbiased, with a variance of `m₀²` times the spread of the return inside the rectangle
+/// (zero where it is uniform, e.g. bare ground or a flat roof). The beam rays then only sample
+/// their collision for multiple scattering (their first order is not scored again,
+/// [`Photon::first_order_done`]). DART 5 paper §4 computes the first order by forced peel-off
+/// along each ray; this is that integral over the footprint done by quadrature and stratified
+/// sampling instead of by the beam rays.
 ///
 /// Used when the estimator is `ExpectedValue`, one band, no fluid, the flat ground (if any)
 /// is Lambertian, no continuous-topography offset, the column sums exist ([`ColumnDepth`]),
 /// every beam ray lies inside the receiver's FOV (relative slack 1e-12 on the cosine), and,
 /// per pulse, the axis is exactly vertical (downward), the emitter above the grid and the
 /// footprint's window at the bottom plane spans at most [`MAX_FIRST_ORDER_COLUMNS`] columns
-/// and the beam rays.
+/// and the beam rays, and no column with facets or fluids holds [`HEAVY_COLUMN_RAYS`] beam
+/// rays on average.
 pub(crate) struct FirstOrderColumns {
     /// The footprint's moments over rectangles.
-    moments: crate::lidar::pulse::FootprintMoments,
+    moments: std::sync::Arc<crate::lidar::pulse::FootprintMoments>,
     /// Radius beyond which the footprint has no energy, m (at the reference range).
     reach: f64,
     /// Most window columns per pulse.
@@ -4139,34 +4145,16 @@ struct PulseColumns {
     by: [f64; 2 * MAX_FIRST_ORDER_COLUMNS],
     /// Bit `j·ni + i`: window column (i, j) is in the grid and holds no facet and no fluid.
     clear: u64,
-    /// Bit `j·ni + i`: window column (i, j) is not clear and holds at least
-    /// [`OWN_FIRST_ORDER_RAYS`] beam rays on average: they score their own first order.
-    own: u64,
 }
 
 impl PulseColumns {
     /// Whether the beam ray of transverse offset `(px, py)` (m, at the reference range) scores
-    /// its own first-order return: it stays from the top plane to the bottom one in a column
-    /// with facets or fluids that holds many beam rays (`own`), or lies outside the window
-    /// (rounding at the footprint's edge). Others are the quadrature's.
+    /// its own first-order return: it lies outside the window's partition (rounding at the
+    /// footprint's edge; no rectangle holds it). Others are the quadrature's.
     #[inline]
     fn scores_own(&self, px: f64, py: f64) -> bool {
-        // Interval k of v: b[k] ≤ v < b[k + 1].
-        let interval = |b: &[f64], v: f64| {
-            if !(v >= b[0]) {
-                return None;
-            }
-            (0..b.len() - 1).find(|&k| v < b[k + 1])
-        };
-        match (
-            interval(&self.bx[..2 * self.ni], px),
-            interval(&self.by[..2 * self.nj], py),
-        ) {
-            (Some(kx), Some(ky)) => {
-                kx % 2 == 0 && ky % 2 == 0 && self.own >> (ky / 2 * self.ni + kx / 2) & 1 == 1
-            }
-            _ => true,
-        }
+        let inside = |b: &[f64], v: f64| v >= b[0] && v < b[b.len() - 1];
+        !(inside(&self.bx[..2 * self.ni], px) && inside(&self.by[..2 * self.nj], py))
     }
 }
 
@@ -4184,7 +4172,7 @@ impl FirstOrderColumns {
         {
             return None;
         }
-        let moments = beam.footprint.moments();
+        let moments = beam.footprint.moments_shared();
         let reach = moments.reach_m();
         let r = beam.reference_range_m;
         if !(reach.is_finite() && reach > 0.0 && r > 0.0 && r.is_finite()) {
@@ -4277,7 +4265,6 @@ impl FirstOrderColumns {
             bx,
             by,
             clear,
-            own: 0,
         })
     }
 }
@@ -4287,15 +4274,18 @@ impl FirstOrderColumns {
 /// always: its variance is at most `STRIP_ROULETTE_MASS` × m × E[F²] per rectangle.
 const STRIP_ROULETTE_MASS: f64 = 1e-4;
 
-/// Beam rays (on average) from which a column with facets or fluids keeps its beam rays' own
-/// first-order returns in [`FirstOrderColumns`]; below, rays drawn over the column replace
-/// them (extra walks, but no fluctuation of the beam rays' count there, about one ray, a
-/// large part of a few). Forest bench at 48 beam rays (384 realizations): every such column
-/// drawn 0.9905 ± 0.0033 % waveform error at 409.7k instructions/pulse, none 1.0175 ±
-/// 0.0035 % at 408.1k, threshold 8 rays 1.0140 %, 24 or 40 rays 0.9905 % (no forest column
-/// holds that many); urban scan (roofs under whole footprints, 100 rays): all drawn 959.7k
-/// instructions/pulse, none 822.0k, threshold 24 864.0k, 40 876.0k.
-const OWN_FIRST_ORDER_RAYS: f64 = 24.0;
+/// Beam rays (on average) from which a column with facets or fluids under a pulse's footprint
+/// makes the pulse keep its beam rays' own first-order returns instead of
+/// [`FirstOrderColumns`] (whose rays drawn over such a column are extra walks: a roof under
+/// most of the footprint costs about as many walks again, and the beam rays' own returns are
+/// already exact on a flat roof). Letting such columns keep their own beam rays inside the
+/// quadrature instead is no option: the number of beam rays there fluctuates by about one
+/// while the rest of the footprint is integrated exactly, which on the urban scan's flat roofs
+/// raised the first-order energy's standard error a thousandfold. Forest bench at 48 beam
+/// rays (384 realizations): every such column drawn 0.9905 ± 0.0033 % waveform error at
+/// 409.7k instructions/pulse, none drawn (beam rays' own inside the quadrature) 1.0175 ±
+/// 0.0035 % at 408.1k; no forest column holds half the beam rays.
+const HEAVY_COLUMN_RAYS: f64 = 24.0;
 
 /// A transverse offset drawn from the footprint's density restricted to the rectangle
 /// `[x0, x1, y0, y1]` ∩ the footprint's disk of radius `reach` (m), by rejection from the
@@ -4611,8 +4601,8 @@ fn run_pulse(st: &mut PulseState, beam: &Beam, pl: &Pulse) -> PulseResult {
         .as_deref()
         .and_then(|fo| fo.pulse(ctx, beam, pl).map(|pc| (fo, pc)));
     // The footprint's moments over the corners {x > bx, y > by} of the window's interval ends
-    // (each shared by up to four rectangles), and the columns with facets or fluids whose
-    // rays score their own first order (those that hold many beam rays).
+    // (each shared by up to four rectangles); a pulse with a heavy column of facets or fluids
+    // keeps its beam rays' own first order ([`HEAVY_COLUMN_RAYS`]).
     let mut corner = [(0.0, 0.0); 4 * MAX_FIRST_ORDER_COLUMNS];
     if let Some((fo, pc)) = columns.as_mut() {
         let nx = 2 * pc.ni;
@@ -4621,15 +4611,14 @@ fn run_pulse(st: &mut PulseState, beam: &Beam, pl: &Pulse) -> PulseResult {
                 corner[ky * nx + kx] = fo.moments.corner(pc.bx[kx], pc.by[ky]);
             }
         }
-        for k in 0..pc.ni * pc.nj {
-            if pc.clear >> k & 1 == 0 {
-                let (kx, ky) = (2 * (k % pc.ni), 2 * (k / pc.ni));
-                let q = |i: usize, j: usize| corner[(ky + j) * nx + kx + i].0;
-                let m0 = q(0, 0) - q(1, 0) - q(0, 1) + q(1, 1);
-                if m0 * beam.photons as f64 >= OWN_FIRST_ORDER_RAYS {
-                    pc.own |= 1 << k;
-                }
-            }
+        let heavy = (0..pc.ni * pc.nj).any(|k| {
+            let (kx, ky) = (2 * (k % pc.ni), 2 * (k / pc.ni));
+            let q = |i: usize, j: usize| corner[(ky + j) * nx + kx + i].0;
+            let m0 = q(0, 0) - q(1, 0) - q(0, 1) + q(1, 1);
+            pc.clear >> k & 1 == 0 && m0 * beam.photons as f64 >= HEAVY_COLUMN_RAYS
+        });
+        if heavy {
+            columns = None;
         }
     }
     // Stratified: beam rays on the R2 lattice (Roberts 2018: additive recurrence with the
@@ -4665,8 +4654,7 @@ fn run_pulse(st: &mut PulseState, beam: &Beam, pl: &Pulse) -> PulseResult {
             missed += w0;
             continue;
         };
-        // With the column quadrature, the beam rays only sample their collisions (but those
-        // that stay in a column with facets or fluids).
+        // With the column quadrature, the beam rays only sample their collisions.
         let first_order_done = columns
             .as_ref()
             .is_some_and(|(_, pc)| !pc.scores_own(offset.x, offset.y));
@@ -4713,13 +4701,9 @@ fn run_pulse(st: &mut PulseState, beam: &Beam, pl: &Pulse) -> PulseResult {
             // column ray at its mean ρ², the others are drawn from the footprint over it.
             let (count, mass) = if clear {
                 (1, m0)
-            } else if column && pc.own >> (ky / 2 * pc.ni + kx / 2) & 1 == 1 {
-                // A column with facets or fluids holding many beam rays: theirs.
-                continue;
             } else if column {
-                // A column with facets or fluids (or outside an isolated grid) holding few
-                // beam rays: as many rays as it holds on average (at least one), drawn over it
-                // (the beam rays' count there fluctuates by about one, a large part of few).
+                // A column with facets or fluids (or outside an isolated grid): as many rays
+                // as the beam rays it holds on average (at least one), drawn over it.
                 let k = ceil_small(m0 * beam.photons as f64).max(1.0);
                 (k as u32, m0 / k)
             } else if m0 < STRIP_ROULETTE_MASS {
