@@ -801,11 +801,12 @@ fn far_photon_roulette_keeps_the_expected_waveform() {
 /// ending mid-cell and a facet building (columns the quadrature samples instead of
 /// integrating), a checkerboard of 1 m turbid plots of LAI 0.5 and 3 (the last row ending
 /// mid-cell), four footprint centres — on a grid corner by the building (rays along cell
-/// edges), on a cell side, by the plots' edge, by a plot corner — 160 pulses each with the
+/// edges), on a cell side, by the plots' edge, by a plot corner — with the Gaussian beam, and
+/// a uniform and an annular tabulated beam at two of them, 160 pulses each with the
 /// quadrature on and off: E1, E_ms and every bin above 5 % of the peak agree within 4.5
 /// combined standard errors (`assert_means_agree`). The quadrature must have acted: over the
 /// checkerboard of plots, the standard error of the first-order waveform (root sum of squares
-/// over its bins) falls below 0.35 of the beam rays' own (measured 0.04–0.21: what is left is
+/// over its bins) falls below 0.35 of the beam rays' own (measured 0.001–0.21: what is left is
 /// the sampling of the strips and of the building's columns). Sensitivity: without the strip
 /// samples the corner pulse's first-order energy falls 1.4 % (93 σ) and this test fails. A
 /// pulse whose footprint lies on one roof cell keeps its beam rays' own first order: the same
@@ -813,10 +814,22 @@ fn far_photon_roulette_keeps_the_expected_waveform() {
 #[test]
 fn first_order_column_quadrature_keeps_the_expected_waveform() {
     let n_pulses = 160;
-    let centres = [(2.5, 2.5), (2.0, 1.3), (3.65, 0.8), (1.1, 1.05)];
-    let waveforms = |centre: (f64, f64), columns: bool, radius: f64| {
+    use lumenscape::lidar::pulse::BeamProfile;
+    let annular = BeamProfile::Tabulated {
+        points: vec![(0.3, 0.0), (0.6, 1.0), (1.1, 0.4)],
+    };
+    let cases = [
+        ((2.5, 2.5), None),
+        ((2.0, 1.3), None),
+        ((3.65, 0.8), None),
+        ((1.1, 1.05), None),
+        ((2.5, 2.5), Some(BeamProfile::Uniform)),
+        ((1.1, 1.05), Some(annular)),
+    ];
+    let waveforms = |centre: (f64, f64), columns: bool, radius: f64, beam: Option<BeamProfile>| {
         let mut l = lidar("col", 30.0, PulsePattern::List(vec![centre; n_pulses]), 48);
         l.footprint_radius_m = Some(radius);
+        l.beam = beam;
         let mut d = scene(0.0, 0.3, l);
         // A checkerboard of 1 m plots of LAI 0.5 and 3 (so columns differ), the last row
         // ending mid-cell.
@@ -856,15 +869,18 @@ fn first_order_column_quadrature_keeps_the_expected_waveform() {
     // A footprint inside one roof cell: a column with facets under most of the footprint
     // makes the pulse keep its beam rays' own first order (`HEAVY_COLUMN_RAYS`).
     assert_eq!(
-        waveforms((2.75, 2.75), true, 0.05),
-        waveforms((2.75, 2.75), false, 0.05),
+        waveforms((2.75, 2.75), true, 0.05, None),
+        waveforms((2.75, 2.75), false, 0.05, None),
         "roof pulse"
     );
-    for &centre in &centres {
-        let off = waveforms(centre, false, 0.3);
-        let on = waveforms(centre, true, 0.3);
+    for (centre, beam) in cases {
+        let off = waveforms(centre, false, 0.3, beam.clone());
+        let on = waveforms(centre, true, 0.3, beam.clone());
         let ((ma, sa), (mb, sb), n) = pulse_stats(&off, &on);
-        let label = format!("centre {centre:?}");
+        let label = format!(
+            "centre {centre:?}, {} beam",
+            beam.as_ref().map_or("Gaussian", |b| b.name())
+        );
         let (compared, worst) = assert_means_agree(&label, (&ma, &sa), (&mb, &sb), n);
         eprintln!(
             "{label}: {compared} quantities, worst {worst:.1} σ; E1 {:+.3} % (SE {:.3} % with, {:.3} % without); E_ms {:+.2} %",
