@@ -930,7 +930,7 @@ pub struct LidarDesc {
     /// quadrature, ~1.0 % — at ~1/17, 1/10 and 0.58 of their instructions; README, LiDAR
     /// speed). Tuned on that forest (flat ground). Pulses the quadrature does not apply to
     /// (oblique or terrestrial beams, footprints over more columns than beam rays) score
-    /// the first order per beam ray: ~1.2 % there at 48, 72 rays for ~1.0 %; scenes whose
+    /// the first order per beam ray: 1.29 % there at 48, ~1.0 % at 72; scenes whose
     /// returns differ in kind (e.g. BRDF surfaces, which keep the collision estimator) may
     /// need another count for that error.
     #[serde(default = "default_lidar_photons")]
