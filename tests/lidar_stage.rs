@@ -76,6 +76,18 @@ fn scene(lai: f64, soil: f64, l: LidarDesc) -> SceneDesc {
     d
 }
 
+/// The raw waveforms of the first instrument of `desc` run with `settings`.
+fn raw_waveforms(desc: &SceneDesc, settings: RunSettings) -> Vec<Waveform> {
+    let mut sim = Simulation::from_desc(desc, &SceneSource::generated(), settings)
+        .unwrap_or_else(|e| panic!("{e}"));
+    sim.run(None).unwrap_or_else(|e| panic!("{e}"));
+    sim.resource::<LidarProducts>().0[0]
+        .pulses
+        .iter()
+        .map(|p| p.raw.clone())
+        .collect()
+}
+
 fn run(desc: &SceneDesc, out: Option<&std::path::Path>) -> Vec<LidarRun> {
     let mut sim = Simulation::from_desc(desc, &SceneSource::generated(), RunSettings::default())
         .unwrap_or_else(|e| panic!("{e}"));
@@ -753,18 +765,13 @@ fn far_photon_roulette_keeps_the_expected_waveform() {
         );
         l.fov_radius_m = Some(0.3);
         let d = scene(4.0, 0.3, l);
-        let settings = RunSettings {
-            lidar_far_roulette: far_roulette,
-            ..Default::default()
-        };
-        let mut sim = Simulation::from_desc(&d, &SceneSource::generated(), settings)
-            .unwrap_or_else(|e| panic!("{e}"));
-        sim.run(None).unwrap_or_else(|e| panic!("{e}"));
-        sim.resource::<LidarProducts>().0[0]
-            .pulses
-            .iter()
-            .map(|p| p.raw.clone())
-            .collect::<Vec<Waveform>>()
+        raw_waveforms(
+            &d,
+            RunSettings {
+                lidar_far_roulette: far_roulette,
+                ..Default::default()
+            },
+        )
     };
     let off = waveforms(FarRoulette::Off);
     for setting in [FarRoulette::Auto, FarRoulette::ScaleM(0.25)] {
@@ -853,18 +860,13 @@ fn first_order_column_quadrature_keeps_the_expected_waveform() {
             wall_optics: "soil".into(),
             roof_optics: "soil".into(),
         }));
-        let settings = RunSettings {
-            lidar_first_order_columns: columns,
-            ..Default::default()
-        };
-        let mut sim = Simulation::from_desc(&d, &SceneSource::generated(), settings)
-            .unwrap_or_else(|e| panic!("{e}"));
-        sim.run(None).unwrap_or_else(|e| panic!("{e}"));
-        sim.resource::<LidarProducts>().0[0]
-            .pulses
-            .iter()
-            .map(|p| p.raw.clone())
-            .collect::<Vec<Waveform>>()
+        raw_waveforms(
+            &d,
+            RunSettings {
+                lidar_first_order_columns: columns,
+                ..Default::default()
+            },
+        )
     };
     // A footprint inside one roof cell: a column with facets under most of the footprint
     // makes the pulse keep its beam rays' own first order (`HEAVY_COLUMN_RAYS`).

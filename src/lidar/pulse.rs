@@ -826,22 +826,6 @@ impl FootprintSampler {
     }
 }
 
-/// 8-point Gauss–Legendre nodes (positive half) on [−1, 1] (Abramowitz & Stegun, *Handbook of
-/// Mathematical Functions*, Table 25.4).
-const GL8_X: [f64; 4] = [
-    0.183_434_642_495_649_8,
-    0.525_532_409_916_329,
-    0.796_666_477_413_626_7,
-    0.960_289_856_497_536_2,
-];
-/// Weights of [`GL8_X`] (A&S Table 25.4).
-const GL8_W: [f64; 4] = [
-    0.362_683_783_378_362,
-    0.313_706_645_877_887_3,
-    0.222_381_034_453_374_5,
-    0.101_228_536_290_376_3,
-];
-
 /// Cells per radial interval along `u` and along `w` in the [`FootprintMoments`] tables.
 const MOMENT_CELLS: usize = 40;
 /// Radial intervals of the [`FootprintMoments`] tables are at most `reach/MOMENT_SPLIT` long.
@@ -1032,6 +1016,8 @@ impl FootprintSampler {
     /// longer: one set of grids per radial interval between nodes).
     pub fn moments(&self) -> FootprintMoments {
         let rm = RadialMoments::new(self);
+        // 8-point Gauss–Legendre rule on [−1, 1].
+        let (gl_x, gl_w) = crate::physics::lad::gauss_legendre(8);
         // Outer edge of the support and the radii where the density or its slope jumps.
         let mut natural: Vec<f64> = Vec::new();
         let support = match &self.shape {
@@ -1090,13 +1076,12 @@ impl FootprintSampler {
                 let h = (c[1] - c[0]) / pieces as f64;
                 for p in 0..pieces {
                     let mid = c[0] + (p as f64 + 0.5) * h;
-                    for (x, wt) in GL8_X.iter().zip(GL8_W) {
-                        for v in [mid - 0.5 * h * x, mid + 0.5 * h * x] {
-                            let (f, g) = rm.eval((a * v.cosh()).min(reach));
-                            let ww = 0.5 * h * wt / v.cosh();
-                            s0 += ww * (k0 - f);
-                            s2 += ww * (k2 - g);
-                        }
+                    for (x, wt) in gl_x.iter().zip(&gl_w) {
+                        let v = mid + 0.5 * h * x;
+                        let (f, g) = rm.eval((a * v.cosh()).min(reach));
+                        let ww = 0.5 * h * wt / v.cosh();
+                        s0 += ww * (k0 - f);
+                        s2 += ww * (k2 - g);
                     }
                 }
             }
@@ -1305,6 +1290,17 @@ pub(crate) fn clamp_unit(u: f64) -> f64 {
 mod tests {
     use super::*;
 
+    /// Uniforms in [0, 1) from a xorshift64 generator (Marsaglia 2003) seeded with `state`
+    /// (not 0): the tests' own deterministic stream.
+    fn xorshift(mut state: u64) -> impl FnMut() -> f64 {
+        move || {
+            state ^= state << 13;
+            state ^= state >> 7;
+            state ^= state << 17;
+            (state >> 11) as f64 / (1u64 << 53) as f64
+        }
+    }
+
     #[test]
     fn pulse_widths() {
         let p = PulseShape::from_fwhm_ns(4.0, 3.0).unwrap();
@@ -1422,13 +1418,7 @@ mod tests {
         let h_of = |w: [f64; 3], t: f64| {
             w[0] * t * (3.0 + t * (t - 3.0)) + w[1] * t * t * (3.0 - 2.0 * t) + w[2] * t * t * t
         };
-        let mut state = 0x1234_5678_9abc_def0u64;
-        let mut next = || {
-            state ^= state << 13;
-            state ^= state >> 7;
-            state ^= state << 17;
-            (state >> 11) as f64 / (1u64 << 53) as f64
-        };
+        let mut next = xorshift(0x1234_5678_9abc_def0u64);
         let fixed = [
             [1.0, 0.0, 0.0],
             [0.0, 1.0, 0.0],
@@ -1544,14 +1534,14 @@ mod tests {
     /// Adaptive Gauss–Legendre (8 points, bisection until two halves agree with the whole to
     /// `tol`) of a vector integrand; independent of the library's polar quadrature.
     fn adaptive(f: &dyn Fn(f64) -> [f64; 2], a: f64, b: f64, tol: f64, depth: u32) -> [f64; 2] {
+        let (gl_x, gl_w) = crate::physics::lad::gauss_legendre(8);
         let gl = |a: f64, b: f64| {
             let (m, h) = (0.5 * (a + b), 0.5 * (b - a));
             let mut s = [0.0; 2];
-            for (x, w) in GL8_X.iter().zip(GL8_W) {
-                for y in [f(m - h * x), f(m + h * x)] {
-                    s[0] += w * h * y[0];
-                    s[1] += w * h * y[1];
-                }
+            for (x, w) in gl_x.iter().zip(&gl_w) {
+                let y = f(m + h * x);
+                s[0] += w * h * y[0];
+                s[1] += w * h * y[1];
             }
             s
         };
@@ -1683,13 +1673,7 @@ mod tests {
     /// |Δm2| ≤ 1e-7·reach² (the stated accuracy of `rect`; the reference is good to ~1e-11).
     #[test]
     fn footprint_moments_against_brute_force() {
-        let mut state = 0x9e37_79b9_7f4a_7c15u64;
-        let mut next = || {
-            state ^= state << 13;
-            state ^= state >> 7;
-            state ^= state << 17;
-            (state >> 11) as f64 / (1u64 << 53) as f64
-        };
+        let mut next = xorshift(0x9e37_79b9_7f4a_7c15u64);
         let inf = f64::INFINITY;
         for (name, s, jumps) in moment_profiles() {
             let m = s.moments();

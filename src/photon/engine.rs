@@ -4596,6 +4596,30 @@ fn run_pulse(st: &mut PulseState, beam: &Beam, pl: &Pulse) -> PulseResult {
         }
         Some((q, s, shift))
     };
+    // A photon of weight `w` (J) leaving the emitter along `d`, at its entry into the grid.
+    let launch = |d: DVec3, w: f64| {
+        enter(d).map(|(q, s, shift)| Photon {
+            p: q,
+            d,
+            path: s,
+            shift,
+            di: if inp.params.sampler.is_discrete() {
+                inp.dirs.find_sector(d)
+            } else {
+                0
+            },
+            w: Bands::from_elem(w, 1),
+            w0: w,
+            off: 0,
+            order: 0,
+            skip_facet: None,
+            direct: true,
+            ret: None,
+            surface_scored: false,
+            first_u: None,
+            first_order_done: false,
+        })
+    };
     // The column quadrature of this pulse's first-order return, when it applies.
     let mut columns = first_order
         .as_deref()
@@ -4650,35 +4674,15 @@ fn run_pulse(st: &mut PulseState, beam: &Beam, pl: &Pulse) -> PulseResult {
         let [dx, dy] = beam.footprint.sample_footprint_point(u1, u2);
         let offset = e1 * dx + e2 * dy;
         let d = (pl.axis * beam.reference_range_m + offset).normalize();
-        let Some((q, s, shift)) = enter(d) else {
+        let Some(mut ph) = launch(d, w0) else {
             missed += w0;
             continue;
         };
+        ph.first_u = u3;
         // With the column quadrature, the beam rays only sample their collisions.
-        let first_order_done = columns
+        ph.first_order_done = columns
             .as_ref()
             .is_some_and(|(_, pc)| !pc.scores_own(offset.x, offset.y));
-        let mut ph = Photon {
-            p: q,
-            d,
-            path: s,
-            shift,
-            di: if inp.params.sampler.is_discrete() {
-                inp.dirs.find_sector(d)
-            } else {
-                0
-            },
-            w: Bands::from_elem(w0, 1),
-            w0,
-            off: 0,
-            order: 0,
-            skip_facet: None,
-            direct: true,
-            ret: None,
-            surface_scored: false,
-            first_u: u3,
-            first_order_done,
-        };
         // Discrete mode: the pulse keeps its exact direction (its first scattering uses the
         // rows of the sector that contains it); later orders follow the discrete directions.
         trace_photon(ctx, &mut ph, &mut rng, out, g_cur, scratch, tr);
@@ -4725,30 +4729,8 @@ fn run_pulse(st: &mut PulseState, beam: &Beam, pl: &Pulse) -> PulseResult {
                     }
                 };
                 let d = (pl.axis * beam.reference_range_m + DVec3::new(p.0, p.1, 0.0)).normalize();
-                let Some((q, s, shift)) = enter(d) else {
+                let Some(mut ph) = launch(d, beam.energy_j * mass) else {
                     continue;
-                };
-                let w = beam.energy_j * mass;
-                let mut ph = Photon {
-                    p: q,
-                    d,
-                    path: s,
-                    shift,
-                    di: if inp.params.sampler.is_discrete() {
-                        inp.dirs.find_sector(d)
-                    } else {
-                        0
-                    },
-                    w: Bands::from_elem(w, 1),
-                    w0: w,
-                    off: 0,
-                    order: 0,
-                    skip_facet: None,
-                    direct: true,
-                    ret: None,
-                    surface_scored: false,
-                    first_u: None,
-                    first_order_done: false,
                 };
                 for (tm, g) in g_cur.iter_mut().enumerate() {
                     *g = ctx.g_of(tm, d.z);
