@@ -1576,32 +1576,6 @@ impl Ctx<'_> {
         }
     }
 
-    /// The first-order return of a column ray of [`FirstOrderColumns`] (weight `ph.w`, from
-    /// the emitter): [`Ctx::first_flight`]'s walk and scoring with no collision (τ* = ∞), so
-    /// the whole flight is walked to the ground, the top or the optical depth 30 and nothing
-    /// goes on into multiple scattering. `g_cur` must hold G(ph.d) per turbid material.
-    fn column_first_order(
-        &self,
-        ph: &mut Photon,
-        g_cur: &[f64],
-        rng: &mut Xoshiro256PlusPlus,
-        out: &mut BatchOut,
-        scratch: &mut [f64],
-        tr: &mut [f64],
-    ) {
-        let Some(rx) = self.receiver else {
-            return;
-        };
-        let mut score = self.first_order_score(rx, ph, g_cur);
-        let mut io = FlightIo {
-            rng,
-            out,
-            scratch,
-            tr,
-        };
-        self.walk_flight(ph, g_cur, f64::INFINITY, &mut io, &mut score);
-    }
-
     /// A LiDAR flight past the first scattering (receiver mode, `ph.order ≥ 1`, one band, no
     /// fluid; `ms_stop = c ≥ 1`): the collision is sampled as [`Ctx::fly`] does (same free path
     /// τ*, cells, facet and exit rules, so the same hit distribution: [`Ctx::walk_flight`])
@@ -1836,7 +1810,7 @@ impl Ctx<'_> {
         }
         match end {
             Some(hit) => (hit, ret),
-            // A walk with no collision to sample (τ* = ∞, [`Ctx::column_first_order`]).
+            // A walk with no collision to sample (τ* = ∞: a column ray of `FirstOrderColumns`).
             None if tau_star == f64::INFINITY => (Hit::Lost, None),
             // Stopped before the free path ran out (the first flight's forced walk at τ > 30,
             // probability e^{−30}): the flight goes on from its start with the same free path.
@@ -4735,7 +4709,11 @@ fn run_pulse(st: &mut PulseState, beam: &Beam, pl: &Pulse) -> PulseResult {
                 for (tm, g) in g_cur.iter_mut().enumerate() {
                     *g = ctx.g_of(tm, d.z);
                 }
-                ctx.column_first_order(&mut ph, g_cur, &mut rng, out, scratch, tr);
+                // The first flight's walk and scoring with no collision (u = 1: τ* = ∞): walked
+                // to the ground, the top or the optical depth 30; nothing goes on into
+                // multiple scattering.
+                ph.first_u = Some(1.0);
+                ctx.first_flight(&mut ph, g_cur, &mut rng, out, scratch, tr);
             }
         }
     }
