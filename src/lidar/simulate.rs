@@ -368,6 +368,12 @@ pub fn simulate_lidar(
     let fov_r = desc.fov_radius_m.unwrap_or(reach * radius);
     let fov_half = (fov_r / ref_range).atan();
     // Range gate from the grid box (two-way), plus the margin for multiple scattering.
+    // Airborne: from the top plane to the bottom one over the beam's cone (half-angle α of the
+    // truncated footprint at the reference range): the footprint's edge rays reach the bottom
+    // plane later than the axis by the factor cos θ/cos(θ + α) (θ the axis zenith; 1 + α²/2 at
+    // nadir), which a wide beam at long range makes larger than the margin (footprint 900 m at
+    // 30 km: 13.5 m).
+    let alpha = (reach * radius / ref_range).atan();
     let mut d_min = f64::INFINITY;
     let mut d_max: f64 = 0.0;
     for pl in plan.iter() {
@@ -381,10 +387,17 @@ pub fn simulate_lidar(
         let inside = (0..3).all(|a| pl.emitter[a] >= box_lo[a] && pl.emitter[a] <= box_hi[a]);
         match &desc.platform {
             LidarPlatform::Airborne { .. } if !inside => {
-                // Along the axis to the top plane and to the bottom plane.
-                let dz = -pl.axis.z;
-                d_min = d_min.min((pl.emitter.z - box_hi.z) / dz);
-                d_max = d_max.max((pl.emitter.z - box_lo.z) / dz);
+                // To the top plane and to the bottom plane, over the cone (along the axis
+                // where the cone's edge nears the horizontal).
+                let theta = (-pl.axis.z).clamp(-1.0, 1.0).acos();
+                let near = (theta - alpha).max(0.0).cos();
+                let far = if theta + alpha < 1.5 {
+                    (theta + alpha).cos()
+                } else {
+                    -pl.axis.z
+                };
+                d_min = d_min.min((pl.emitter.z - box_hi.z) / near);
+                d_max = d_max.max((pl.emitter.z - box_lo.z) / far);
             }
             _ => {
                 d_min = 0.0;
