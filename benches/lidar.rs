@@ -7,7 +7,8 @@
 //! beam rays and rays continued into multiple scattering of the forest rows, e.g. under
 //! callgrind; the estimator also of the urban scan); `--no-skip` (empty-space skipping off:
 //! every cell visited, for comparisons); `--no-far-roulette` (the expected-value estimator's
-//! far-photon roulette off); `--no-columns` (its column quadrature of the first order off);
+//! far-photon roulette off; `--far-roulette-m M`: its scale ρ₀ = M metres instead of the
+//! scene's); `--no-columns` (its column quadrature of the first order off);
 //! `--digest` (print an FNV-1a hash of every product of each row — raw and convolved
 //! waveforms, gate losses, returns — to prove bit-identity across code changes); `--dump FILE`
 //! (write those products as text, one pulse per line, rows one after another);
@@ -120,6 +121,8 @@ struct Options {
     no_far_roulette: bool,
     /// `--no-columns`: the expected-value estimator's column quadrature of the first order off.
     no_columns: bool,
+    /// `--far-roulette-m M`: the far-photon roulette's distance scale ρ₀ instead of the scene's.
+    far_roulette_m: Option<f64>,
     /// `--error-urban`: the error study on the urban scene (60 m) instead of the forest.
     error_urban: bool,
 }
@@ -142,6 +145,13 @@ impl Options {
                 "--no-skip" => o.no_skip = true,
                 "--no-stream" => o.no_stream = true,
                 "--no-far-roulette" => o.no_far_roulette = true,
+                "--far-roulette-m" => {
+                    o.far_roulette_m = Some(
+                        args.next()
+                            .and_then(|v| v.parse().ok())
+                            .expect("--far-roulette-m METRES"),
+                    )
+                }
                 "--no-columns" => o.no_columns = true,
                 "--error-urban" => o.error_urban = true,
                 "--out" => {
@@ -293,10 +303,10 @@ fn simulate_seeded(
             },
             skip_empty: !opt.no_skip,
             lidar_first_order_columns: !opt.no_columns,
-            lidar_far_roulette: if opt.no_far_roulette {
-                lumenscape::lidar::simulate::FarRoulette::Off
-            } else {
-                lumenscape::lidar::simulate::FarRoulette::Auto
+            lidar_far_roulette: match (opt.no_far_roulette, opt.far_roulette_m) {
+                (true, _) => lumenscape::lidar::simulate::FarRoulette::Off,
+                (false, Some(m)) => lumenscape::lidar::simulate::FarRoulette::ScaleM(m),
+                (false, None) => lumenscape::lidar::simulate::FarRoulette::Auto,
             },
             lidar_chunk_pulses: if opt.no_stream {
                 usize::MAX
