@@ -914,11 +914,14 @@ fn first_order_column_quadrature_keeps_the_expected_waveform() {
 /// thresholds would show), at a grid vertex and a generic centre. Sensitivity: with the gate
 /// taken along the beam axis only (before session 16), the ground returns of the footprint's
 /// edge at s = 1e3 (900 m footprint at 30 km: 13.5 m of path longer than the axis, more than
-/// the margin) fell past the gate: −1.1e-4, 9.9 σ.
+/// the margin) fell past the gate: −1.1e-4, 9.9 σ. At s = 1e3 the quadrature's waveform also
+/// agrees with the beam rays' in every bin above 5 % of the peak (4.5 combined SE): one column
+/// ray per column would put each column's return, spread over many bins there, into one bin
+/// (881 σ), so such columns are sampled (`COLUMN_TIMING_TOLERANCE`).
 #[test]
 fn first_order_column_quadrature_is_scale_free() {
     let n = 512;
-    let mean_e1 = |s: f64, centre: (f64, f64)| {
+    let waveforms = |s: f64, centre: (f64, f64), columns: bool| {
         let mut l = lidar(
             "scale",
             30.0 * s,
@@ -945,13 +948,22 @@ fn first_order_column_quadrature_is_scale_free() {
                 }));
             }
         }
-        let w = raw_waveforms(&d, RunSettings::default());
+        let w = raw_waveforms(
+            &d,
+            RunSettings {
+                lidar_first_order_columns: columns,
+                ..Default::default()
+            },
+        );
         assert!(
             w.iter()
                 .all(|x| x.total.iter().chain(&x.first_order).all(|v| v.is_finite())),
             "scale {s}: non-finite waveform"
         );
-        let e1: Vec<f64> = w
+        w
+    };
+    let mean_e1 = |s: f64, centre: (f64, f64)| {
+        let e1: Vec<f64> = waveforms(s, centre, true)
             .iter()
             .map(|x| s * s * x.first_order.iter().sum::<f64>())
             .collect();
@@ -959,6 +971,15 @@ fn first_order_column_quadrature_is_scale_free() {
         let var = e1.iter().map(|x| (x - m).powi(2)).sum::<f64>() / (n - 1) as f64;
         (m, (var / n as f64).sqrt())
     };
+    // At s = 1e3 the footprint (900 m at 30 km) spreads a column's arrival times over many
+    // bins: the quadrature samples such columns, so its waveform agrees with the beam rays'
+    // bin by bin (one column ray per column put each column's return in one bin: 881 σ).
+    let on = waveforms(1e3, (2.5, 2.5), true);
+    let off = waveforms(1e3, (2.5, 2.5), false);
+    let ((ma, sa), (mb, sb), nb) = pulse_stats(&off, &on);
+    let (compared, worst) = assert_means_agree("scale 1e3", (&ma, &sa), (&mb, &sb), nb);
+    eprintln!("scale 1e3, quadrature on vs off: {compared} quantities, worst {worst:.1} σ");
+    assert!(compared >= 10, "{compared} quantities compared");
     for centre in [(2.5, 2.5), (1.1, 1.05)] {
         let (m1, se1) = mean_e1(1.0, centre);
         assert!(m1 > 0.0);

@@ -467,7 +467,7 @@ pub fn simulate_lidar(
     notes.push("turbid cells: first-order returns go back through the gaps the pulse came through when the material has leaf_size_m > 0 (Kuusk correlation: one-way transmittance for a monostatic receiver); leaf_size_m 0 = independent gaps (two-way); facets are exactly correlated".into());
     if desc.estimator == crate::scene::desc::LidarEstimator::ExpectedValue {
         notes.push(if chunks.first_order_columns {
-            "first order: column quadrature for nadir pulses whose footprint spans at most as many grid columns as beam rays (the footprint's exact mass over each column times one column ray; strips between columns and columns with facets sampled), per beam ray otherwise".into()
+            "first order: column quadrature for exactly vertical pulses from above the grid whose footprint spans at most 64 grid columns and as many as beam rays, with no column of facets under half the beam rays (the footprint's exact mass over each column times one column ray; strips between columns, columns with facets and columns whose rays' arrival times spread over 1 % of a bin sampled), per beam ray otherwise".into()
         } else {
             "first order: per beam ray (column quadrature off)".into()
         });
