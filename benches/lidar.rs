@@ -85,6 +85,14 @@ fn lidar(pulses: PulsePattern, photons: u32) -> LidarDesc {
     }
 }
 
+/// The next argument parsed as a `T`; panics with `what` (the option's usage) if it is missing
+/// or does not parse (a bench's command line).
+fn parsed<T: std::str::FromStr>(args: &mut impl Iterator<Item = String>, what: &str) -> T {
+    args.next()
+        .and_then(|v| v.parse().ok())
+        .unwrap_or_else(|| panic!("{what}"))
+}
+
 /// Command-line options (see the module doc).
 #[derive(Default)]
 struct Options {
@@ -146,49 +154,22 @@ impl Options {
                 "--no-stream" => o.no_stream = true,
                 "--no-far-roulette" => o.no_far_roulette = true,
                 "--far-roulette-m" => {
-                    o.far_roulette_m = Some(
-                        args.next()
-                            .and_then(|v| v.parse().ok())
-                            .expect("--far-roulette-m METRES"),
-                    )
+                    o.far_roulette_m = Some(parsed(&mut args, "--far-roulette-m METRES"))
                 }
                 "--no-columns" => o.no_columns = true,
                 "--error-urban" => o.error_urban = true,
                 "--out" => {
                     o.out = Some(args.next().expect("--out DIR").into());
                 }
-                "--pulses" => {
-                    o.pulses = Some(
-                        args.next()
-                            .and_then(|v| v.parse().ok())
-                            .expect("--pulses N (a positive integer)"),
-                    )
-                }
+                "--pulses" => o.pulses = Some(parsed(&mut args, "--pulses N (a positive integer)")),
                 "--row" => o.rows.push(args.next().expect("--row NAME")),
                 "--estimator" => {
                     o.estimator = Some(parse_estimator(&args.next().expect("--estimator NAME")))
                 }
-                "--photons" => {
-                    o.photons = Some(
-                        args.next()
-                            .and_then(|v| v.parse().ok())
-                            .expect("--photons N"),
-                    )
-                }
-                "--scattering" => {
-                    o.scattering = Some(
-                        args.next()
-                            .and_then(|v| v.parse().ok())
-                            .expect("--scattering N"),
-                    )
-                }
+                "--photons" => o.photons = Some(parsed(&mut args, "--photons N")),
+                "--scattering" => o.scattering = Some(parsed(&mut args, "--scattering N")),
                 "--error" => o.error = true,
-                "--ref-photons" => {
-                    o.ref_photons = args
-                        .next()
-                        .and_then(|v| v.parse().ok())
-                        .expect("--ref-photons N")
-                }
+                "--ref-photons" => o.ref_photons = parsed(&mut args, "--ref-photons N"),
                 "--reps" => o.reps = args.next().and_then(|v| v.parse().ok()).expect("--reps R"),
                 "--ref-cache" => o.ref_cache = Some(args.next().expect("--ref-cache FILE")),
                 "--setting" => {
