@@ -174,16 +174,20 @@ impl Ctx<'_> {
                     }
                 }
             }
-            return pulp::Simd::vectorize(
+            let walk = Walk::<W> {
+                ctx: self,
                 simd,
-                Walk::<W> {
-                    ctx: self,
-                    simd,
-                    queue,
-                    view: &mut view,
-                    out,
-                },
-            );
+                queue,
+                view: &mut view,
+                out,
+            };
+            // The same AVX2 operations compiled with AVX-512 available where the CPU has it
+            // (32 vector registers instead of 16, EVEX compares into mask registers): the same
+            // IEEE operations on the same values, so the same bits.
+            if let Some(v4) = pulp::x86::V4::try_new() {
+                return pulp::Simd::vectorize(v4, walk);
+            }
+            return pulp::Simd::vectorize(simd, walk);
         }
         // No AVX2: the rays one by one, in queue order.
         let (foot, scale) = (out.foot, out.ray_scale);
