@@ -1,7 +1,7 @@
 //! Micro-kernel prototype of the flux-tracking pass (issue #4, session 11): the batched walk's
 //! per-crossing work on a periodic 5 × 5 × 10 turbid layer (0.2 m cells, k = 0.75 m⁻¹, 2
 //! channels, 10 slots, random start points and directions; 20.6 crossings per ray like the
-//! Default 100 0.2 bench row), in four forms:
+//! Default 100 0.2 bench row), in these forms:
 //! - `64`: f64 × 4 lanes shaped like `walk_batch_body` (absolute distances, world frame, table
 //!   `exp` and half-barycentres by scalar row loads, points weighted in f64, booking per lane);
 //! - `32`: f32 × 8 lanes in a cell-local frame (each lane's entry point in the current cell's
@@ -11,6 +11,11 @@
 //!   promoted to f64 and the transmitted one as 1 − it in f64 (closure by construction), powers
 //!   and bookings in f64;
 //! - `32p`: as `32` with the weighted points formed in f32 and promoted at the add;
+//! - `64z`: `64` on f64 × 8 lanes in AVX-512 zmm registers (`walk64z`: `__mmask8` compares,
+//!   mask blends and masked adds, one 8 × 8 transpose for the table rows and one for the
+//!   booking rows), per lane the same operations as `64`, so the same crossings and totals
+//!   (only the summation order of the bookings differs); `64zv`: the 7 point sums of a booked
+//!   lane by one masked zmm read-modify-write from the transposed register;
 //! - `g` suffix: the table reads by AVX2 gathers (`_mm256_i64gather_pd` / `_mm256_i32gather_ps`);
 //!   `nb`: without the booking (points, transposes, scatter adds); `nh`: without the
 //!   half-barycentres.
@@ -19,7 +24,8 @@
 //! /proc/thread-self/schedstat, so that a loaded host still compares forms); instructions:
 //! `valgrind --tool=callgrind ./target/release/kernel_f32x8_proto 32 100000`.
 //!
-//! Measured 2026-11-26 on the 2-core EPYC (Zen 3, AVX2 + FMA), 1e6 rays (20.57 M crossings),
+//! Measured 2026-11-26 on the 2-core EPYC (Zen 4, family 25 model 17 — not Zen 3 as first
+//! written; these forms use AVX2 + FMA only), 1e6 rays (20.57 M crossings),
 //! CPU-time rates over 3 alternated runs, and callgrind instructions per crossing (1e5 rays):
 //!
 //! | form | Mcross/s (CPU) | instructions / crossing |
@@ -38,6 +44,30 @@
 //! crossed cell's records, the weighted points and their transposes) is ~65–70 instructions and
 //! ~13 cycles per crossing in either width — without it the f32 × 8 pass runs at ~107 M/s, with
 //! it at ~66 M/s. Both forms visit the same cells on these rays but 2 of 20.6 M crossings.
+//!
+//! f64 × 8 (AVX-512), measured 2026-11-27 on the same Zen 4 (AVX-512 F/DQ/BW/VL), 1e6 rays,
+//! CPU-time rates over 4 alternated runs per form (load average 0.8–1.5: the other core partly
+//! busy; this clock counts CPU time in ~4 ms steps, ±1–2 % on these runs). Both builds are the
+//! crate's release profile; "native" adds `-C target-cpu=native` (znver4). The same day `32`
+//! ran at 81.6–85.7 and `32nb` at 135–139 (default build), so all rates are above the
+//! 2026-11-26 table's; compare forms within one table only. valgrind 3.19 cannot decode
+//! AVX-512, so no instruction counts:
+//!
+//! | form | Mcross/s (CPU), default | Mcross/s (CPU), native |
+//! |---|---|---|
+//! | 64 | 58.4–60.5 | 60.5–61.2 |
+//! | 64z (f64 × 8, zmm) | 67.7–69.5 | 79.1–80.4 |
+//! | 64zv (zmm row add) | 75.6–77.9 | 74.5–79.1 |
+//! | 64nb (no booking) | 70.4–72.4 | 73.5–74.5 |
+//! | 64z-nb (no booking) | 116.9–119.6 | 116.9–119.6 |
+//!
+//! Reading: `64z` gives the same 20 566 520 crossings and the same intercepted / lost totals
+//! to all printed digits as `64` (out differs by 2e-16 relative). Without the booking (which
+//! here also drops the half-barycentres, dead without the points) 8 lanes are 1.6× the 4 lanes;
+//! with it 1.15–1.3× (default / native build; 1.3× with the masked row add): the per-lane
+//! booking (flag, 2 gains, 7 point sums into the crossed cell's records) is the same scalar
+//! work per crossing in either width and now bounds the pass: 4–6 of 12.5–14.5 ns per crossing
+//! (64z − 64z-nb). `64z*` need AVX-512 (no run-time check).
 //! Not product code: `unsafe` intrinsics, simplified events (no empty-space skip, no sky/ground
 //! events, no wrap limit).
 #![allow(unsafe_op_in_unsafe_fn, clippy::all)]
@@ -561,6 +591,399 @@ unsafe fn walk64<const GATHER: bool, const MODE: u8>(tb: &Tables, q: &[Ray], acc
     acc.crossings += n_cross;
 }
 
+// ---------------------------------------------------------------- f64x8 (AVX-512, zmm)
+/// `L64` with 8 lanes, 64-byte aligned so that each lane row is one zmm load.
+#[derive(Default)]
+#[repr(C, align(64))]
+struct L64z {
+    cell: [[f64; 8]; 3],
+    step: [[f64; 8]; 3],
+    tmax: [[f64; 8]; 3],
+    t: [f64; 8],
+    org: [[f64; 8]; 3],
+    dir: [[f64; 8]; 3],
+    inv: [[f64; 8]; 3],
+    bb: [[f64; 8]; 3],
+    lin: [i64; 8],
+    dlin: [[i64; 8]; 3],
+    pw: [[f64; 8]; W],
+    psum: [f64; 8],
+    minr: [f64; 8],
+    slot: [usize; 8],
+    act: u32,
+    next: usize,
+}
+
+impl L64z {
+    /// Same per-lane set-up as `L64::refill`.
+    #[inline(always)]
+    fn refill(&mut self, l: usize, q: &[Ray]) {
+        let Some(r) = q.get(self.next) else {
+            self.act &= !(1 << l);
+            self.lin[l] = 0;
+            return;
+        };
+        self.next += 1;
+        let mut lin = 0i64;
+        for a in 0..3 {
+            let rel = r.p[a] / SIZE;
+            let idx = rel.floor().clamp(0.0, NN[a] as f64 - 1.0);
+            let up = r.d[a] > 0.0;
+            let inv = 1.0 / r.d[a];
+            let step = if up { 1.0 } else { -1.0 };
+            let bb = if up { SIZE } else { 0.0 };
+            self.cell[a][l] = idx;
+            self.step[a][l] = step;
+            self.org[a][l] = r.p[a];
+            self.dir[a][l] = r.d[a];
+            self.inv[a][l] = inv;
+            self.bb[a][l] = bb;
+            self.tmax[a][l] = ((bb + idx * SIZE) - r.p[a]) * inv;
+            self.dlin[a][l] = step as i64 * STRIDE[a];
+            lin += idx as i64 * STRIDE[a];
+        }
+        self.t[l] = 0.0;
+        self.lin[l] = lin;
+        self.act |= 1 << l;
+        self.pw[0][l] = r.pw[0];
+        self.pw[1][l] = r.pw[1];
+        self.psum[l] = r.pw[0] + r.pw[1];
+        self.minr[l] = r.min_ray;
+        self.slot[l] = r.slot;
+    }
+}
+
+/// 8 × 8 f64 transpose: out[i][l] = r[l][i] (8 unpacks + 16 128-bit lane shuffles).
+#[inline(always)]
+unsafe fn transpose8z(r: [__m512d; 8]) -> [__m512d; 8] {
+    let t0 = _mm512_unpacklo_pd(r[0], r[1]);
+    let t1 = _mm512_unpackhi_pd(r[0], r[1]);
+    let t2 = _mm512_unpacklo_pd(r[2], r[3]);
+    let t3 = _mm512_unpackhi_pd(r[2], r[3]);
+    let t4 = _mm512_unpacklo_pd(r[4], r[5]);
+    let t5 = _mm512_unpackhi_pd(r[4], r[5]);
+    let t6 = _mm512_unpacklo_pd(r[6], r[7]);
+    let t7 = _mm512_unpackhi_pd(r[6], r[7]);
+    // u0: r0[0] r1[0] r0[4] r1[4] r2[0] r3[0] r2[4] r3[4], …
+    let u0 = _mm512_shuffle_f64x2::<0x88>(t0, t2);
+    let u1 = _mm512_shuffle_f64x2::<0xDD>(t0, t2);
+    let u2 = _mm512_shuffle_f64x2::<0x88>(t1, t3);
+    let u3 = _mm512_shuffle_f64x2::<0xDD>(t1, t3);
+    let u4 = _mm512_shuffle_f64x2::<0x88>(t4, t6);
+    let u5 = _mm512_shuffle_f64x2::<0xDD>(t4, t6);
+    let u6 = _mm512_shuffle_f64x2::<0x88>(t5, t7);
+    let u7 = _mm512_shuffle_f64x2::<0xDD>(t5, t7);
+    [
+        _mm512_shuffle_f64x2::<0x88>(u0, u4),
+        _mm512_shuffle_f64x2::<0x88>(u2, u6),
+        _mm512_shuffle_f64x2::<0x88>(u1, u5),
+        _mm512_shuffle_f64x2::<0x88>(u3, u7),
+        _mm512_shuffle_f64x2::<0xDD>(u0, u4),
+        _mm512_shuffle_f64x2::<0xDD>(u2, u6),
+        _mm512_shuffle_f64x2::<0xDD>(u1, u5),
+        _mm512_shuffle_f64x2::<0xDD>(u3, u7),
+    ]
+}
+
+/// `atten64` on 8 lanes: the same operations (no FMA contraction), mask blends.
+#[inline(always)]
+unsafe fn atten64z(tb: &Tables, x: __m512d) -> (__m512d, __m512d) {
+    let sp = |v: f64| _mm512_set1_pd(v);
+    let mut f = _mm512_sub_pd(sp(1.0 / 720.0), _mm512_mul_pd(x, sp(1.0 / 5040.0)));
+    for c in [1.0 / 120.0, 1.0 / 24.0, 1.0 / 6.0, 0.5, 1.0] {
+        f = _mm512_sub_pd(sp(c), _mm512_mul_pd(x, f));
+    }
+    f = _mm512_mul_pd(x, f);
+    let xe = _mm512_maskz_mov_pd(_mm512_cmp_pd_mask::<_CMP_LT_OQ>(x, sp(708.0)), x);
+    let y = _mm512_xor_pd(xe, sp(-0.0));
+    const SHIFT: f64 = 6755399441055744.0;
+    let z = _mm512_mul_pd(y, sp(184.6649652337873));
+    let shifted = _mm512_add_pd(z, sp(SHIFT));
+    let kf = _mm512_sub_pd(shifted, sp(SHIFT));
+    let k = _mm512_sub_epi64(
+        _mm512_castpd_si512(shifted),
+        _mm512_set1_epi64(SHIFT.to_bits() as i64),
+    );
+    let r = _mm512_sub_pd(
+        _mm512_sub_pd(y, _mm512_mul_pd(kf, sp(0.005415208637714386))),
+        _mm512_mul_pd(kf, sp(3.710410186743494e-09)),
+    );
+    let mut p = _mm512_add_pd(sp(1.0 / 24.0), _mm512_mul_pd(r, sp(1.0 / 120.0)));
+    p = _mm512_add_pd(sp(1.0 / 6.0), _mm512_mul_pd(r, p));
+    p = _mm512_add_pd(sp(0.5), _mm512_mul_pd(r, p));
+    p = _mm512_add_pd(r, _mm512_mul_pd(_mm512_mul_pd(r, r), p));
+    let mut ka = [0i64; 8];
+    _mm512_storeu_si512(ka.as_mut_ptr() as *mut __m512i, k);
+    let t = _mm512_setr_pd(
+        tb.exp2[(ka[0] & 127) as usize],
+        tb.exp2[(ka[1] & 127) as usize],
+        tb.exp2[(ka[2] & 127) as usize],
+        tb.exp2[(ka[3] & 127) as usize],
+        tb.exp2[(ka[4] & 127) as usize],
+        tb.exp2[(ka[5] & 127) as usize],
+        tb.exp2[(ka[6] & 127) as usize],
+        tb.exp2[(ka[7] & 127) as usize],
+    );
+    let biased = _mm512_add_epi64(k, _mm512_set1_epi64(1023 << 7));
+    let scale = _mm512_castsi512_pd(_mm512_slli_epi64::<52>(_mm512_srli_epi64::<7>(biased)));
+    let e = _mm512_mul_pd(_mm512_add_pd(t, _mm512_mul_pd(t, p)), scale);
+    let small = _mm512_cmp_pd_mask::<_CMP_LT_OQ>(x, sp(1.0 / 32.0));
+    let frac = _mm512_mask_blend_pd(small, _mm512_sub_pd(sp(1.0), e), f);
+    let tr = _mm512_mask_blend_pd(small, e, _mm512_sub_pd(sp(1.0), f));
+    (frac, tr)
+}
+
+/// `hb64` on 8 lanes: 8 row loads and one 8 × 8 transpose.
+#[inline(always)]
+unsafe fn hb64z(tb: &Tables, x: __m512d, ell: __m512d) -> (__m512d, __m512d) {
+    let sp = |v: f64| _mm512_set1_pd(v);
+    let first = (1.0f64 / 16384.0).to_bits() >> 47;
+    let bits = _mm512_castpd_si512(x);
+    let bin = _mm512_and_si512(
+        _mm512_sub_epi64(
+            _mm512_srli_epi64::<47>(bits),
+            _mm512_set1_epi64(first as i64),
+        ),
+        _mm512_set1_epi64(1023),
+    );
+    let start = _mm512_castsi512_pd(_mm512_and_si512(
+        bits,
+        _mm512_set1_epi64(!((1i64 << 47) - 1)),
+    ));
+    let t = _mm512_sub_pd(x, start);
+    let mut ba = [0u64; 8];
+    _mm512_storeu_si512(ba.as_mut_ptr() as *mut __m512i, bin);
+    let rows: [__m512d; 8] =
+        std::array::from_fn(|l| _mm512_loadu_pd(tb.hb64[ba[l] as usize].as_ptr()));
+    let [c0a, c0b, c1a, c1b, c2a, c2b, c3a, c3b] = transpose8z(rows);
+    let h = |c0, c1, c2, c3| {
+        let p = _mm512_add_pd(c2, _mm512_mul_pd(t, c3));
+        let p = _mm512_add_pd(c1, _mm512_mul_pd(t, p));
+        _mm512_mul_pd(ell, _mm512_add_pd(c0, _mm512_mul_pd(t, p)))
+    };
+    let a = h(c0a, c1a, c2a, c3a);
+    let b = h(c0b, c1b, c2b, c3b);
+    let l2 = std::f64::consts::LN_2;
+    let u = _mm512_div_pd(ell, x);
+    let big = _mm512_cmp_pd_mask::<_CMP_GE_OQ>(x, sp(64.0));
+    let a = _mm512_mask_blend_pd(big, a, _mm512_mul_pd(sp(1.0 - l2), u));
+    let b = _mm512_mask_blend_pd(big, b, _mm512_mul_pd(sp(1.0 + l2), u));
+    let small = _mm512_cmp_pd_mask::<_CMP_LT_OQ>(x, sp(1.0 / 16384.0));
+    let x12 = _mm512_div_pd(x, sp(12.0));
+    let sa = _mm512_mul_pd(ell, _mm512_sub_pd(sp(0.25), x12));
+    let sb = _mm512_mul_pd(ell, _mm512_sub_pd(sp(0.75), x12));
+    (
+        _mm512_mask_blend_pd(small, a, sa),
+        _mm512_mask_blend_pd(small, b, sb),
+    )
+}
+
+/// `walk64::<false, MODE>` on 8 lanes of f64 in zmm registers: `__mmask8` compares, mask
+/// blends / masked adds for the `and`/`blendv` selections, one 8 × 8 transpose for the
+/// booking rows (7 values + a zero per lane). Per lane the same operations as `walk64`, so
+/// the same cells and crossings; only the lanes' interleaving (hence the summation order of
+/// the bookings and of `out`/`lost`) differs. MODE: 0 full, 1 no booking, 2 each booked
+/// lane's 7 point sums by one masked zmm read-modify-write from the transposed register.
+#[target_feature(enable = "avx512f,avx512dq,avx512vl,avx2,fma")]
+#[inline(never)]
+unsafe fn walk64z<const MODE: u8>(tb: &Tables, q: &[Ray], acc: &mut Acc) {
+    let mut ln = L64z::default();
+    for l in 0..8 {
+        ln.refill(l, q);
+    }
+    let sp = |v: f64| _mm512_set1_pd(v);
+    let zero = sp(0.0);
+    let mut n_cross = 0u64;
+    let (tur, pts, flag, touched) = (&mut acc.tur, &mut acc.pts, &mut acc.flag, &mut acc.touched);
+    let ld = |p: &[f64; 8]| _mm512_loadu_pd(p.as_ptr());
+    let ldi = |p: &[i64; 8]| _mm512_loadu_si512(p.as_ptr() as *const __m512i);
+    while ln.act != 0 {
+        let mut dens = [0.0; 8];
+        let mut idx = [0u32; 8];
+        for l in 0..8 {
+            let lin = ln.lin[l] as usize;
+            dens[l] = if lin < NX * NY * NZ { DENS } else { 0.0 };
+            idx[l] = lin as u32;
+        }
+        let dens = _mm512_loadu_pd(dens.as_ptr());
+        let occ = _mm512_cmp_pd_mask::<_CMP_GT_OQ>(dens, zero);
+        let k = _mm512_mul_pd(sp(G), dens);
+        let act = ln.act as __mmask8;
+        let t0 = ld(&ln.t);
+        let t1 = _mm512_min_pd(
+            ld(&ln.tmax[2]),
+            _mm512_min_pd(ld(&ln.tmax[1]), ld(&ln.tmax[0])),
+        );
+        let ell = _mm512_sub_pd(t1, t0);
+        let hit_m = act
+            & occ
+            & _mm512_cmp_pd_mask::<_CMP_GT_OQ>(t1, t0)
+            & _mm512_cmp_pd_mask::<_CMP_GT_OQ>(k, zero);
+        let hit = hit_m as u32;
+        let x = _mm512_maskz_mov_pd(hit_m, _mm512_mul_pd(k, ell));
+        let (frac, tr) = atten64z(tb, x);
+        let (s1, s2) = hb64z(tb, x, ell);
+        let psum = ld(&ln.psum);
+        let wt = _mm512_mul_pd(psum, frac);
+        let point = |a: usize, s: __m512d| {
+            let o = ld(&ln.org[a]);
+            let d = ld(&ln.dir[a]);
+            _mm512_mul_pd(_mm512_add_pd(o, _mm512_mul_pd(d, _mm512_add_pd(t0, s))), wt)
+        };
+        let mut gain = [[0.0; 8]; W];
+        for c in 0..W {
+            let pwc = ld(&ln.pw[c]);
+            _mm512_storeu_pd(gain[c].as_mut_ptr(), _mm512_mul_pd(pwc, frac));
+            _mm512_storeu_pd(
+                ln.pw[c].as_mut_ptr(),
+                _mm512_mask_mul_pd(pwc, hit_m, pwc, tr),
+            );
+        }
+        if MODE & 1 == 0 {
+            let rv = transpose8z([
+                point(0, s1),
+                point(1, s1),
+                point(2, s1),
+                point(0, s2),
+                point(1, s2),
+                point(2, s2),
+                wt,
+                zero,
+            ]);
+            let mut rows = [[0.0; 8]; 8];
+            if MODE & 2 == 0 {
+                for l in 0..8 {
+                    _mm512_storeu_pd(rows[l].as_mut_ptr(), rv[l]);
+                }
+            }
+            for l in 0..8 {
+                if hit & (1 << l) == 0 {
+                    continue;
+                }
+                let e = idx[l] as usize;
+                if !flag[e] {
+                    flag[e] = true;
+                    touched.push(e as u32);
+                }
+                let s = (e * NS + ln.slot[l]) * W;
+                let r: &mut [f64; W] = (&mut tur[s..s + W]).try_into().unwrap();
+                for c in 0..W {
+                    r[c] += gain[c][l];
+                }
+                let qq: &mut [f64; 7] = (&mut pts[e * 8..e * 8 + 7]).try_into().unwrap();
+                if MODE & 2 != 0 {
+                    // The lane's row straight from the transpose: one masked 7-wide
+                    // read-modify-write (same sums as the scalar adds).
+                    let pq = qq.as_mut_ptr();
+                    let v = _mm512_add_pd(_mm512_maskz_loadu_pd(0x7F, pq), rv[l]);
+                    _mm512_mask_storeu_pd(pq, 0x7F, v);
+                } else {
+                    for i in 0..7 {
+                        qq[i] += rows[l][i];
+                    }
+                }
+            }
+        }
+        let psum = _mm512_add_pd(ld(&ln.pw[0]), ld(&ln.pw[1]));
+        _mm512_storeu_pd(ln.psum.as_mut_ptr(), psum);
+        let dead = hit & _mm512_cmp_pd_mask::<_CMP_LT_OQ>(psum, ld(&ln.minr)) as u32;
+        let go = ln.act & !dead;
+        let gom = go as __mmask8;
+        // step_at
+        let mut outside: __mmask8 = 0;
+        for a in 0..3 {
+            let tmax = ld(&ln.tmax[a]);
+            let m = gom & _mm512_cmp_pd_mask::<_CMP_LE_OQ>(tmax, t1);
+            let c0 = ld(&ln.cell[a]);
+            let c = _mm512_mask_add_pd(c0, m, c0, ld(&ln.step[a]));
+            _mm512_storeu_pd(ln.cell[a].as_mut_ptr(), c);
+            let lin0 = ldi(&ln.lin);
+            let lin = _mm512_mask_add_epi64(lin0, m, lin0, ldi(&ln.dlin[a]));
+            _mm512_storeu_si512(ln.lin.as_mut_ptr() as *mut __m512i, lin);
+            let inside = _mm512_cmp_pd_mask::<_CMP_GE_OQ>(c, zero)
+                & _mm512_cmp_pd_mask::<_CMP_LT_OQ>(c, sp(NN[a] as f64));
+            outside |= m & !inside;
+            let bt = _mm512_mul_pd(
+                _mm512_sub_pd(
+                    _mm512_add_pd(ld(&ln.bb[a]), _mm512_mul_pd(c, sp(SIZE))),
+                    ld(&ln.org[a]),
+                ),
+                ld(&ln.inv[a]),
+            );
+            _mm512_storeu_pd(ln.tmax[a].as_mut_ptr(), _mm512_mask_blend_pd(m, tmax, bt));
+        }
+        _mm512_storeu_pd(ln.t.as_mut_ptr(), _mm512_mask_blend_pd(gom, t0, t1));
+        n_cross += ln.act.count_ones() as u64;
+        let mut out_b = go & outside as u32;
+        if out_b != 0 {
+            let cz = ld(&ln.cell[2]);
+            let zout = (_mm512_cmp_pd_mask::<_CMP_LT_OQ>(cz, zero)
+                | _mm512_cmp_pd_mask::<_CMP_GE_OQ>(cz, sp(NZ as f64)))
+                as u32;
+            let side = out_b & !zout;
+            if side != 0 {
+                // wrap_sides_x4 on 8 lanes
+                let sm = side as __mmask8;
+                let t = ld(&ln.t);
+                for a in 0..2 {
+                    let c = ld(&ln.cell[a]);
+                    let n = sp(NN[a] as f64);
+                    let below = sm & _mm512_cmp_pd_mask::<_CMP_LT_OQ>(c, zero);
+                    let above = sm & _mm512_cmp_pd_mask::<_CMP_GE_OQ>(c, n);
+                    let w = below | above;
+                    let back = _mm512_mask_blend_pd(
+                        below,
+                        _mm512_maskz_mov_pd(above, sp(-(NN[a] as f64))),
+                        n,
+                    );
+                    let c = _mm512_add_pd(c, back);
+                    _mm512_storeu_pd(ln.cell[a].as_mut_ptr(), c);
+                    let nl = NN[a] as i64 * STRIDE[a];
+                    let dl = _mm512_mask_mov_epi64(
+                        _mm512_maskz_mov_epi64(above, _mm512_set1_epi64(-nl)),
+                        below,
+                        _mm512_set1_epi64(nl),
+                    );
+                    let lin = _mm512_add_epi64(ldi(&ln.lin), dl);
+                    _mm512_storeu_si512(ln.lin.as_mut_ptr() as *mut __m512i, lin);
+                    let period = NN[a] as f64 * SIZE;
+                    let o0 = ld(&ln.org[a]);
+                    let o1 =
+                        _mm512_add_pd(o0, _mm512_mask_blend_pd(below, sp(-period), sp(period)));
+                    let o = _mm512_mask_blend_pd(w, o0, o1);
+                    _mm512_storeu_pd(ln.org[a].as_mut_ptr(), o);
+                    let bt = _mm512_mul_pd(
+                        _mm512_sub_pd(_mm512_add_pd(ld(&ln.bb[a]), _mm512_mul_pd(c, sp(SIZE))), o),
+                        ld(&ln.inv[a]),
+                    );
+                    _mm512_storeu_pd(
+                        ln.tmax[a].as_mut_ptr(),
+                        _mm512_mask_blend_pd(w, ld(&ln.tmax[a]), _mm512_max_pd(bt, t)),
+                    );
+                }
+                out_b &= !side;
+            }
+        }
+        let ev = dead | out_b;
+        if ev == 0 {
+            continue;
+        }
+        for l in 0..8 {
+            if ev & (1 << l) == 0 {
+                continue;
+            }
+            let p = ln.pw[0][l] + ln.pw[1][l];
+            if dead & (1 << l) != 0 {
+                acc.lost += p;
+            } else {
+                acc.out += p;
+            }
+            ln.refill(l, q);
+        }
+    }
+    acc.crossings += n_cross;
+}
+
 // ---------------------------------------------------------------- f32x8, cell-local frame
 /// Per lane: the ray's entry point in the current cell's frame (m, in [0, size] per axis) and
 /// the distance to each axis' next boundary from there; rebased at every crossing, so f32
@@ -1042,6 +1465,9 @@ fn main() {
             "64nh" => walk64::<false, 2>(&tb, &q, &mut acc),
             "64nbh" => walk64::<false, 3>(&tb, &q, &mut acc),
             "64nf" => walk64::<false, 4>(&tb, &q, &mut acc),
+            "64z" => walk64z::<0>(&tb, &q, &mut acc),
+            "64z-nb" => walk64z::<1>(&tb, &q, &mut acc),
+            "64zv" => walk64z::<2>(&tb, &q, &mut acc),
             "32nf" => walk32::<false, 4>(&tb, &q, &mut acc),
             "32p" => walk32::<false, 8>(&tb, &q, &mut acc),
             "32nb" => walk32::<false, 1>(&tb, &q, &mut acc),
