@@ -20,8 +20,8 @@
 //! same waveforms).
 //!
 //! `--error` runs the speed-against-error study instead of the speed rows (see
-//! `error_study`): `--setting EST:PHOTONS[:SCATTERING]` (repeatable; default `legacy:1000`,
-//! `stratified:600` and `expected` at the default photons), `--reps R` realizations per setting (default 4), `--ref-photons N`
+//! `error_study`): `--setting EST:PHOTONS[:SCATTERING]` (repeatable; PHOTONS `auto`: the per-pulse default
+//! of `photons_per_pulse`; default `legacy:1000`, `stratified:600` and `expected:auto`), `--reps R` realizations per setting (default 4), `--ref-photons N`
 //! (reference photons per pulse, default 1e5), `--ref-cache FILE` (reuse the reference),
 //! `--error-urban` (the study's 8 × 8 pulse centres over the 60 m urban scene instead of the
 //! 40 m forest).
@@ -54,7 +54,7 @@ use lumenscape::simulation::Simulation;
 mod common;
 use common::peak_rss_mib;
 
-fn lidar(pulses: PulsePattern, photons: u32) -> LidarDesc {
+fn lidar(pulses: PulsePattern, photons: Option<u32>) -> LidarDesc {
     LidarDesc {
         name: "bench".into(),
         band: "nir".into(),
@@ -116,8 +116,9 @@ struct Options {
     ref_photons: u32,
     /// `--ref-cache FILE`: read the reference from FILE if it exists, else write it there.
     ref_cache: Option<String>,
-    /// `--setting EST:PHOTONS[:SCATTERING]` (repeatable): the error study's settings.
-    settings: Vec<(LidarEstimator, u32, Option<u32>)>,
+    /// `--setting EST:PHOTONS[:SCATTERING]` (repeatable): the error study's settings
+    /// (PHOTONS `auto`, `None` here: the per-pulse default of `photons_per_pulse`).
+    settings: Vec<(LidarEstimator, Option<u32>, Option<u32>)>,
     /// `--reps R`: independent realizations of each setting in the error study (default 4).
     reps: usize,
     /// `--out DIR`: the urban scan writes its products into DIR (streaming its waveforms, as
@@ -178,11 +179,11 @@ impl Options {
                     let n = |i: usize| -> Option<u32> {
                         f.get(i).map(|x| x.parse().expect("--setting: a count"))
                     };
-                    o.settings.push((
-                        parse_estimator(f[0]),
-                        n(1).expect("--setting EST:PHOTONS"),
-                        n(2),
-                    ));
+                    let photons = match f.get(1) {
+                        Some(&"auto") => None,
+                        _ => Some(n(1).expect("--setting EST:PHOTONS")),
+                    };
+                    o.settings.push((parse_estimator(f[0]), photons, n(2)));
                 }
                 "--dump" => {
                     let f = args.next().expect("--dump FILE");
@@ -521,20 +522,21 @@ fn main() {
                 line_spacing_m: 38.0 / side as f64,
                 pulse_spacing_m: 38.0 / (side - 1) as f64,
             },
-            opt.photons.unwrap_or(DEFAULT_LIDAR_PHOTONS),
+            opt.photons,
         );
         l.sampler = sampler;
         l.returns = method;
         if name == "legacy-peak" {
             // The estimator and photon count before 2026-11-26.
             l.estimator = LidarEstimator::Legacy;
-            l.photons_per_pulse = 1000;
+            l.photons_per_pulse = Some(1000);
         }
         if let Some(e) = opt.estimator {
             l.estimator = e;
         }
         l.scattering_photons_per_pulse = opt.scattering.or(l.scattering_photons_per_pulse);
-        let photons = l.photons_per_pulse as f64;
+        // Nominal (with the default count, pulses without the column quadrature have 72).
+        let photons = l.photons_per_pulse.unwrap_or(DEFAULT_LIDAR_PHOTONS) as f64;
         let o = run(f.clone(), l, name, &mut opt);
         println!(
             "{:>16} {:>10} {:>22} {:>7} {:>8.2} {:>13.0} {:>15.2e} {:>13.4e} {:>9.2}",
@@ -578,7 +580,7 @@ fn main() {
             line_spacing_m: 59.9 / m as f64,
             pulse_spacing_m: 59.9 / (m - 1) as f64,
         },
-        100,
+        Some(100),
     );
     l.returns = ReturnsMethod::PeakDetection;
     if let Some(e) = opt.estimator {
@@ -701,14 +703,16 @@ fn error_study(f: &SceneDesc, size_m: f64, opt: &mut Options) {
             )
         })
         .collect();
-    let desc =
-        |est: LidarEstimator, photons: u32, scattering: Option<u32>, list: Vec<(f64, f64)>| {
-            let mut l = lidar(PulsePattern::List(list), photons);
-            l.returns = ReturnsMethod::PeakDetection;
-            l.estimator = est;
-            l.scattering_photons_per_pulse = scattering;
-            l
-        };
+    let desc = |est: LidarEstimator,
+                photons: Option<u32>,
+                scattering: Option<u32>,
+                list: Vec<(f64, f64)>| {
+        let mut l = lidar(PulsePattern::List(list), photons);
+        l.returns = ReturnsMethod::PeakDetection;
+        l.estimator = est;
+        l.scattering_photons_per_pulse = scattering;
+        l
+    };
     let cached = opt
         .ref_cache
         .as_ref()
@@ -725,7 +729,7 @@ fn error_study(f: &SceneDesc, size_m: f64, opt: &mut Options) {
         None => {
             let mut rev = centres.clone();
             rev.reverse();
-            let l = desc(LidarEstimator::Legacy, opt.ref_photons, None, rev);
+            let l = desc(LidarEstimator::Legacy, Some(opt.ref_photons), None, rev);
             let t = std::time::Instant::now();
             let r = run_products(f.clone(), l, opt);
             let mut w = waveforms_of(&r);
@@ -749,9 +753,9 @@ fn error_study(f: &SceneDesc, size_m: f64, opt: &mut Options) {
     };
     let settings = if opt.settings.is_empty() {
         vec![
-            (LidarEstimator::Legacy, 1000, None),
-            (LidarEstimator::Stratified, 600, None),
-            (LidarEstimator::ExpectedValue, DEFAULT_LIDAR_PHOTONS, None),
+            (LidarEstimator::Legacy, Some(1000), None),
+            (LidarEstimator::Stratified, Some(600), None),
+            (LidarEstimator::ExpectedValue, None, None),
         ]
     } else {
         opt.settings.clone()
@@ -815,7 +819,7 @@ fn error_study(f: &SceneDesc, size_m: f64, opt: &mut Options) {
         println!(
             "{:>13} {:>7} {:>7} {:>8.2} {:>13.0} {:>7.2} % ({:>4.1}) {:>7.2} % ({:>4.1}) {:>7.2} % ({:>4.1}) {:>6.2} % {:>10.0}",
             format!("{est:?}"),
-            photons,
+            photons.map_or("auto".to_string(), |n| n.to_string()),
             scattering.map_or("all".to_string(), |s| s.to_string()),
             r.seconds,
             rate,

@@ -202,7 +202,7 @@ fn monte_carlo_and_lidar_are_bit_identical_with_skipping() {
         pulse_fwhm_ns: 3.0,
         aperture_m2: 0.1,
         bin_ns: 1.0,
-        photons_per_pulse: 300,
+        photons_per_pulse: Some(300),
         max_order: 20,
         gate_margin_m: 10.0,
         photon_counting: None,

@@ -36,7 +36,7 @@ fn lidar(name: &str, altitude_m: f64, pulses: PulsePattern, photons: u32) -> Lid
         pulse_fwhm_ns: 2.0,
         aperture_m2: 0.1,
         bin_ns: 1.0,
-        photons_per_pulse: photons,
+        photons_per_pulse: Some(photons),
         max_order: 100,
         gate_margin_m: 10.0,
         photon_counting: None,
@@ -1151,4 +1151,51 @@ fn pulse_plans_lay_out_scans_and_terrestrial_grids() {
     );
     assert_eq!(p.emitter, glam::DVec3::new(1.0, 2.0, 1.5));
     assert!(plan.iter().all(|p| (p.axis.length() - 1.0).abs() < 1e-12));
+}
+
+/// Without `photons_per_pulse`, each pulse gets the beam rays its first-order method needs for
+/// the default waveform error (`LidarDesc::photons_per_pulse`): 48 for a nadir pulse from
+/// above whose first order the column quadrature scores, 72 for an oblique one (per beam ray).
+/// Each run is the same bits as the one with that count given explicitly (the same lattice,
+/// weights and roulette), and differs from the other count's (so the comparison can fail).
+#[test]
+fn default_photon_count_follows_the_first_order_method() {
+    use lumenscape::scene::desc::{DEFAULT_LIDAR_PHOTONS, DEFAULT_LIDAR_PHOTONS_PER_RAY};
+    let bits = |w: &[Waveform]| -> Vec<Vec<u64>> {
+        w.iter()
+            .map(|x| x.total.iter().map(|v| v.to_bits()).collect())
+            .collect()
+    };
+    let pulses = PulsePattern::List(vec![(1.0, 1.0), (2.3, 1.7), (3.1, 3.4)]);
+    for (zenith, n, other) in [
+        (0.0, DEFAULT_LIDAR_PHOTONS, DEFAULT_LIDAR_PHOTONS_PER_RAY),
+        (20.0, DEFAULT_LIDAR_PHOTONS_PER_RAY, DEFAULT_LIDAR_PHOTONS),
+    ] {
+        let with = |photons: Option<u32>| {
+            let mut l = lidar("auto", 500.0, pulses.clone(), 1);
+            l.photons_per_pulse = photons;
+            if let LidarPlatform::Airborne {
+                view_zenith_deg, ..
+            } = &mut l.platform
+            {
+                *view_zenith_deg = zenith;
+            }
+            bits(&raw_waveforms(&scene(2.0, 0.3, l), RunSettings::default()))
+        };
+        let auto = with(None);
+        assert!(
+            auto.iter().all(|w| !w.is_empty()),
+            "zenith {zenith}°: every pulse returns"
+        );
+        assert_eq!(
+            auto,
+            with(Some(n)),
+            "zenith {zenith}°: the default is {n} beam rays"
+        );
+        assert_ne!(
+            auto,
+            with(Some(other)),
+            "zenith {zenith}°: {other} beam rays give other waveforms"
+        );
+    }
 }

@@ -336,7 +336,7 @@ fn streamed_lidar_scans_write_the_same_products_and_leave_nothing_behind() {
     let (mut desc, _) = load_scene(&asset("assets/scenes/lidar_als.ron")).unwrap();
     {
         let l = &mut desc.lidars.as_mut().unwrap()[0];
-        l.photons_per_pulse = 64;
+        l.photons_per_pulse = Some(64);
         l.max_order = 20;
         // A few detected photons per shot (photon-counting regime).
         l.pulse_energy_j = 1e-10;

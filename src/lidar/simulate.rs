@@ -23,7 +23,9 @@ use crate::lidar::waveform_io::WaveformStream;
 use crate::photon::engine::{Beam, PhotonInput, Pulse, run_lidar_chunks};
 use crate::resources::directions::direction_from_deg;
 use crate::resources::lidar::{CountedPhoton, LidarRun, PulseRecord, StreamedRun};
-use crate::scene::desc::{LidarDesc, LidarPlatform, PulsePattern};
+use crate::scene::desc::{
+    DEFAULT_LIDAR_PHOTONS, DEFAULT_LIDAR_PHOTONS_PER_RAY, LidarDesc, LidarPlatform, PulsePattern,
+};
 use glam::DVec3;
 
 /// Passive spectral radiance at sensor level, per band, on the grid's columns (or one value
@@ -417,13 +419,14 @@ pub fn simulate_lidar(
         cos_fov: fov_half.cos(),
         aperture_m2: desc.aperture_m2,
         energy_j: desc.pulse_energy_j,
-        photons: desc.photons_per_pulse,
+        photons: desc.photons_per_pulse.unwrap_or(DEFAULT_LIDAR_PHOTONS),
+        photons_per_ray: desc
+            .photons_per_pulse
+            .unwrap_or(DEFAULT_LIDAR_PHOTONS_PER_RAY),
         gate_m: gate,
         bin_ns: desc.bin_ns,
         estimator: desc.estimator,
-        scattering_photons: desc
-            .scattering_photons_per_pulse
-            .unwrap_or(desc.photons_per_pulse),
+        scattering_photons: desc.scattering_photons_per_pulse.unwrap_or(u32::MAX),
         far_roulette_m: match chunks.far_roulette {
             FarRoulette::Auto => far_roulette_scale_m(input),
             FarRoulette::ScaleM(m) if m > 0.0 => m,

@@ -4042,8 +4042,12 @@ pub struct Beam {
     pub aperture_m2: f64,
     /// Pulse energy, J.
     pub energy_j: f64,
-    /// Photons per pulse.
+    /// Photons (beam rays) of a pulse whose first-order return the column quadrature scores
+    /// ([`FirstOrderColumns`]; the quadrature is planned for this count).
     pub photons: u32,
+    /// Photons (beam rays) of a pulse that scores its first-order return per beam ray (the
+    /// quadrature does not apply, is off, or falls back).
+    pub photons_per_ray: u32,
     /// Path-length gate `[min, max]`, m (two-way).
     pub gate_m: (f64, f64),
     /// Digitiser bin, ns.
@@ -4051,7 +4055,7 @@ pub struct Beam {
     /// Estimator of the tracking.
     pub estimator: LidarEstimator,
     /// `Stratified`, `ExpectedValue`: expected number of beam rays per pulse continued past their first
-    /// interaction into multiple scattering (≥ `photons`: all).
+    /// interaction into multiple scattering (≥ the pulse's beam rays: all).
     pub scattering_photons: u32,
     /// `ExpectedValue`: distance scale ρ₀ (m) of the far-photon roulette of multiple scattering
     /// ([`far_roulette_survival`]); 0: off.
@@ -4457,12 +4461,8 @@ impl<'a> PulseState<'a> {
                 }
                 _ => (0.0, 0.0),
             },
-            continue_prob: match beam.estimator {
-                LidarEstimator::Stratified | LidarEstimator::ExpectedValue if beam.photons > 0 => {
-                    (beam.scattering_photons as f64 / beam.photons as f64).clamp(0.0, 1.0)
-                }
-                _ => 1.0,
-            },
+            // Set per pulse (its beam rays), see `run_pulse`.
+            continue_prob: continue_prob(beam, beam.photons),
             ..base.clone()
         };
         let binner =
@@ -4526,6 +4526,17 @@ impl<'a> PulseState<'a> {
     }
 }
 
+/// Survival probability of a pulse's beam rays past their first interaction (the
+/// multiple-scattering roulette of [`Beam::scattering_photons`]) when it has `n_rays` of them.
+fn continue_prob(beam: &Beam, n_rays: u32) -> f64 {
+    match beam.estimator {
+        LidarEstimator::Stratified | LidarEstimator::ExpectedValue if n_rays > 0 => {
+            (beam.scattering_photons as f64 / n_rays as f64).clamp(0.0, 1.0)
+        }
+        _ => 1.0,
+    }
+}
+
 fn run_pulse(st: &mut PulseState, beam: &Beam, pl: &Pulse) -> PulseResult {
     st.reset(pl);
     let PulseState {
@@ -4536,12 +4547,47 @@ fn run_pulse(st: &mut PulseState, beam: &Beam, pl: &Pulse) -> PulseResult {
         tr,
         first_order,
     } = st;
+    // The column quadrature of this pulse's first-order return, when it applies.
+    let mut columns = first_order
+        .as_deref()
+        .and_then(|fo| fo.pulse(&*ctx, beam, pl).map(|pc| (fo, pc)));
+    // The footprint's moments over the corners {x > bx, y > by} of the window's interval ends
+    // (each shared by up to four rectangles); a pulse with a heavy column of facets or fluids
+    // keeps its beam rays' own first order ([`HEAVY_COLUMN_RAYS`]).
+    let mut corner = [(0.0, 0.0); 4 * MAX_FIRST_ORDER_COLUMNS];
+    if let Some((fo, pc)) = columns.as_mut() {
+        let nx = 2 * pc.ni;
+        for ky in 0..2 * pc.nj {
+            for kx in 0..nx {
+                corner[ky * nx + kx] = fo.moments.corner(pc.bx[kx], pc.by[ky]);
+            }
+        }
+        let heavy = (0..pc.ni * pc.nj).any(|k| {
+            let (kx, ky) = (2 * (k % pc.ni), 2 * (k / pc.ni));
+            let q = |i: usize, j: usize| corner[(ky + j) * nx + kx + i].0;
+            let m0 = q(0, 0) - q(1, 0) - q(0, 1) + q(1, 1);
+            pc.clear >> k & 1 == 0
+                && pc.inside >> k & 1 == 1
+                && m0 * beam.photons as f64 >= HEAVY_COLUMN_RAYS
+        });
+        if heavy {
+            columns = None;
+        }
+    }
+    // The pulse's beam rays: the quadrature's count, or the per-ray count without it; the
+    // share of them continued into multiple scattering.
+    let n_rays = if columns.is_some() {
+        beam.photons
+    } else {
+        beam.photons_per_ray
+    };
+    ctx.continue_prob = continue_prob(beam, n_rays);
     let ctx = &*ctx;
     let inp = ctx.inp;
     let spec = inp.spec;
     let mut rng = crate::scene::spawn::stream(inp.params.seed, LIDAR_STREAM, pl.id);
     let (e1, e2) = crate::photon::sampling::orthonormal_basis(pl.axis);
-    let w0 = beam.energy_j / beam.photons.max(1) as f64;
+    let w0 = beam.energy_j / n_rays.max(1) as f64;
     let mut missed = 0.0;
     let top = spec.top();
     let inside = |q: DVec3| {
@@ -4615,33 +4661,6 @@ fn run_pulse(st: &mut PulseState, beam: &Beam, pl: &Pulse) -> PulseResult {
             first_order_done: false,
         })
     };
-    // The column quadrature of this pulse's first-order return, when it applies.
-    let mut columns = first_order
-        .as_deref()
-        .and_then(|fo| fo.pulse(ctx, beam, pl).map(|pc| (fo, pc)));
-    // The footprint's moments over the corners {x > bx, y > by} of the window's interval ends
-    // (each shared by up to four rectangles); a pulse with a heavy column of facets or fluids
-    // keeps its beam rays' own first order ([`HEAVY_COLUMN_RAYS`]).
-    let mut corner = [(0.0, 0.0); 4 * MAX_FIRST_ORDER_COLUMNS];
-    if let Some((fo, pc)) = columns.as_mut() {
-        let nx = 2 * pc.ni;
-        for ky in 0..2 * pc.nj {
-            for kx in 0..nx {
-                corner[ky * nx + kx] = fo.moments.corner(pc.bx[kx], pc.by[ky]);
-            }
-        }
-        let heavy = (0..pc.ni * pc.nj).any(|k| {
-            let (kx, ky) = (2 * (k % pc.ni), 2 * (k / pc.ni));
-            let q = |i: usize, j: usize| corner[(ky + j) * nx + kx + i].0;
-            let m0 = q(0, 0) - q(1, 0) - q(0, 1) + q(1, 1);
-            pc.clear >> k & 1 == 0
-                && pc.inside >> k & 1 == 1
-                && m0 * beam.photons as f64 >= HEAVY_COLUMN_RAYS
-        });
-        if heavy {
-            columns = None;
-        }
-    }
     // Stratified: beam rays on the R2 lattice (Roberts 2018: additive recurrence with the
     // plastic number φ₂, low discrepancy for every count) shifted by one uniform per axis
     // (Cranley & Patterson 1976), so each ray is uniform on the unit square (unbiased) while
@@ -4659,7 +4678,7 @@ fn run_pulse(st: &mut PulseState, beam: &Beam, pl: &Pulse) -> PulseResult {
             [rng.next_f64(), rng.next_f64(), rng.next_f64()],
         )
     });
-    for i in 0..beam.photons {
+    for i in 0..n_rays {
         let (u1, u2, u3) = match lattice {
             Some((a, s)) => (
                 unit_fract(s[0] + i as f64 * a[0]),
@@ -4726,7 +4745,7 @@ fn run_pulse(st: &mut PulseState, beam: &Beam, pl: &Pulse) -> PulseResult {
                 // A column with facets (or whose rays' arrival times spread over more than
                 // `COLUMN_TIMING_TOLERANCE` of a bin): as many rays as the beam rays it holds
                 // on average (at least one), drawn over it.
-                let k = ceil_small(m0 * beam.photons as f64).max(1.0);
+                let k = ceil_small(m0 * n_rays as f64).max(1.0);
                 (k as u32, m0 / k)
             } else if m0 < STRIP_ROULETTE_MASS {
                 // A light strip: Russian roulette.

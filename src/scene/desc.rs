@@ -873,12 +873,14 @@ fn default_aperture() -> f64 {
 fn default_bin_ns() -> f64 {
     1.0
 }
-/// Default photons (beam rays) per LiDAR pulse (see [`LidarDesc::photons_per_pulse`]).
+/// Default photons (beam rays) per LiDAR pulse whose first-order return the column quadrature
+/// scores (see [`LidarDesc::photons_per_pulse`]).
 pub const DEFAULT_LIDAR_PHOTONS: u32 = 48;
 
-fn default_lidar_photons() -> u32 {
-    DEFAULT_LIDAR_PHOTONS
-}
+/// Default photons (beam rays) per LiDAR pulse that scores its first-order return per beam
+/// ray (oblique and terrestrial beams, footprints over more grid columns than beam rays; see
+/// [`LidarDesc::photons_per_pulse`]).
+pub const DEFAULT_LIDAR_PHOTONS_PER_RAY: u32 = 72;
 fn default_lidar_order() -> u32 {
     100
 }
@@ -923,18 +925,20 @@ pub struct LidarDesc {
     /// Digitiser bin, ns (default 1).
     #[serde(default = "default_bin_ns")]
     pub bin_ns: f64,
-    /// Photons (beam rays) per pulse (default 48: with the `ExpectedValue` estimator, the
-    /// first free paths on a golden-ratio sequence and the column quadrature of the first
-    /// order of nadir pulses, the forest ALS bench's waveform error of the former defaults —
-    /// 1000 photons of `Legacy`, 600 of `Stratified`, 72 of `ExpectedValue` without the
-    /// quadrature, ~1.0 % — at ~1/17, 1/10 and 0.58 of their instructions; README, LiDAR
-    /// speed). Tuned on that forest (flat ground). Pulses the quadrature does not apply to
-    /// (oblique or terrestrial beams, footprints over more columns than beam rays) score
-    /// the first order per beam ray: 1.29 % there at 48, ~1.0 % at 72; scenes whose
-    /// returns differ in kind (e.g. BRDF surfaces, which keep the collision estimator) may
-    /// need another count for that error.
-    #[serde(default = "default_lidar_photons")]
-    pub photons_per_pulse: u32,
+    /// Photons (beam rays) per pulse, for every pulse. Default (absent): chosen per pulse for
+    /// the same waveform error, ~1.0 % on the forest ALS bench (README, LiDAR speed) — 48
+    /// ([`DEFAULT_LIDAR_PHOTONS`]) for a pulse whose first-order return the column quadrature
+    /// of the `ExpectedValue` estimator scores (exactly vertical from above the grid, see
+    /// `FirstOrderColumns`), 72 ([`DEFAULT_LIDAR_PHOTONS_PER_RAY`]) for a pulse that scores it
+    /// per beam ray (oblique or terrestrial beams, footprints over more columns than beam
+    /// rays, the other estimators): 48 rays there give 1.29 %. With the `ExpectedValue`
+    /// estimator and the first free paths on a golden-ratio sequence, those counts match the
+    /// error of the former defaults (1000 photons of `Legacy`, 600 of `Stratified`) at ~1/17
+    /// and 1/10 of their instructions. Tuned on that forest (flat ground); scenes whose returns
+    /// differ in kind (e.g. BRDF surfaces, which keep the collision estimator) may need another
+    /// count for that error.
+    #[serde(default)]
+    pub photons_per_pulse: Option<u32>,
     /// Scattering orders traced (default 100).
     #[serde(default = "default_lidar_order")]
     pub max_order: u32,
@@ -964,7 +968,8 @@ pub struct LidarDesc {
     /// `ExpectedValue` and `Stratified` estimators: how many of the `photons_per_pulse` beam
     /// rays go on, on average, past their first interaction into multiple scattering (Russian
     /// roulette with survival `scattering/photons`, weights divided by it: unbiased). Default:
-    /// all of them; at most `photons_per_pulse`. Ignored by `Legacy`.
+    /// all of them; at most `photons_per_pulse` (at most 48 when that is absent). Ignored by
+    /// `Legacy`.
     #[serde(default)]
     pub scattering_photons_per_pulse: Option<u32>,
     /// Fusion product (DART 5 paper §6, Figure 19): attach the passive spectral radiance of the

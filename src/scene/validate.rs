@@ -1030,14 +1030,17 @@ fn validate_lidar(
     v.positive(&f("aperture_m2"), l.aperture_m2)?;
     v.in_range(&f("bin_ns"), l.bin_ns, 1e-3, 1e3)?;
     v.non_negative(&f("gate_margin_m"), l.gate_margin_m)?;
-    if l.photons_per_pulse == 0 {
+    if l.photons_per_pulse == Some(0) {
         return Err(src.invalid(f("photons_per_pulse"), "must be at least 1"));
     }
     if l.max_order == 0 {
         return Err(src.invalid(f("max_order"), "must be at least 1"));
     }
     if let Some(n) = l.scattering_photons_per_pulse
-        && (n == 0 || n > l.photons_per_pulse)
+        && (n == 0
+            || n > l
+                .photons_per_pulse
+                .unwrap_or(crate::scene::desc::DEFAULT_LIDAR_PHOTONS))
     {
         return Err(src.invalid(
             f("scattering_photons_per_pulse"),
