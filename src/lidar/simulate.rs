@@ -475,6 +475,12 @@ pub fn simulate_lidar(
             "first order: per beam ray (column quadrature off)".into()
         });
     }
+    notes.push(match desc.photons_per_pulse {
+        Some(n) => format!("beam rays per pulse: {n} (photons_per_pulse)"),
+        None => format!(
+            "beam rays per pulse: {DEFAULT_LIDAR_PHOTONS} for a pulse whose first order the column quadrature scores, {DEFAULT_LIDAR_PHOTONS_PER_RAY} for the others (photons_per_pulse absent: the same ~1 % waveform error on the forest ALS bench)"
+        ),
+    });
     // Photon counting: the detector and the note on the background source, once.
     let detector = desc.photon_counting.as_ref().map(|pc| Detector {
         quantum_efficiency: pc.quantum_efficiency,
