@@ -150,7 +150,8 @@ fn main() {
         .filter(|r: &Vec<String>| r[0] == "3" && r[2] == "20")
         .collect();
     println!(
-        "turbid layer LAI 3, sun 20°, red+NIR, {threads} threads, turbid stores {}",
+        "turbid layer LAI 3, sun 20°, red+NIR, {threads} threads, kernel {}, turbid stores {}",
+        lumenscape::radiative::engine::kernel_isa(),
         subfaces.map_or("of the preset".to_string(), |m| format!("{m:?}"))
     );
     println!(

@@ -60,6 +60,7 @@
 //!   of threads.
 
 mod batch;
+pub use batch::kernel_isa;
 
 use super::dda::{Dda, Exit, floor_i64, skip_field};
 use super::fastmath::{HalfBarycentres, attenuation};

@@ -85,6 +85,21 @@ pub(super) fn available() -> bool {
     }
 }
 
+/// The instruction set the flux-tracking walks run on this CPU (for the benches' records):
+/// `"AVX-512"` (the AVX2 code compiled with AVX-512 available), `"AVX2"`, or `"baseline"`.
+pub fn kernel_isa() -> &'static str {
+    #[cfg(target_arch = "x86_64")]
+    {
+        if pulp::x86::V4::try_new().is_some() {
+            return "AVX-512";
+        }
+        if V3::try_new().is_some() {
+            return "AVX2";
+        }
+    }
+    "baseline"
+}
+
 impl Ctx<'_> {
     /// Queues a ray for the batched walk instead of walking it now (see the module doc); the
     /// queue is walked when it is long enough and by [`Ctx::flush`] at the end of the chunk.
