@@ -1199,3 +1199,24 @@ fn default_photon_count_follows_the_first_order_method() {
         );
     }
 }
+
+/// A footprint over many grid columns without `photons_per_pulse` is reported in the notes
+/// (the default counts were tuned on a 0.3 m footprint over 1 m cells); an explicit count or a
+/// small footprint is not.
+#[test]
+fn wide_footprint_without_a_photon_count_is_reported() {
+    let warned = |radius: f64, photons: Option<u32>| {
+        let mut l = lidar("wide", 500.0, PulsePattern::Single((2.0, 2.0)), 1);
+        l.photons_per_pulse = photons;
+        l.footprint_radius_m = Some(radius);
+        let runs = run(&scene(1.0, 0.3, l), None);
+        runs[0]
+            .notes
+            .iter()
+            .any(|n| n.starts_with("warning: photons_per_pulse absent"))
+    };
+    // 0.5 m cells: 1.5 m is 3 cells, 0.3 m is 0.6 cell.
+    assert!(warned(1.5, None), "a 1.5 m footprint on the default count");
+    assert!(!warned(1.5, Some(500)), "an explicit count");
+    assert!(!warned(0.3, None), "a 0.3 m footprint");
+}

@@ -934,9 +934,14 @@ pub struct LidarDesc {
     /// rays, the other estimators): 48 rays there give 1.29 %. With the `ExpectedValue`
     /// estimator and the first free paths on a golden-ratio sequence, those counts match the
     /// error of the former defaults (1000 photons of `Legacy`, 600 of `Stratified`) at ~1/17
-    /// and 1/10 of their instructions. Tuned on that forest (flat ground); scenes whose returns
-    /// differ in kind (e.g. BRDF surfaces, which keep the collision estimator) may need another
-    /// count for that error.
+    /// and 1/10 of their instructions. Tuned on that forest (flat ground, 0.3 m footprint over
+    /// 1 m cells); scenes whose returns differ in kind (e.g. BRDF surfaces, which keep the
+    /// collision estimator) may need another count for that error, and so do footprints over
+    /// many grid columns, whose returns differ from column to column: the GEDI example
+    /// (`assets/scenes/lidar_gedi.ron`, 12.5 m over 1 m cells, against 200,000 rays) has a
+    /// 15 % waveform error at the default, 9.4 % at 200 rays, 4.4 % at 1000 and 2.1 % at 5000
+    /// (∝ 1/√rays, mostly multiple scattering); a footprint wider than 2 cells without this
+    /// field gets a warning in the run's notes.
     #[serde(default)]
     pub photons_per_pulse: Option<u32>,
     /// Scattering orders traced (default 100).
