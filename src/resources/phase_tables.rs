@@ -26,7 +26,7 @@ use std::f64::consts::{FRAC_PI_2, PI};
 use crate::physics::brdf::{Brdf, BrdfError, LocalGeometry, SpecularLobe, mirror};
 use crate::physics::lad::{
     LadError, LeafAngleDistribution, LeafOptics, LeafSpecular, VolscattKernel, gamma_specular,
-    specular_albedo, tanh_sinh_pieces,
+    specular_albedo, tanh_sinh_pieces, tanh_sinh_pieces_coarse,
 };
 use crate::physics::phase::{FluidPhase, PhaseError};
 use crate::resources::directions::{Direction, DirectionKind, DirectionSet};
@@ -524,6 +524,16 @@ pub fn fluid_table(
 /// crossings of the sector's bounding meridians), accurate to ~1e-13. Fictive directions use
 /// `max(0, n·Ω_v) ΔΩ_v`.
 pub fn projected_solid_angle(d: &Direction, normal: DVec3) -> f64 {
+    projected_solid_angle_rule(d, normal, true)
+}
+
+/// [`projected_solid_angle`] with the 145-node tanh–sinh rule instead of the 73-node one (the
+/// check of the latter's accuracy).
+pub fn projected_solid_angle_fine(d: &Direction, normal: DVec3) -> f64 {
+    projected_solid_angle_rule(d, normal, false)
+}
+
+fn projected_solid_angle_rule(d: &Direction, normal: DVec3, coarse: bool) -> f64 {
     let n = normal.normalize_or(DVec3::Z);
     if matches!(d.kind, DirectionKind::Fictive { .. }) {
         return n.dot(d.omega).max(0.0) * d.solid_angle_sr;
@@ -553,11 +563,16 @@ pub fn projected_solid_angle(d: &Direction, normal: DVec3) -> f64 {
     breaks.sort_by(f64::total_cmp);
     let ta = pa - phin;
     let dphi = pb - pa;
-    tanh_sinh_pieces(d.mu_min, d.mu_max, &breaks, |mu, _, _| {
+    let f = |mu: f64, _: f64, _: f64| {
         let a = n.z * mu;
         let b = nh * (1.0 - mu * mu).max(0.0).sqrt();
         azimuth_positive_integral(a, b, ta, dphi)
-    })
+    };
+    if coarse {
+        tanh_sinh_pieces_coarse(d.mu_min, d.mu_max, &breaks, f)
+    } else {
+        tanh_sinh_pieces(d.mu_min, d.mu_max, &breaks, f)
+    }
 }
 
 /// `∫_{t_a}^{t_a+Δ} max(0, A + B cos t) dt` for `B ≥ 0`, `Δ ≤ 2π` (closed form).
