@@ -14,7 +14,7 @@
 //! cell's scattered rays per exit sub-face (Figure 7c), `--ray-threshold X` sets the ray-power
 //! threshold, `--cells 0.5,0.25` the turbid-layer cell sizes; `-- --no-skip` turns empty-space
 //! skipping off (every cell visited), `-- --no-batch` the batched 4-ray walk (rays one at a
-//! time)).
+//! time), `-- --avx2` / `-- --baseline` cap the walks' instruction set (same products)).
 //!
 //! Throughput columns: `Mcross/s/core` is visited cell crossings (empty cells jumped over by
 //! empty-space skipping are not counted; the forest line prints them apart) / (wall time of
@@ -50,6 +50,14 @@ fn run_timed(
             skip_empty: !std::env::args().any(|a| a == "--no-skip"),
             // `--no-batch`: the one-ray-at-a-time walk, for comparisons.
             batch_walk: !std::env::args().any(|a| a == "--no-batch"),
+            // `--avx2` / `--baseline`: cap the walks' instruction set, for comparisons.
+            kernel_isa: if std::env::args().any(|a| a == "--baseline") {
+                lumenscape::radiative::engine::KernelIsa::Baseline
+            } else if std::env::args().any(|a| a == "--avx2") {
+                lumenscape::radiative::engine::KernelIsa::Avx2
+            } else {
+                lumenscape::radiative::engine::KernelIsa::Best
+            },
             ..Default::default()
         },
     )

@@ -211,3 +211,71 @@ fn batched_walk_products_are_bit_identical_on_1_2_and_8_threads() {
     assert!(go(2) == one, "2 threads differ from 1");
     assert!(go(8) == one, "8 threads differ from 1");
 }
+
+/// The walks give the same bits on every instruction set this CPU has
+/// (`RunSettings::kernel_isa`): on this project's machines (AVX-512) the default runs the AVX2
+/// code compiled with AVX-512, and the AVX2-only and baseline copies — what other CPUs run —
+/// would otherwise go untested. Batched walk: the best set against AVX2 only, bit for bit; one
+/// ray at a time: best, AVX2 and baseline, bit for bit (the baseline has no batched walk: it
+/// walks one ray at a time, which the tests above compare with the batched walk). A layer with
+/// sky and ground, and a small forest (facets, two turbid materials, hotspot, exact views).
+#[test]
+fn walks_give_the_same_bits_on_every_instruction_set() {
+    use lumenscape::radiative::engine::KernelIsa;
+    use lumenscape::scene::generators::{forest, rami_directions};
+    let run_isa = |d: &SceneDesc, batch_walk: bool, kernel_isa: KernelIsa| {
+        let settings = RunSettings {
+            preset: Some(Preset::Preview),
+            batch_walk,
+            kernel_isa,
+            ..Default::default()
+        };
+        let mut sim = Simulation::from_desc(d, &SceneSource::generated(), settings)
+            .unwrap_or_else(|e| panic!("{e}"));
+        sim.run(None).unwrap_or_else(|e| panic!("{e}"));
+        let p = sim.resource::<RadiativeProducts>().clone();
+        let r = &p.raw;
+        let bits = |v: &[f64]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+        (
+            [
+                bits(&r.escaped),
+                bits(&r.intercepted_turbid),
+                bits(&r.absorbed_turbid),
+                bits(&r.intercepted_ground),
+                bits(&r.images),
+            ],
+            p.crossings,
+        )
+    };
+    let mut layer = layer(
+        3.0,
+        vec![BandOptics::red(), BandOptics::nir()],
+        0.2,
+        30.0,
+        20.0,
+    );
+    layer.illumination.skyl = vec![0.3, 0.2];
+    let mut trees = forest::forest(&forest::ForestParams {
+        size_m: 12.0,
+        species: vec![forest::broadleaf(2), forest::conifer(2)],
+        ..Default::default()
+    });
+    trees.directions = Some(rami_directions(225.0));
+    for (d, what) in [(&layer, "layer"), (&trees, "forest")] {
+        let best = run_isa(d, true, KernelIsa::Best);
+        assert!(best.1 > 0, "{what}: rays walked");
+        assert!(
+            run_isa(d, true, KernelIsa::Avx2) == best,
+            "{what}: batched walk, AVX2 differs from the best set"
+        );
+        let one = run_isa(d, false, KernelIsa::Best);
+        for isa in [KernelIsa::Avx2, KernelIsa::Baseline] {
+            assert!(
+                run_isa(d, false, isa) == one,
+                "{what}: one ray at a time, {isa:?} differs from the best set"
+            );
+        }
+        let base = run_isa(d, true, KernelIsa::Baseline);
+        assert!(base == one, "{what}: the baseline walks one ray at a time");
+    }
+}

@@ -133,6 +133,7 @@ impl SceneOpts {
             image_oversampling: self.image_oversampling,
             skip_empty: true,
             batch_walk: true,
+            kernel_isa: Default::default(),
             lidar_chunk_pulses: crate::lidar::simulate::DEFAULT_CHUNK_PULSES,
             lidar_first_order_columns: true,
             lidar_far_roulette: Default::default(),

@@ -145,10 +145,49 @@ pub struct TrackingParams {
     /// agree to rounding (only the summation order of the rays' contributions changes). Off:
     /// one ray at a time (kept for the equality tests and for measuring).
     pub batch_walk: bool,
+    /// Most capable instruction set the walks may use (default: the best this CPU has; the
+    /// others for the equality tests and for measuring). Not written with the products: they
+    /// are the same bits on every instruction set (the same IEEE operations, no contraction).
+    #[serde(skip)]
+    pub kernel_isa: KernelIsa,
     /// A progress bar of the iterations on stderr (a display setting, not written with the
     /// products).
     #[serde(skip)]
     pub progress: bool,
+}
+
+/// Instruction set cap of the flux-tracking walks ([`TrackingParams::kernel_isa`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum KernelIsa {
+    /// The best the CPU has: AVX-512 (the AVX2 code compiled with it), else AVX2 + FMA, else
+    /// the baseline.
+    #[default]
+    Best,
+    /// At most AVX2 + FMA (what CPUs without AVX-512 run).
+    Avx2,
+    /// The baseline x86-64 code: one ray at a time (no batched walk).
+    Baseline,
+}
+
+impl KernelIsa {
+    /// The `pulp` dispatch target for this cap on this CPU.
+    pub(crate) fn arch(self) -> pulp::Arch {
+        #[cfg(target_arch = "x86_64")]
+        {
+            match self {
+                KernelIsa::Best => pulp::Arch::new(),
+                KernelIsa::Avx2 => {
+                    pulp::x86::V3::try_new().map_or(pulp::Arch::Scalar, pulp::Arch::V3)
+                }
+                KernelIsa::Baseline => pulp::Arch::Scalar,
+            }
+        }
+        #[cfg(not(target_arch = "x86_64"))]
+        {
+            let _ = self;
+            pulp::Arch::new()
+        }
+    }
 }
 
 impl TrackingParams {
@@ -169,6 +208,7 @@ impl TrackingParams {
             turbid_subfaces: TurbidSubfaces::Off,
             turbid_exit_grouping: false,
             batch_walk: true,
+            kernel_isa: KernelIsa::Best,
             progress: false,
         }
     }
@@ -1160,6 +1200,8 @@ struct Ctx<'a> {
     /// Per direction (sun last), what a lane of the batched walk takes at a ray start
     /// ([`batch::LaneDir`]; empty when [`Ctx::batch`] is off).
     lane_dirs: Vec<batch::LaneDir>,
+    /// Where the walks dispatch ([`TrackingParams::kernel_isa`] on this CPU).
+    arch: pulp::Arch,
 }
 
 /// Smallest empty-space distance from which the flux-tracking walks jump
@@ -1570,7 +1612,7 @@ impl Ctx<'_> {
                 }
             }
         }
-        pulp::Arch::new().dispatch(Walk::<W> {
+        self.arch.dispatch(Walk::<W> {
             ctx: self,
             p,
             dir,
@@ -2826,7 +2868,7 @@ pub fn run(inp: &RadiativeInput) -> RadiativeResult {
             && inp.params.batch_walk
             && inp.params.turbid_subfaces == TurbidSubfaces::Off
             && matches!(w, 1 | 2 | 4)
-            && batch::available(),
+            && batch::available(inp.params.kernel_isa),
         scells,
         skip,
         subfaces: inp.params.turbid_subfaces,
@@ -2848,6 +2890,7 @@ pub fn run(inp: &RadiativeInput) -> RadiativeResult {
             1
         },
         lane_dirs: Vec::new(),
+        arch: inp.params.kernel_isa.arch(),
     };
     if ctx.batch {
         ctx.lane_dirs = batch::lane_dirs(&ctx);

@@ -89,6 +89,9 @@ pub struct RunSettings {
     /// to rounding, see [`crate::radiative::engine::TrackingParams::batch_walk`]). Off: one ray
     /// at a time (kept for the equality tests and for measuring).
     pub batch_walk: bool,
+    /// Most capable instruction set of the flux-tracking walks (default: the best this CPU
+    /// has; same products on each, see [`crate::radiative::engine::TrackingParams::kernel_isa`]).
+    pub kernel_isa: crate::radiative::engine::KernelIsa,
     /// LiDAR pulses tracked per chunk; with an output folder, a scan of more pulses than one
     /// chunk streams its waveforms to disk chunk by chunk (memory bounded by a chunk, same
     /// products; [`crate::lidar::simulate::LidarChunks`]).
@@ -142,6 +145,7 @@ impl Default for RunSettings {
             image_oversampling: None,
             skip_empty: true,
             batch_walk: true,
+            kernel_isa: Default::default(),
             lidar_chunk_pulses: crate::lidar::simulate::DEFAULT_CHUNK_PULSES,
             lidar_far_roulette: Default::default(),
             lidar_first_order_columns: true,

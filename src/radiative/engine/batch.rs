@@ -73,14 +73,15 @@ pub(super) fn lane_dirs(ctx: &Ctx) -> Vec<LaneDir> {
         .collect()
 }
 
-/// Whether this CPU runs the batched walk (x86-64 with AVX2 and FMA).
-pub(super) fn available() -> bool {
+/// Whether this CPU runs the batched walk (x86-64 with AVX2 and FMA) under the cap `isa`.
+pub(super) fn available(isa: super::KernelIsa) -> bool {
     #[cfg(target_arch = "x86_64")]
     {
-        V3::try_new().is_some()
+        isa != super::KernelIsa::Baseline && V3::try_new().is_some()
     }
     #[cfg(not(target_arch = "x86_64"))]
     {
+        let _ = isa;
         false
     }
 }
@@ -164,7 +165,9 @@ impl Ctx<'_> {
 
     fn walk_batch<const W: usize>(&self, queue: &[Queued], tur: &mut TurAcc, out: &mut ChunkOut) {
         #[cfg(target_arch = "x86_64")]
-        if let Some(simd) = V3::try_new() {
+        if let Some(simd) =
+            V3::try_new().filter(|_| self.inp.params.kernel_isa != super::KernelIsa::Baseline)
+        {
             let mut view = tur
                 .view()
                 .expect("rays are queued with a dense accumulator only");
@@ -199,7 +202,7 @@ impl Ctx<'_> {
             // The same AVX2 operations compiled with AVX-512 available where the CPU has it
             // (32 vector registers instead of 16, EVEX compares into mask registers): the same
             // IEEE operations on the same values, so the same bits.
-            if let Some(v4) = pulp::x86::V4::try_new() {
+            if let pulp::Arch::V4(v4) = self.arch {
                 return pulp::Simd::vectorize(v4, walk);
             }
             return pulp::Simd::vectorize(simd, walk);
