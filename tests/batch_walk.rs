@@ -23,15 +23,42 @@ use lumenscape::scene::generators::turbid_layer::{TurbidLayerParams, turbid_laye
 use lumenscape::simulation::Simulation;
 
 fn run(desc: &SceneDesc, batch_walk: bool) -> RadiativeProducts {
+    run_with(
+        desc,
+        RunSettings {
+            batch_walk,
+            ..Default::default()
+        },
+    )
+}
+
+/// The products of `desc` run with `settings` at the preview preset.
+fn run_with(desc: &SceneDesc, settings: RunSettings) -> RadiativeProducts {
     let settings = RunSettings {
         preset: Some(Preset::Preview),
-        batch_walk,
-        ..Default::default()
+        ..settings
     };
     let mut sim = Simulation::from_desc(desc, &SceneSource::generated(), settings)
         .unwrap_or_else(|e| panic!("{e}"));
     sim.run(None).unwrap_or_else(|e| panic!("{e}"));
     sim.resource::<RadiativeProducts>().clone()
+}
+
+/// The raw products as bits (escaped, intercepted and absorbed turbid, intercepted ground,
+/// images) and the visited crossings.
+fn product_bits(p: &RadiativeProducts) -> ([Vec<u64>; 5], u64) {
+    let r = &p.raw;
+    let bits = |v: &[f64]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
+    (
+        [
+            bits(&r.escaped),
+            bits(&r.intercepted_turbid),
+            bits(&r.absorbed_turbid),
+            bits(&r.intercepted_ground),
+            bits(&r.images),
+        ],
+        p.crossings,
+    )
 }
 
 /// Largest |a − b| / max(|a|, |b|) over two equally long product arrays (0 where both are 0).
@@ -192,22 +219,10 @@ fn batched_walk_products_are_bit_identical_on_1_2_and_8_threads() {
             .num_threads(n)
             .build()
             .expect("thread pool");
-        pool.install(|| {
-            let p = run(&d, true);
-            let r = &p.raw;
-            let bits = |v: &[f64]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
-            (
-                bits(&r.escaped),
-                bits(&r.intercepted_turbid),
-                bits(&r.absorbed_turbid),
-                bits(&r.intercepted_ground),
-                bits(&r.images),
-                p.crossings,
-            )
-        })
+        pool.install(|| product_bits(&run(&d, true)))
     };
     let one = go(1);
-    assert!(one.5 > 0, "rays walked");
+    assert!(one.1 > 0, "rays walked");
     assert!(go(2) == one, "2 threads differ from 1");
     assert!(go(8) == one, "8 threads differ from 1");
 }
@@ -225,27 +240,11 @@ fn walks_give_the_same_bits_on_every_instruction_set() {
     use lumenscape::scene::generators::{forest, rami_directions};
     let run_isa = |d: &SceneDesc, batch_walk: bool, kernel_isa: KernelIsa| {
         let settings = RunSettings {
-            preset: Some(Preset::Preview),
             batch_walk,
             kernel_isa,
             ..Default::default()
         };
-        let mut sim = Simulation::from_desc(d, &SceneSource::generated(), settings)
-            .unwrap_or_else(|e| panic!("{e}"));
-        sim.run(None).unwrap_or_else(|e| panic!("{e}"));
-        let p = sim.resource::<RadiativeProducts>().clone();
-        let r = &p.raw;
-        let bits = |v: &[f64]| v.iter().map(|x| x.to_bits()).collect::<Vec<_>>();
-        (
-            [
-                bits(&r.escaped),
-                bits(&r.intercepted_turbid),
-                bits(&r.absorbed_turbid),
-                bits(&r.intercepted_ground),
-                bits(&r.images),
-            ],
-            p.crossings,
-        )
+        product_bits(&run_with(d, settings))
     };
     let mut layer = layer(
         3.0,
