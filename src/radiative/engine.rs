@@ -2838,6 +2838,8 @@ pub fn run(inp: &RadiativeInput) -> RadiativeResult {
     } else {
         Vec::new()
     };
+    // Where the walks dispatch (the batched walk only where it has AVX2 + FMA).
+    let arch = inp.params.kernel_isa.arch();
     let mut ctx = Ctx {
         inp,
         w,
@@ -2868,7 +2870,7 @@ pub fn run(inp: &RadiativeInput) -> RadiativeResult {
             && inp.params.batch_walk
             && inp.params.turbid_subfaces == TurbidSubfaces::Off
             && matches!(w, 1 | 2 | 4)
-            && batch::available(inp.params.kernel_isa),
+            && batch::available(&arch),
         scells,
         skip,
         subfaces: inp.params.turbid_subfaces,
@@ -2890,7 +2892,7 @@ pub fn run(inp: &RadiativeInput) -> RadiativeResult {
             1
         },
         lane_dirs: Vec::new(),
-        arch: inp.params.kernel_isa.arch(),
+        arch,
     };
     if ctx.batch {
         ctx.lane_dirs = batch::lane_dirs(&ctx);

@@ -73,32 +73,41 @@ pub(super) fn lane_dirs(ctx: &Ctx) -> Vec<LaneDir> {
         .collect()
 }
 
-/// Whether this CPU runs the batched walk (x86-64 with AVX2 and FMA) under the cap `isa`.
-pub(super) fn available(isa: super::KernelIsa) -> bool {
+/// The AVX2 + FMA token the batched walk runs with on dispatch target `arch` (AVX-512 targets
+/// run the same code); `None`: no batched walk (rays one by one).
+#[cfg(target_arch = "x86_64")]
+fn lane_simd(arch: &pulp::Arch) -> Option<V3> {
+    match arch {
+        pulp::Arch::V4(v4) => Some(**v4),
+        pulp::Arch::V3(v3) => Some(*v3),
+        _ => None,
+    }
+}
+
+/// Whether dispatch target `arch` runs the batched walk (x86-64 with AVX2 and FMA).
+pub(super) fn available(arch: &pulp::Arch) -> bool {
     #[cfg(target_arch = "x86_64")]
     {
-        isa != super::KernelIsa::Baseline && V3::try_new().is_some()
+        lane_simd(arch).is_some()
     }
     #[cfg(not(target_arch = "x86_64"))]
     {
-        let _ = isa;
+        let _ = arch;
         false
     }
 }
 
-/// The instruction set the flux-tracking walks run on this CPU (for the benches' records):
-/// `"AVX-512"` (the AVX2 code compiled with AVX-512 available), `"AVX2"`, or `"baseline"`.
+/// The instruction set the flux-tracking walks run on this CPU by default (for the benches'
+/// records): `"AVX-512"` (the AVX2 code compiled with AVX-512 available), `"AVX2"`, or
+/// `"baseline"`.
 pub fn kernel_isa() -> &'static str {
-    #[cfg(target_arch = "x86_64")]
-    {
-        if pulp::x86::V4::try_new().is_some() {
-            return "AVX-512";
-        }
-        if V3::try_new().is_some() {
-            return "AVX2";
-        }
+    match super::KernelIsa::Best.arch() {
+        #[cfg(target_arch = "x86_64")]
+        pulp::Arch::V4(_) => "AVX-512",
+        #[cfg(target_arch = "x86_64")]
+        pulp::Arch::V3(_) => "AVX2",
+        _ => "baseline",
     }
-    "baseline"
 }
 
 impl Ctx<'_> {
@@ -165,9 +174,7 @@ impl Ctx<'_> {
 
     fn walk_batch<const W: usize>(&self, queue: &[Queued], tur: &mut TurAcc, out: &mut ChunkOut) {
         #[cfg(target_arch = "x86_64")]
-        if let Some(simd) =
-            V3::try_new().filter(|_| self.inp.params.kernel_isa != super::KernelIsa::Baseline)
-        {
+        if let Some(simd) = lane_simd(&self.arch) {
             let mut view = tur
                 .view()
                 .expect("rays are queued with a dense accumulator only");
