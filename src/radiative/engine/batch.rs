@@ -342,7 +342,10 @@ impl Ctx<'_> {
             for c in 0..W {
                 let pwc: f64x4 = cast(ln.pw[c]);
                 gain[c] = cast(simd.mul_f64x4(pwc, frac));
-                ln.pw[c] = cast(simd.select_f64x4(hit_m, simd.mul_f64x4(pwc, tr), pwc));
+                // Lanes without a hit have x = 0, so tr = 1 − 0 = 1 exactly and `pw · tr` is pw:
+                // no select (which the compiler turns into a masked store, `vmaskmovpd`, slow
+                // on AMD CPUs without AVX-512).
+                ln.pw[c] = cast(simd.mul_f64x4(pwc, tr));
             }
             // The weighted interception points lane-wise (`p · wt`, the scalar walk's products),
             // then one row per lane: [p1x, p1y, p1z, p2x] · wt and [p2y · wt, p2z · wt, wt, 0].
