@@ -179,6 +179,14 @@ fn write_radiative(
             "tracking": settings.tracking,
             "per_direction_stores": settings.per_direction_stores,
             "image_oversampling": settings.image_oversampling,
+            // What the walks ran on (products of runs with the same batch lanes are the same
+            // bits; 8 and 4 lanes differ in the last bits, see `TrackingParams::kernel_isa`).
+            "instruction_set": crate::radiative::engine::instruction_set(settings.tracking.kernel_isa),
+            "batch_lanes": if settings.tracking.batch_walk {
+                crate::radiative::engine::batch_lanes(settings.tracking.kernel_isa)
+            } else {
+                1
+            },
             "directions": dirs.set.tiling().len(),
             "sectors": dirs.n_sectors,
             "sun_zenith_deg": info.illumination.sun_zenith_deg,

@@ -86,6 +86,24 @@ pub struct SceneOpts {
     /// the scene's `radiative.image_oversampling`; 1..=64, and at most 2^26 pixels per image).
     #[arg(long, value_parser = clap::value_parser!(u32).range(1..=crate::scene::validate::MAX_IMAGE_OVERSAMPLING as i64))]
     pub image_oversampling: Option<u32>,
+    /// Most capable instruction set of the flux-tracking walks. `best`: AVX-512 where the CPU
+    /// has it (the batched walk on 8 lanes), else AVX2 (4 lanes); `avx2`: 4 lanes on every
+    /// x86-64 CPU with AVX2, so that AVX-512 and AVX2-only machines give the same bits (8 and
+    /// 4 lanes sum the rays' contributions in different orders: ~1e-15 relative);
+    /// `baseline`: one ray at a time.
+    #[arg(long, value_enum, default_value = "best")]
+    pub isa: IsaArg,
+}
+
+/// `--isa` values.
+#[derive(clap::ValueEnum, Debug, Clone, Copy, PartialEq, Eq)]
+pub enum IsaArg {
+    /// The best the CPU has.
+    Best,
+    /// At most AVX2 + FMA.
+    Avx2,
+    /// Baseline x86-64.
+    Baseline,
 }
 
 /// `--solver` values.
@@ -133,7 +151,11 @@ impl SceneOpts {
             image_oversampling: self.image_oversampling,
             skip_empty: true,
             batch_walk: true,
-            kernel_isa: Default::default(),
+            kernel_isa: match self.isa {
+                IsaArg::Best => crate::radiative::engine::KernelIsa::Best,
+                IsaArg::Avx2 => crate::radiative::engine::KernelIsa::Avx2,
+                IsaArg::Baseline => crate::radiative::engine::KernelIsa::Baseline,
+            },
             lidar_chunk_pulses: crate::lidar::simulate::DEFAULT_CHUNK_PULSES,
             lidar_first_order_columns: true,
             lidar_far_roulette: Default::default(),

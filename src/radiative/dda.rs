@@ -16,10 +16,12 @@
 //! re-entry moves the traversal state in place ([`Dda::wrap_sides`]) instead of building a new
 //! one.
 
+#[cfg(target_arch = "x86_64")]
+use super::lanes::Lanes;
 use crate::resources::grid::GridSpec;
 use glam::DVec3;
 #[cfg(target_arch = "x86_64")]
-use pulp::{cast, f64x4, i64x4, m64, m64x4, x86::V3};
+use pulp::{cast, f64x4, x86::V3};
 
 /// `⌊x⌋` as an integer, by truncation and a correction for negative non-integers (no libm
 /// call). Exact for |x| < 2⁶³; NaN gives 0 (Rust's saturating `as`), like `x.floor() as i64`.
@@ -406,50 +408,81 @@ impl Dda {
     }
 }
 
-/// Four [`Dda`] traversals side by side (one per lane, structure of arrays), for the batched
-/// walk: the per-crossing step runs on all four lanes at once without a branch per axis (the
+/// L [`Dda`] traversals side by side (one per lane, structure of arrays; 4 lanes in AVX2, 8 in
+/// AVX-512, see [`super::lanes`]), for the batched walk: the per-crossing step runs on all
+/// lanes at once without a branch per axis (the
 /// axes reached at the lane's segment end are masks; the cell indices are kept as exact
 /// integer-valued doubles), and does to each lane exactly what [`Dda::step_at`] does to one
 /// traversal (the same boundary expressions of the integer indices, so the same bits). The
 /// rare events (grid exits, wraps, empty-space skips) go through a [`Dda`] taken out of the
-/// lane ([`Dda4::lane`]) and put back ([`Dda4::set_lane`]).
-#[derive(Debug, Clone, Default)]
-pub struct Dda4 {
+/// lane ([`DdaL::lane`]) and put back ([`DdaL::set_lane`]).
+#[derive(Debug, Clone)]
+pub struct DdaL<const L: usize> {
     /// Cell index per axis and lane (integer-valued).
-    cell: [[f64; 4]; 3],
+    cell: [[f64; L]; 3],
     /// Step per axis and lane (−1, 0 or 1).
-    step: [[f64; 4]; 3],
-    t_max: [[f64; 4]; 3],
+    step: [[f64; L]; 3],
+    t_max: [[f64; L]; 3],
     /// Distance at which each lane's current segment starts.
-    pub t: [f64; 4],
+    pub t: [f64; L],
     /// Each lane's origin per axis (see [`Dda::origin`]).
-    pub origin: [[f64; 4]; 3],
+    pub origin: [[f64; L]; 3],
     /// Each lane's unit direction per axis.
-    pub dir: [[f64; 4]; 3],
-    inv: [[f64; 4]; 3],
-    b_base: [[f64; 4]; 3],
+    pub dir: [[f64; L]; 3],
+    inv: [[f64; L]; 3],
+    b_base: [[f64; L]; 3],
     /// Linear index of each lane's cell.
-    pub lin: [i64; 4],
-    dlin: [[i64; 4]; 3],
+    pub lin: [i64; L],
+    dlin: [[i64; L]; 3],
     /// Grid cell size and cell counts per axis (the same for every lane).
     size: [f64; 3],
     n: [f64; 3],
     n_int: [i64; 3],
     stride: [i64; 3],
     /// The grid's origin, cell sizes, `n + 1e-9` and `n − 1` per axis as vectors (lane 3:
-    /// padding) for [`Dda4::start_with`], set by [`Dda4::set_grid`].
+    /// padding) for [`DdaL::start_with`], set by [`DdaL::set_grid`].
     lo4: [f64; 4],
     size4: [f64; 4],
     n_hi4: [f64; 4],
     n_m1_4: [f64; 4],
     /// Per axis and lane, the cell index a step leaves the grid into (see
     /// [`LanePlanes::exit_at`]).
-    exit_at: [[f64; 4]; 3],
+    exit_at: [[f64; L]; 3],
     /// Per side axis and lane, what a wrap adds to the cell index, the linear index and the
     /// origin (see [`LanePlanes`]).
-    wrap_back: [[f64; 4]; 2],
-    wrap_lin: [[i64; 4]; 2],
-    wrap_o: [[f64; 4]; 2],
+    wrap_back: [[f64; L]; 2],
+    wrap_lin: [[i64; L]; 2],
+    wrap_o: [[f64; L]; 2],
+}
+
+impl<const L: usize> Default for DdaL<L> {
+    fn default() -> Self {
+        let (f3, i3) = ([[0.0; L]; 3], [[0; L]; 3]);
+        DdaL {
+            cell: f3,
+            step: f3,
+            t_max: f3,
+            t: [0.0; L],
+            origin: f3,
+            dir: f3,
+            inv: f3,
+            b_base: f3,
+            lin: [0; L],
+            dlin: i3,
+            size: [0.0; 3],
+            n: [0.0; 3],
+            n_int: [0; 3],
+            stride: [0; 3],
+            lo4: [0.0; 4],
+            size4: [0.0; 4],
+            n_hi4: [0.0; 4],
+            n_m1_4: [0.0; 4],
+            exit_at: f3,
+            wrap_back: [[0.0; L]; 2],
+            wrap_lin: [[0; L]; 2],
+            wrap_o: [[0.0; L]; 2],
+        }
+    }
 }
 
 /// What a lane's step direction along one axis fixes for the grid exits and the repetitive
@@ -488,7 +521,7 @@ impl LanePlanes {
 const SHIFT: f64 = 6755399441055744.0;
 
 /// What [`Dda::new`] forms from the direction alone (and the grid), per axis x, y, z (index 3:
-/// padding), for [`Dda4::start_with`]: formed once per discrete direction instead of at every
+/// padding), for [`DdaL::start_with`]: formed once per discrete direction instead of at every
 /// ray start, by the same expressions, so the same bits.
 #[derive(Debug, Clone, Copy, Default)]
 pub struct DirStart {
@@ -555,7 +588,7 @@ impl DirStart {
     }
 }
 
-impl Dda4 {
+impl<const L: usize> DdaL<L> {
     /// Puts traversal `d` into lane `l` (every lane walks the same grid).
     #[inline]
     pub fn set_lane(&mut self, l: usize, d: &Dda) {
@@ -587,7 +620,7 @@ impl Dda4 {
     /// [`Dda::new`] written straight into lane `l` (the same operations, so the same state as
     /// `set_lane(l, &Dda::new(spec, p, d)?)`); false, with the lane left to be refilled or
     /// parked, if `p` is outside the grid box. The batched walk sets the grid once
-    /// ([`Dda4::set_grid`]) and starts its rays with [`Dda4::start_with`] and a per-direction
+    /// ([`DdaL::set_grid`]) and starts its rays with [`DdaL::start_with`] and a per-direction
     /// [`DirStart`]; this form does both for one ray.
     #[cfg(target_arch = "x86_64")]
     #[inline(always)]
@@ -610,11 +643,11 @@ impl Dda4 {
             self.n_hi4[a] = n[a] as f64 + 1e-9;
             self.n_m1_4[a] = n[a] as f64 - 1.0;
         }
-        // Padding lane 3 (never read): as `Dda4::start` always had it.
+        // Padding lane 3 (never read): as `DdaL::start` always had it.
         (self.lo4[3], self.size4[3], self.n_hi4[3], self.n_m1_4[3]) = (0.0, 1.0, 1.0 + 1e-9, 0.0);
     }
 
-    /// [`Dda::new`] written straight into lane `l` on the grid of [`Dda4::set_grid`], along
+    /// [`Dda::new`] written straight into lane `l` on the grid of [`DdaL::set_grid`], along
     /// the direction of `dc` (built on the same grid): the per-ray part only, the three axes
     /// side by side in one vector (`⌊rel⌋` by `vroundpd`, equal to [`floor_i64`] on the grid's
     /// range); the parts that depend only on the direction (`1/d`, steps, `b_base`, linear
@@ -688,7 +721,7 @@ impl Dda4 {
         true
     }
 
-    /// Parks lane `l` on cell 0 (an idle lane: [`Dda4::step_at`] leaves it alone when it is
+    /// Parks lane `l` on cell 0 (an idle lane: [`DdaL::step_at`] leaves it alone when it is
     /// not stepped, and its cell record can be read).
     #[inline]
     pub fn park(&mut self, l: usize) {
@@ -737,7 +770,7 @@ impl Dda4 {
     /// [`Dda::point`] of lane `l` at its segment start `t`.
     #[inline]
     pub fn point(&self, l: usize) -> DVec3 {
-        let v = |f: &[[f64; 4]; 3]| DVec3::new(f[0][l], f[1][l], f[2][l]);
+        let v = |f: &[[f64; L]; 3]| DVec3::new(f[0][l], f[1][l], f[2][l]);
         v(&self.origin) + v(&self.dir) * self.t[l]
     }
 
@@ -769,103 +802,96 @@ impl Dda4 {
     /// same comparisons, `vminpd(b, a)` being `if b < a { b } else { a }`).
     #[cfg(target_arch = "x86_64")]
     #[inline(always)]
-    pub fn t_exit(&self, simd: V3) -> f64x4 {
+    pub fn t_exit<S: Lanes<L>>(&self, s: S) -> S::F {
         let tm = &self.t_max;
-        let m01 = simd.min_f64x4(cast(tm[1]), cast(tm[0]));
-        simd.min_f64x4(cast(tm[2]), m01)
+        let m01 = s.min(s.ld(tm[1]), s.ld(tm[0]));
+        s.min(s.ld(tm[2]), m01)
     }
 
-    /// [`Dda::step_at`] on every lane of `go` (`te` = [`Dda4::t_exit`]); the other lanes are
+    /// [`Dda::step_at`] on every lane of `go` (`te` = [`DdaL::t_exit`]); the other lanes are
     /// left as they are. Returns the lanes stepped out of the grid; such a lane is then read
-    /// with [`Dda4::lane`] ([`Dda::exit_kind`], [`Dda::wrap_sides`]).
+    /// with [`DdaL::lane`] ([`Dda::exit_kind`], [`Dda::wrap_sides`]).
     #[cfg(target_arch = "x86_64")]
     #[inline(always)]
-    pub fn step_at(&mut self, simd: V3, te: f64x4, go: m64x4) -> m64x4 {
-        let zero = simd.splat_f64x4(0.0);
-        let mut outside = simd.splat_m64x4(m64::new(false));
+    pub fn step_at<S: Lanes<L>>(&mut self, s: S, te: S::F, go: S::M) -> S::M {
+        let zero = s.splat(0.0);
+        let mut outside = s.mask(0);
         for a in 0..3 {
-            let t_max: f64x4 = cast(self.t_max[a]);
-            let m = simd.and_m64x4(go, simd.cmp_le_f64x4(t_max, te));
-            let c = simd.add_f64x4(
-                cast(self.cell[a]),
-                simd.select_f64x4(m, cast(self.step[a]), zero),
+            let t_max = s.ld(self.t_max[a]);
+            let m = s.and(go, s.le(t_max, te));
+            let c = s.add(s.ld(self.cell[a]), s.sel(m, s.ld(self.step[a]), zero));
+            self.cell[a] = s.st(c);
+            let dlin = s.ld_u(self.dlin[a].map(|v| v as u64));
+            let lin = s.add_u(
+                s.ld_u(self.lin.map(|v| v as u64)),
+                s.sel_u(m, dlin, s.splat_u(0)),
             );
-            self.cell[a] = cast(c);
-            let dlin: i64x4 = cast(self.dlin[a]);
-            let lin = simd.wrapping_add_i64x4(
-                cast(self.lin),
-                simd.select_i64x4(m, dlin, simd.splat_i64x4(0)),
-            );
-            self.lin = cast(lin);
+            self.lin = s.st_u(lin).map(|v| v as i64);
             // A stepped lane left the grid iff its cell is now the lane's exit index (it
             // stepped by ±1 from a cell inside; see `LanePlanes`).
-            let left = simd.cmp_eq_f64x4(c, cast(self.exit_at[a]));
-            outside = simd.or_m64x4(outside, simd.and_m64x4(left, m));
+            let left = s.eq(c, s.ld(self.exit_at[a]));
+            outside = s.or(outside, s.and(left, m));
             // Dda::boundary_t of the new index (the value of an axis that left the grid is
             // never read: the lane is taken out).
-            let bt = simd.mul_f64x4(
-                simd.sub_f64x4(
-                    simd.add_f64x4(
-                        cast(self.b_base[a]),
-                        simd.mul_f64x4(c, simd.splat_f64x4(self.size[a])),
-                    ),
-                    cast(self.origin[a]),
+            let bt = s.mul(
+                s.sub(
+                    s.add(s.ld(self.b_base[a]), s.mul(c, s.splat(self.size[a]))),
+                    s.ld(self.origin[a]),
                 ),
-                cast(self.inv[a]),
+                s.ld(self.inv[a]),
             );
-            self.t_max[a] = cast(simd.select_f64x4(m, bt, t_max));
+            self.t_max[a] = s.st(s.sel(m, bt, t_max));
         }
-        self.t = cast(simd.select_f64x4(go, te, cast(self.t)));
+        self.t = s.st(s.sel(go, te, s.ld(self.t)));
         outside
     }
 
-    /// Of the lanes that [`Dda4::step_at`] just stepped out of the grid, those whose cell lies
+    /// Of the lanes that [`DdaL::step_at`] just stepped out of the grid, those whose cell lies
     /// below or above it (they left through the bottom or the top; [`Dda::exit_kind`] reports
     /// those before a side). Meaningless for the other lanes.
     #[cfg(target_arch = "x86_64")]
     #[inline(always)]
-    pub fn z_outside(&self, simd: V3) -> m64x4 {
+    pub fn z_outside<S: Lanes<L>>(&self, s: S) -> S::M {
         // A lane that stepped out along z has its cell at the exit index (see `LanePlanes`);
         // inside, it is neither −1 nor n.
-        simd.cmp_eq_f64x4(cast(self.cell[2]), cast(self.exit_at[2]))
+        s.eq(s.ld(self.cell[2]), s.ld(self.exit_at[2]))
     }
 
-    /// [`Dda4::wrap_sides`] on every lane of `m` at once (lanes that left the grid through a
+    /// [`DdaL::wrap_sides`] on every lane of `m` at once (lanes that left the grid through a
     /// side only, repetitive boundary without an altitude offset): per side axis that left the
     /// grid, the cell moved by one period, the linear index, the origin shifted by one period
     /// and the exit distance recomputed and clamped to `t` — the same operations as
     /// [`Dda::wrap_sides`], so the same bits. Returns the number of axes wrapped per lane.
     #[cfg(target_arch = "x86_64")]
     #[inline(always)]
-    pub fn wrap_sides_x4(&mut self, simd: V3, m: m64x4) -> f64x4 {
-        let sp = |v: f64| simd.splat_f64x4(v);
+    pub fn wrap_sides_l<S: Lanes<L>>(&mut self, s: S, m: S::M) -> S::F {
+        let sp = |v: f64| s.splat(v);
         let zero = sp(0.0);
-        let t: f64x4 = cast(self.t);
+        let t = s.ld(self.t);
         let mut count = zero;
         for a in 0..2 {
-            let c: f64x4 = cast(self.cell[a]);
+            let c = s.ld(self.cell[a]);
             // The lanes of `m` that left along this axis (their cell is the exit index, see
             // `LanePlanes`: below the grid for a step of −1, above for +1).
-            let w = simd.and_m64x4(m, simd.cmp_eq_f64x4(c, cast(self.exit_at[a])));
+            let w = s.and(m, s.eq(c, s.ld(self.exit_at[a])));
             // back = ±n cells (exact in doubles), ±n · stride in the linear index, ±n · size in
             // metres (`back as f64 * size` in the scalar form), per lane.
-            let c = simd.add_f64x4(c, simd.select_f64x4(w, cast(self.wrap_back[a]), zero));
-            self.cell[a] = cast(c);
-            let dl = simd.select_i64x4(w, cast(self.wrap_lin[a]), simd.splat_i64x4(0));
-            self.lin = cast(simd.wrapping_add_i64x4(cast(self.lin), dl));
-            let o0: f64x4 = cast(self.origin[a]);
-            let o = simd.select_f64x4(w, simd.add_f64x4(o0, cast(self.wrap_o[a])), o0);
-            self.origin[a] = cast(o);
-            let bt = simd.mul_f64x4(
-                simd.sub_f64x4(
-                    simd.add_f64x4(cast(self.b_base[a]), simd.mul_f64x4(c, sp(self.size[a]))),
-                    o,
-                ),
-                cast(self.inv[a]),
+            let c = s.add(c, s.sel(w, s.ld(self.wrap_back[a]), zero));
+            self.cell[a] = s.st(c);
+            let dl = s.sel_u(w, s.ld_u(self.wrap_lin[a].map(|v| v as u64)), s.splat_u(0));
+            self.lin = s
+                .st_u(s.add_u(s.ld_u(self.lin.map(|v| v as u64)), dl))
+                .map(|v| v as i64);
+            let o0 = s.ld(self.origin[a]);
+            let o = s.sel(w, s.add(o0, s.ld(self.wrap_o[a])), o0);
+            self.origin[a] = s.st(o);
+            let bt = s.mul(
+                s.sub(s.add(s.ld(self.b_base[a]), s.mul(c, sp(self.size[a]))), o),
+                s.ld(self.inv[a]),
             );
             // `bt.max(t)`: bt is never NaN (the axis steps, so 1/d is finite).
-            self.t_max[a] = cast(simd.select_f64x4(w, simd.max_f64x4(bt, t), cast(self.t_max[a])));
-            count = simd.add_f64x4(count, simd.select_f64x4(w, sp(1.0), zero));
+            self.t_max[a] = s.st(s.sel(w, s.max(bt, t), s.ld(self.t_max[a])));
+            count = s.add(count, s.sel(w, sp(1.0), zero));
         }
         count
     }
@@ -975,16 +1001,23 @@ mod tests {
     use super::*;
     use crate::scene::desc::BoundaryMode;
 
-    /// Four lanes of [`Dda4`] started and stepped side by side visit the same cells with the
-    /// same segment ends (bits) as four [`Dda`] walks, through wraps, on rays started on cell
+    /// L lanes of [`DdaL`] started and stepped side by side visit the same cells with the
+    /// same segment ends (bits) as L [`Dda`] walks, through wraps, on rays started on cell
     /// faces, edges and vertices, along axes and along cell diagonals (ties), until each lane
-    /// leaves through the top or the bottom.
+    /// leaves through the top or the bottom: 4 lanes (AVX2) and, where the CPU has AVX-512, 8.
     #[cfg(target_arch = "x86_64")]
     #[test]
-    fn four_lanes_walk_like_four_traversals() {
-        let Some(simd) = V3::try_new() else {
-            return;
-        };
+    fn lanes_walk_like_single_traversals() {
+        if let Some(simd) = V3::try_new() {
+            lanes_walk_like::<_, 4>(simd);
+        }
+        if let Some(simd) = pulp::x86::V4::try_new() {
+            lanes_walk_like::<_, 8>(simd);
+        }
+    }
+
+    #[cfg(target_arch = "x86_64")]
+    fn lanes_walk_like<S: Lanes<L>, const L: usize>(simd: S) {
         let s = spec();
         let mut seed = 0x2545_f491_4f6c_dd1du64;
         let mut rnd = || {
@@ -1011,49 +1044,39 @@ mod tests {
             .normalize();
             rays.push((p, d));
         }
-        for (qi, quad) in rays.chunks(4).enumerate() {
-            // Odd quads wrap their side exits lane-wise (`wrap_sides_x4`), even ones lane by
+        let bits_of = |b: &[bool; L]| (0..L).filter(|&l| b[l]).fold(0u32, |m, l| m | 1 << l);
+        for (qi, group) in rays.chunks(L).enumerate() {
+            // Odd groups wrap their side exits lane-wise (`wrap_sides_l`), even ones lane by
             // lane (`wrap_sides`).
             let vector_wrap = qi % 2 == 1;
-            let mut lanes = Dda4::default();
+            let mut lanes = DdaL::<L>::default();
             let mut one: Vec<Option<Dda>> = Vec::new();
-            let mut go = [false; 4];
-            for (l, &(p, d)) in quad.iter().enumerate() {
+            let mut go = [false; L];
+            for (l, &(p, d)) in group.iter().enumerate() {
                 let a = Dda::new(&s, p, d);
-                assert_eq!(lanes.start(simd, l, &s, p, d), a.is_some());
+                assert_eq!(lanes.start(simd.v3(), l, &s, p, d), a.is_some());
                 go[l] = a.is_some();
                 one.push(a);
             }
             for _ in 0..200 {
-                let te: [f64; 4] = cast(lanes.t_exit(simd));
-                let mask = m64x4(
-                    m64::new(go[0]),
-                    m64::new(go[1]),
-                    m64::new(go[2]),
-                    m64::new(go[3]),
-                );
-                let out: [u64; 4] = cast(lanes.step_at(simd, cast(te), mask));
-                let mut wrapped = [0.0; 4];
+                let te = simd.st(lanes.t_exit(simd));
+                let out = simd.bits(lanes.step_at(simd, simd.ld(te), simd.mask(bits_of(&go))));
+                let out = |l: usize| out >> l & 1 != 0;
+                let mut wrapped = [0.0; L];
                 if vector_wrap {
                     // The lanes that left through a side only.
-                    let z_out: [u64; 4] = cast(lanes.z_outside(simd));
-                    let side: [bool; 4] =
-                        std::array::from_fn(|l| go[l] && out[l] != 0 && z_out[l] == 0);
-                    let side_m = m64x4(
-                        m64::new(side[0]),
-                        m64::new(side[1]),
-                        m64::new(side[2]),
-                        m64::new(side[3]),
-                    );
-                    wrapped = cast(lanes.wrap_sides_x4(simd, side_m));
+                    let z_out = simd.bits(lanes.z_outside(simd));
+                    let side: [bool; L] =
+                        std::array::from_fn(|l| go[l] && out(l) && z_out >> l & 1 == 0);
+                    wrapped = simd.st(lanes.wrap_sides_l(simd, simd.mask(bits_of(&side))));
                 }
-                for l in 0..4 {
+                for l in 0..group.len() {
                     let Some(d) = one[l].as_mut().filter(|_| go[l]) else {
                         continue;
                     };
                     assert_eq!(te[l].to_bits(), d.t_exit().to_bits());
                     let inside = d.step_at(te[l]);
-                    assert_eq!(inside, out[l] == 0);
+                    assert_eq!(inside, !out(l));
                     if !inside {
                         let e = d.exit_kind();
                         if !vector_wrap || !matches!(e, Exit::Side(..)) {

@@ -60,7 +60,7 @@
 //!   of threads.
 
 mod batch;
-pub use batch::kernel_isa;
+pub use batch::{batch_lanes, instruction_set, kernel_isa};
 
 use super::dda::{Dda, Exit, floor_i64, skip_field};
 use super::fastmath::{HalfBarycentres, attenuation};
@@ -140,14 +140,18 @@ pub struct TrackingParams {
     /// With `Faces` / `Subfaces`: a turbid cell's scattered rays are followed to the cell's
     /// exit and merged per (exit face or sub-face, direction) (DART 5 paper Figure 7c).
     pub turbid_exit_grouping: bool,
-    /// The lean tracker's rays queued per chunk and walked four at a time (see the `batch`
-    /// module of the engine): the same rays, each with the same operations, so the products
-    /// agree to rounding (only the summation order of the rays' contributions changes). Off:
-    /// one ray at a time (kept for the equality tests and for measuring).
+    /// The lean tracker's rays queued per chunk and walked eight (AVX-512) or four (AVX2) at a
+    /// time (see the `batch` module of the engine): the same rays, each with the same
+    /// operations, so the products agree to rounding (only the summation order of the rays'
+    /// contributions changes). Off: one ray at a time (kept for the equality tests and for
+    /// measuring).
     pub batch_walk: bool,
     /// Most capable instruction set the walks may use (default: the best this CPU has; the
-    /// others for the equality tests and for measuring). Not written with the products: they
-    /// are the same bits on every instruction set (the same IEEE operations, no contraction).
+    /// others for reproducing bits across machines, the equality tests and measuring). Every
+    /// ray gets the same IEEE operations on every instruction set (no contraction); the one-ray
+    /// walks give the same bits on all, the batched walk the same bits on all CPUs that run the
+    /// same lane count (8 with AVX-512, 4 with AVX2 or under `Avx2`), and products within
+    /// ~1e-15 relative between the two counts (summation order).
     #[serde(skip)]
     pub kernel_isa: KernelIsa,
     /// A progress bar of the iterations on stderr (a display setting, not written with the
@@ -159,11 +163,11 @@ pub struct TrackingParams {
 /// Instruction set cap of the flux-tracking walks ([`TrackingParams::kernel_isa`]).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub enum KernelIsa {
-    /// The best the CPU has: AVX-512 (the AVX2 code compiled with it), else AVX2 + FMA, else
-    /// the baseline.
+    /// The best the CPU has: AVX-512 (the batched walk on 8 lanes, the one-ray walks compiled
+    /// with it), else AVX2 + FMA, else the baseline.
     #[default]
     Best,
-    /// At most AVX2 + FMA (what CPUs without AVX-512 run).
+    /// At most AVX2 + FMA (what CPUs without AVX-512 run: the batched walk on 4 lanes).
     Avx2,
     /// The baseline x86-64 code: one ray at a time (no batched walk).
     Baseline,

@@ -6,6 +6,8 @@ pub mod dda;
 pub mod engine;
 pub mod fastmath;
 pub mod images;
+#[cfg(target_arch = "x86_64")]
+pub mod lanes;
 pub mod products;
 
 /// Above this many (facet × direction) pairs, facets use the renormalised cosine fractions

@@ -85,12 +85,13 @@ pub struct RunSettings {
     /// bit, see [`crate::radiative::dda::Dda::skip_to`]). Off: every cell is visited (kept for
     /// the equality tests and for measuring).
     pub skip_empty: bool,
-    /// The flux tracker's batched 4-ray walk (default on; products agree with the one-ray walk
-    /// to rounding, see [`crate::radiative::engine::TrackingParams::batch_walk`]). Off: one ray
-    /// at a time (kept for the equality tests and for measuring).
+    /// The flux tracker's batched 8- or 4-ray walk (default on; products agree with the
+    /// one-ray walk to rounding, see [`crate::radiative::engine::TrackingParams::batch_walk`]).
+    /// Off: one ray at a time (kept for the equality tests and for measuring).
     pub batch_walk: bool,
     /// Most capable instruction set of the flux-tracking walks (default: the best this CPU
-    /// has; same products on each, see [`crate::radiative::engine::TrackingParams::kernel_isa`]).
+    /// has; products equal to rounding on each, see
+    /// [`crate::radiative::engine::TrackingParams::kernel_isa`]).
     pub kernel_isa: crate::radiative::engine::KernelIsa,
     /// LiDAR pulses tracked per chunk; with an output folder, a scan of more pulses than one
     /// chunk streams its waveforms to disk chunk by chunk (memory bounded by a chunk, same

@@ -1,21 +1,26 @@
-//! The batched 4-ray walk of the lean tracker: rays that [`Ctx::walk_lean`] would walk one by
-//! one (dense accumulator, `turbid_subfaces: Off`, 1, 2 or 4 channels, a scene that
-//! [`Ctx::simple`] covers) are queued per chunk ([`Ctx::queue`]) and walked four at a time,
-//! one per lane ([`Ctx::flush`]), in AVX2 (x86-64 CPUs that have it, `pulp` runtime detection,
-//! no unsafe code; elsewhere the queued rays are walked one by one by [`Ctx::walk_lean`]). Per crossing, the four lanes' segment lengths, attenuations
-//! (`e^{−kℓ}`, [`attenuation_x4`]), interception points ([`HalfBarycentres::eval_x4`]), power
-//! updates and DDA steps ([`Dda4::step_at`]) are computed lane-wise without a branch on the data;
-//! the cell records are read and the interceptions booked lane by lane in lane order; the
-//! lanes that leave a repetitive scene through a side re-enter on the opposite side lane-wise
-//! ([`Dda4::wrap_sides_x4`]); a lane whose ray ends (top, bottom, lost side, threshold, wrap
+//! The batched walk of the lean tracker: rays that [`Ctx::walk_lean`] would walk one by one
+//! (dense accumulator, `turbid_subfaces: Off`, 1, 2 or 4 channels, a scene that
+//! [`Ctx::simple`] covers) are queued per chunk ([`Ctx::queue`]) and walked L at a time, one
+//! per lane ([`Ctx::flush`]): 8 lanes in AVX-512 registers on CPUs that have it, 4 in AVX2
+//! elsewhere on x86-64 ([`crate::radiative::lanes`]; `pulp` runtime detection, no unsafe
+//! code; without AVX2 the queued rays are walked one by one by [`Ctx::walk_lean`]). Per
+//! crossing, the lanes' segment lengths, attenuations (`e^{−kℓ}`, [`attenuation_l`]),
+//! interception points ([`HalfBarycentres::eval_l`]), power updates and DDA steps
+//! ([`DdaL::step_at`]) are computed lane-wise without a branch on the data; the cell records
+//! are read and the interceptions booked lane by lane in lane order (the lanes' weighted
+//! points transposed into one row per lane, [`Lanes::rows7`]); the lanes that leave a
+//! repetitive scene through a side re-enter on the opposite side lane-wise
+//! ([`DdaL::wrap_sides_l`]); a lane whose ray ends (top, bottom, lost side, threshold, wrap
 //! limit) or meets a rare event (empty-space skip) leaves the lane-wise path, and a finished
-//! lane is refilled with the next queued ray ([`Dda4::start`], the three axes in one vector).
+//! lane is refilled with the next queued ray ([`DdaL::start_with`], the three axes in one
+//! vector).
 //!
 //! Each ray goes through the same operations as in [`Ctx::walk_lean`] (the same physics: DART 5
 //! flux tracking, Gastellu-Etchegorry et al. 2015, Remote Sens. 7, 1667–1701, §3), so its own
 //! contributions are the same bits; only the order in which the rays' contributions are summed
-//! into the chunk's accumulators changes. The queue is filled and refilled in the chunk's own
-//! order, so products do not depend on the threads. Four independent rays in flight hide the
+//! into the chunk's accumulators changes (with the lane count: 8-lane and 4-lane products
+//! differ in the last bits, ~1e-15 relative). The queue is filled and refilled in the chunk's
+//! own order, so products do not depend on the threads. L independent rays in flight hide the
 //! latency of one ray's dependency chain, and the unpredictable per-axis branch of the scalar
 //! DDA becomes a mask.
 
@@ -24,14 +29,16 @@ use super::{ChunkOut, Ctx, TurAcc};
 use super::{DenseView, add};
 use crate::radiative::dda::DirStart;
 #[cfg(target_arch = "x86_64")]
-use crate::radiative::dda::{Dda4, Exit};
+use crate::radiative::dda::{DdaL, Exit};
 #[cfg(target_arch = "x86_64")]
-use crate::radiative::fastmath::{HalfBarycentres, attenuation_x4, transpose4};
+use crate::radiative::fastmath::{HalfBarycentres, attenuation_l};
+#[cfg(target_arch = "x86_64")]
+use crate::radiative::lanes::Lanes;
 #[cfg(target_arch = "x86_64")]
 use crate::scene::desc::BoundaryMode;
 use glam::DVec3;
 #[cfg(target_arch = "x86_64")]
-use pulp::{cast, f64x4, m64x4, x86::V3};
+use pulp::x86::{V3, V4};
 
 /// Queued rays after which a chunk's queue is walked (about 20 KiB of queue: long enough that
 /// the lanes stay full for all but the last few rays).
@@ -73,22 +80,12 @@ pub(super) fn lane_dirs(ctx: &Ctx) -> Vec<LaneDir> {
         .collect()
 }
 
-/// The AVX2 + FMA token the batched walk runs with on dispatch target `arch` (AVX-512 targets
-/// run the same code); `None`: no batched walk (rays one by one).
-#[cfg(target_arch = "x86_64")]
-fn lane_simd(arch: &pulp::Arch) -> Option<V3> {
-    match arch {
-        pulp::Arch::V4(v4) => Some(**v4),
-        pulp::Arch::V3(v3) => Some(*v3),
-        _ => None,
-    }
-}
-
-/// Whether dispatch target `arch` runs the batched walk (x86-64 with AVX2 and FMA).
+/// Whether dispatch target `arch` runs the batched walk (x86-64 with AVX2 and FMA: 4 lanes;
+/// with AVX-512: 8).
 pub(super) fn available(arch: &pulp::Arch) -> bool {
     #[cfg(target_arch = "x86_64")]
     {
-        lane_simd(arch).is_some()
+        matches!(arch, pulp::Arch::V4(_) | pulp::Arch::V3(_))
     }
     #[cfg(not(target_arch = "x86_64"))]
     {
@@ -98,15 +95,33 @@ pub(super) fn available(arch: &pulp::Arch) -> bool {
 }
 
 /// The instruction set the flux-tracking walks run on this CPU by default (for the benches'
-/// records): `"AVX-512"` (the AVX2 code compiled with AVX-512 available), `"AVX2"`, or
-/// `"baseline"`.
+/// records): `"AVX-512"` (the batched walk on 8 lanes), `"AVX2"` (4 lanes), or `"baseline"`
+/// (rays one by one).
 pub fn kernel_isa() -> &'static str {
-    match super::KernelIsa::Best.arch() {
+    instruction_set(super::KernelIsa::Best)
+}
+
+/// The instruction set the walks run on this CPU under cap `isa` (see [`kernel_isa`]).
+pub fn instruction_set(isa: super::KernelIsa) -> &'static str {
+    match isa.arch() {
         #[cfg(target_arch = "x86_64")]
         pulp::Arch::V4(_) => "AVX-512",
         #[cfg(target_arch = "x86_64")]
         pulp::Arch::V3(_) => "AVX2",
         _ => "baseline",
+    }
+}
+
+/// Rays the batched walk has in flight on this CPU under cap `isa`: 8 (AVX-512), 4 (AVX2),
+/// 1 (no batched walk). Products of runs with the same count are the same bits; between
+/// counts they differ in the last bits (summation order).
+pub fn batch_lanes(isa: super::KernelIsa) -> usize {
+    match isa.arch() {
+        #[cfg(target_arch = "x86_64")]
+        pulp::Arch::V4(_) => 8,
+        #[cfg(target_arch = "x86_64")]
+        pulp::Arch::V3(_) => 4,
+        _ => 1,
     }
 }
 
@@ -174,45 +189,61 @@ impl Ctx<'_> {
 
     fn walk_batch<const W: usize>(&self, queue: &[Queued], tur: &mut TurAcc, out: &mut ChunkOut) {
         #[cfg(target_arch = "x86_64")]
-        if let Some(simd) = lane_simd(&self.arch) {
+        if let pulp::Arch::V4(_) | pulp::Arch::V3(_) = self.arch {
             let mut view = tur
                 .view()
                 .expect("rays are queued with a dense accumulator only");
             view.w = W;
-            /// The walk's arguments, run by `pulp` in AVX2 + FMA.
+            /// The walk's arguments, run by `pulp` with the target's instruction set: 8 lanes
+            /// in AVX-512 registers (`V4`), 4 in AVX2 (`V3`).
             struct Walk<'c, 'v, 'o, 'x, const W: usize> {
                 ctx: &'c Ctx<'x>,
-                simd: V3,
                 queue: &'o [Queued],
                 view: &'o mut DenseView<'v>,
                 out: &'o mut ChunkOut,
             }
-            impl<const W: usize> pulp::WithSimd for Walk<'_, '_, '_, '_, W> {
+            impl<const W: usize> Walk<'_, '_, '_, '_, W> {
+                #[inline(always)]
+                fn run<S: Lanes<L>, const L: usize>(self, s: S) {
+                    let ctx = self.ctx;
+                    if ctx.n_tm == 1 {
+                        ctx.walk_batch_body::<S, L, W, true>(s, self.queue, self.view, self.out)
+                    } else {
+                        ctx.walk_batch_body::<S, L, W, false>(s, self.queue, self.view, self.out)
+                    }
+                }
+            }
+            /// The 8-lane walk (AVX-512).
+            struct Walk8<'c, 'v, 'o, 'x, const W: usize>(Walk<'c, 'v, 'o, 'x, W>, V4);
+            impl<const W: usize> pulp::WithSimd for Walk8<'_, '_, '_, '_, W> {
                 type Output = ();
                 #[inline(always)]
                 fn with_simd<S: pulp::Simd>(self, _simd: S) {
-                    let (ctx, simd) = (self.ctx, self.simd);
-                    if ctx.n_tm == 1 {
-                        ctx.walk_batch_body::<W, true>(simd, self.queue, self.view, self.out)
-                    } else {
-                        ctx.walk_batch_body::<W, false>(simd, self.queue, self.view, self.out)
-                    }
+                    self.0.run::<V4, 8>(self.1)
+                }
+            }
+            /// The 4-lane walk (AVX2). (8 lanes as two AVX2 halves, the same bits as AVX-512,
+            /// measured 40 against 55 Mcross/s/core: spills in 16 registers.)
+            struct Walk4<'c, 'v, 'o, 'x, const W: usize>(Walk<'c, 'v, 'o, 'x, W>, V3);
+            impl<const W: usize> pulp::WithSimd for Walk4<'_, '_, '_, '_, W> {
+                type Output = ();
+                #[inline(always)]
+                fn with_simd<S: pulp::Simd>(self, _simd: S) {
+                    self.0.run::<V3, 4>(self.1)
                 }
             }
             let walk = Walk::<W> {
                 ctx: self,
-                simd,
                 queue,
                 view: &mut view,
                 out,
             };
-            // The same AVX2 operations compiled with AVX-512 available where the CPU has it
-            // (32 vector registers instead of 16, EVEX compares into mask registers): the same
-            // IEEE operations on the same values, so the same bits.
             if let pulp::Arch::V4(v4) = self.arch {
-                return pulp::Simd::vectorize(v4, walk);
+                return pulp::Simd::vectorize(v4, Walk8(walk, v4));
             }
-            return pulp::Simd::vectorize(simd, walk);
+            if let pulp::Arch::V3(v3) = self.arch {
+                return pulp::Simd::vectorize(v3, Walk4(walk, v3));
+            }
         }
         // No AVX2: the rays one by one, in queue order.
         let (foot, scale) = (out.foot, out.ray_scale);
@@ -224,13 +255,13 @@ impl Ctx<'_> {
         (out.foot, out.ray_scale) = (foot, scale);
     }
 
-    /// The body of [`Ctx::walk_batch`] (inlined into the AVX2 copy); `ONE_TM`: the scene has
-    /// one tracked turbid material.
+    /// The body of [`Ctx::walk_batch`] on L lanes (inlined into the AVX2 and AVX-512 copies);
+    /// `ONE_TM`: the scene has one tracked turbid material.
     #[cfg(target_arch = "x86_64")]
     #[inline(always)]
-    fn walk_batch_body<const W: usize, const ONE_TM: bool>(
+    fn walk_batch_body<S: Lanes<L>, const L: usize, const W: usize, const ONE_TM: bool>(
         &self,
-        simd: V3,
+        s: S,
         queue: &[Queued],
         view: &mut DenseView,
         out: &mut ChunkOut,
@@ -248,118 +279,107 @@ impl Ctx<'_> {
         let pts: &mut [[f64; 7]] = view.pts.as_chunks_mut::<7>().0;
         let flag = &mut *view.flag;
         let touched = &mut *view.touched;
-        let mut ln = Lanes::<W> {
-            dda: Dda4::default(),
+        let mut ln = InFlight::<W, L> {
+            dda: DdaL::default(),
             act: 0,
-            pw: [[0.0; 4]; W],
-            psum: [0.0; 4],
-            min_ray: [0.0; 4],
-            g: [0.0; 4],
-            g_row: [0; 4],
-            slot: [0; 4],
-            dirs: [0; 4],
-            foot: [(0.0, 0.0); 4],
-            wraps: [0.0; 4],
+            pw: [[0.0; L]; W],
+            psum: [0.0; L],
+            min_ray: [0.0; L],
+            g: [0.0; L],
+            g_row: [0; L],
+            slot: [0; L],
+            dirs: [0; L],
+            foot: [(0.0, 0.0); L],
+            wraps: [0.0; L],
             next: 0,
         };
         ln.dda.set_grid(spec);
         let mut n_cross = 0u64;
         let mut n_skip = 0u64;
         let foot_saved = out.foot;
-        for l in 0..4 {
-            ln.refill(simd, self, l, queue, out);
+        let v3 = s.v3();
+        for l in 0..L {
+            ln.refill(v3, self, l, queue, out);
         }
-        let sp = |v: f64| simd.splat_f64x4(v);
+        let sp = |v: f64| s.splat(v);
         let zero = sp(0.0);
-        // Lane bit masks as vector masks (one table row per 4-bit mask).
-        const MASKS: [[u64; 4]; 16] = {
-            let mut t = [[0u64; 4]; 16];
-            let mut b = 0;
-            while b < 16 {
-                let mut l = 0;
-                while l < 4 {
-                    if b & (1 << l) != 0 {
-                        t[b][l] = u64::MAX;
-                    }
-                    l += 1;
-                }
-                b += 1;
-            }
-            t
-        };
-        let mask = |bits: u32| -> m64x4 { cast(MASKS[(bits & 15) as usize]) };
-        let bits = |m: m64x4| -> u32 { simd.avx._mm256_movemask_pd(cast(m)) as u32 };
         while ln.act != 0 {
             // Cell records, lane by lane; the lanes in empty cells at distance r > 1 jump over
             // the empty box around them (an event).
-            let mut dens = [0.0; 4];
-            let mut idx = [0u32; 4];
-            let mut tms = [0u64; 4];
-            for l in 0..4 {
+            let mut dens = [0.0; L];
+            let mut idx = [0u32; L];
+            let mut tms = [0u64; L];
+            // Lanes in cells at tm > 1 (for an empty cell, its skip distance), as bits: formed
+            // in scalar registers (a vector load of the lanes' just-stored values would wait
+            // for the stores to retire: no store-to-load forwarding from several stores).
+            let mut far = 0u32;
+            for l in 0..L {
                 let sc = scells[ln.dda.lin[l] as usize];
                 dens[l] = sc.density;
                 idx[l] = sc.idx;
                 tms[l] = sc.tm as u64;
+                far |= ((sc.tm > 1) as u32) << l;
             }
-            let dens: f64x4 = cast(dens);
-            let occ = simd.cmp_gt_f64x4(dens, zero);
+            let dens = s.ld(dens);
+            let occ = s.gt(dens, zero);
             // Empty cells at distance r = tm > 1 (an empty cell's tm is its skip distance).
-            let far = simd.cmp_gt_u64x4(cast(tms), simd.splat_u64x4(1));
-            let skip = bits(simd.andnot_m64x4(occ, far)) & ln.act;
-            let g: f64x4 = if ONE_TM {
-                cast(ln.g)
+            let skip = !s.bits(occ) & far & ln.act;
+            let g = if ONE_TM {
+                s.ld(ln.g)
             } else {
-                let occ: [u64; 4] = cast(occ);
-                cast::<[f64; 4], f64x4>(std::array::from_fn(|l| {
+                let occ = s.bits(occ);
+                s.ld(std::array::from_fn(|l| {
                     // An empty cell's tm is its skip distance, not a material: no G read.
-                    let tm = if occ[l] != 0 { tms[l] as usize } else { 0 };
+                    let tm = if occ >> l & 1 != 0 {
+                        tms[l] as usize
+                    } else {
+                        0
+                    };
                     g_dir.get(ln.g_row[l] + tm).copied().unwrap_or(0.0)
                 }))
             };
-            let k = simd.mul_f64x4(g, dens);
-            let act = mask(ln.act);
-            let t0: f64x4 = cast(ln.dda.t);
-            let t1 = ln.dda.t_exit(simd);
-            let ell = simd.sub_f64x4(t1, t0);
-            let hit_m = simd.and_m64x4(
-                simd.and_m64x4(act, occ),
-                simd.and_m64x4(simd.cmp_gt_f64x4(t1, t0), simd.cmp_gt_f64x4(k, zero)),
-            );
-            let hit = bits(hit_m);
-            let x = simd.select_f64x4(hit_m, simd.mul_f64x4(k, ell), zero);
-            let (frac, tr) = attenuation_x4(simd, x);
-            let (s1, s2) = hb.eval_x4(simd, x, ell, hit_m);
-            let psum: f64x4 = cast(ln.psum);
-            let wt: [f64; 4] = cast(simd.mul_f64x4(psum, frac));
-            let point = |a: usize, s: f64x4| -> [f64; 4] {
-                let o: f64x4 = cast(ln.dda.origin[a]);
-                let d: f64x4 = cast(ln.dda.dir[a]);
-                cast(simd.add_f64x4(o, simd.mul_f64x4(d, simd.add_f64x4(t0, s))))
+            let k = s.mul(g, dens);
+            let act = s.mask(ln.act);
+            let t0 = s.ld(ln.dda.t);
+            let t1 = ln.dda.t_exit(s);
+            let ell = s.sub(t1, t0);
+            let hit_m = s.and(s.and(act, occ), s.and(s.gt(t1, t0), s.gt(k, zero)));
+            let hit = s.bits(hit_m);
+            let x = s.sel(hit_m, s.mul(k, ell), zero);
+            let (frac, tr) = attenuation_l(s, x);
+            let (s1, s2) = hb.eval_l(s, x, ell, hit_m);
+            let psum = s.ld(ln.psum);
+            let wtv = s.mul(psum, frac);
+            let point = |a: usize, sv: S::F| -> S::F {
+                let o = s.ld(ln.dda.origin[a]);
+                let d = s.ld(ln.dda.dir[a]);
+                s.add(o, s.mul(d, s.add(t0, sv)))
             };
             let p1 = [point(0, s1), point(1, s1), point(2, s1)];
             let p2 = [point(0, s2), point(1, s2), point(2, s2)];
-            let mut gain = [[0.0; 4]; W];
+            let mut gain = [[0.0; L]; W];
             for c in 0..W {
-                let pwc: f64x4 = cast(ln.pw[c]);
-                gain[c] = cast(simd.mul_f64x4(pwc, frac));
+                let pwc = s.ld(ln.pw[c]);
+                gain[c] = s.st(s.mul(pwc, frac));
                 // Lanes without a hit have x = 0, so tr = 1 − 0 = 1 exactly and `pw · tr` is pw:
-                // no select (which the compiler turns into a masked store, `vmaskmovpd`, slow
-                // on AMD CPUs without AVX-512).
-                ln.pw[c] = cast(simd.mul_f64x4(pwc, tr));
+                // no select (which the compiler turns into a masked store, `vmaskmovpd` in the
+                // AVX2 copy, slow on AMD CPUs).
+                ln.pw[c] = s.st(s.mul(pwc, tr));
             }
             // The weighted interception points lane-wise (`p · wt`, the scalar walk's products),
-            // then one row per lane: [p1x, p1y, p1z, p2x] · wt and [p2y · wt, p2z · wt, wt, 0].
-            let wtv: f64x4 = cast(wt);
-            let pw_pt = |v: [f64; 4]| simd.mul_f64x4(cast(v), wtv);
-            let rows_a: [[f64; 4]; 4] = transpose4(
-                simd,
-                [pw_pt(p1[0]), pw_pt(p1[1]), pw_pt(p1[2]), pw_pt(p2[0])],
-            )
-            .map(cast);
-            let rows_b: [[f64; 4]; 4] =
-                transpose4(simd, [pw_pt(p2[1]), pw_pt(p2[2]), wtv, zero]).map(cast);
+            // then one row per lane: [p1 · wt, p2 · wt, wt].
+            let pw_pt = |v: S::F| s.mul(v, wtv);
+            let rows = s.rows7([
+                pw_pt(p1[0]),
+                pw_pt(p1[1]),
+                pw_pt(p1[2]),
+                pw_pt(p2[0]),
+                pw_pt(p2[1]),
+                pw_pt(p2[2]),
+                wtv,
+            ]);
             // Interceptions booked lane by lane (a fixed order).
-            for l in 0..4 {
+            for l in 0..L {
                 if hit & (1 << l) == 0 {
                     continue;
                 }
@@ -373,35 +393,31 @@ impl Ctx<'_> {
                     r[c] += gain[c][l];
                 }
                 let q = &mut pts[e];
-                for i in 0..4 {
-                    q[i] += rows_a[l][i];
-                }
-                for i in 0..3 {
-                    q[4 + i] += rows_b[l][i];
+                for i in 0..7 {
+                    q[i] += rows[l][i];
                 }
             }
             // The channel sum in channel order (as `pw.iter().sum()`).
-            let mut psum: f64x4 = cast(ln.pw[0]);
+            let mut psum = s.ld(ln.pw[0]);
             for c in 1..W {
-                psum = simd.add_f64x4(psum, cast(ln.pw[c]));
+                psum = s.add(psum, s.ld(ln.pw[c]));
             }
-            ln.psum = cast(psum);
-            let dead = hit & bits(simd.cmp_lt_f64x4(psum, cast(ln.min_ray)));
+            ln.psum = s.st(psum);
+            let dead = hit & s.bits(s.lt(psum, s.ld(ln.min_ray)));
             let go = ln.act & !skip & !dead;
-            let out_m = ln.dda.step_at(simd, t1, mask(go));
+            let out_m = ln.dda.step_at(s, t1, s.mask(go));
             n_cross += ln.act.count_ones() as u64;
-            let mut out_b = go & bits(out_m);
+            let mut out_b = go & s.bits(out_m);
             // Lanes past the wrap limit (lost).
             let mut over = 0u32;
             if out_b != 0 && !isolated {
                 // Lanes that left through a side only (top and bottom win at a tie, as in
                 // `Dda::exit_kind`): wrapped to the opposite side lane-wise.
-                let side = out_b & !bits(ln.dda.z_outside(simd));
+                let side = out_b & !s.bits(ln.dda.z_outside(s));
                 if side != 0 {
-                    let wraps =
-                        simd.add_f64x4(cast(ln.wraps), ln.dda.wrap_sides_x4(simd, mask(side)));
-                    ln.wraps = cast(wraps);
-                    over = side & bits(simd.cmp_gt_f64x4(wraps, sp(max_crossings as f64)));
+                    let wraps = s.add(s.ld(ln.wraps), ln.dda.wrap_sides_l(s, s.mask(side)));
+                    ln.wraps = s.st(wraps);
+                    over = side & s.bits(s.gt(wraps, sp(max_crossings as f64)));
                     out_b &= !side;
                 }
             }
@@ -409,7 +425,7 @@ impl Ctx<'_> {
             if ev == 0 {
                 continue;
             }
-            for l in 0..4 {
+            for l in 0..L {
                 if ev & (1 << l) == 0 {
                     continue;
                 }
@@ -457,7 +473,7 @@ impl Ctx<'_> {
                     }
                 };
                 if finished {
-                    ln.refill(simd, self, l, queue, out);
+                    ln.refill(v3, self, l, queue, out);
                 }
             }
         }
@@ -471,23 +487,23 @@ impl Ctx<'_> {
 /// `pw[c][l]` and their sum, power threshold, start of the G row (and the single material's
 /// G), slot, direction, footprint, side wraps (integer-valued); `next`: the next queued ray.
 #[cfg(target_arch = "x86_64")]
-struct Lanes<const W: usize> {
-    dda: Dda4,
+struct InFlight<const W: usize, const L: usize> {
+    dda: DdaL<L>,
     act: u32,
-    pw: [[f64; 4]; W],
-    psum: [f64; 4],
-    min_ray: [f64; 4],
-    g: [f64; 4],
-    g_row: [usize; 4],
-    slot: [usize; 4],
-    dirs: [usize; 4],
-    foot: [(f64, f64); 4],
-    wraps: [f64; 4],
+    pw: [[f64; L]; W],
+    psum: [f64; L],
+    min_ray: [f64; L],
+    g: [f64; L],
+    g_row: [usize; L],
+    slot: [usize; L],
+    dirs: [usize; L],
+    foot: [(f64, f64); L],
+    wraps: [f64; L],
     next: usize,
 }
 
 #[cfg(target_arch = "x86_64")]
-impl<const W: usize> Lanes<W> {
+impl<const W: usize, const L: usize> InFlight<W, L> {
     /// Takes the next queued ray that starts inside the grid into lane l (rays that do not are
     /// booked as lost, as in the scalar walk); parks the lane when the queue is done.
     #[inline(always)]
