@@ -1855,7 +1855,7 @@ impl Ctx<'_> {
         let mut n_skip = 0u64;
         let mut crossings = 0u32;
         'restart: loop {
-            let Some(mut dda) = Dda::new(spec, p, d) else {
+            let Some(mut dda) = Dda::new_inline(spec, p, d) else {
                 // Started outside the grid (numerical edge): book as lost.
                 add(&mut out.lost, pw);
                 break 'restart;
