@@ -5,7 +5,7 @@ mod common;
 use lumenscape::resources::scene::RunSettings;
 use lumenscape::scene::error::SceneError;
 use lumenscape::simulation::Simulation;
-use std::path::PathBuf;
+use std::path::{Path, PathBuf};
 use std::process::Command;
 
 const GOOD: &str = r#"(
@@ -469,24 +469,14 @@ fn cli_image_oversampling_out_of_range_is_refused() {
         "eta_big.ron",
         &GOOD.replace("size_m: (10.0, 10.0)", "size_m: (1000.0, 1000.0)"),
     );
-    let out_dir = dir().join("eta_big_out");
-    let out = cli(&[
-        "run",
-        big.to_str().unwrap(),
-        "--image-oversampling",
-        "9",
-        "--out",
-        out_dir.to_str().unwrap(),
-    ]);
-    assert_eq!(out.status.code(), Some(1));
-    let err = String::from_utf8_lossy(&out.stderr);
+    let (code, err) = run_refused(&big, &["--image-oversampling", "9"], "eta_big_out");
+    assert_eq!(code, Some(1));
     assert!(
         err.contains("--image-oversampling 9")
             && err.contains("eta_big.ron")
             && err.contains("limit"),
         "{err}"
     );
-    assert!(!out_dir.exists(), "no output folder after a refused run");
 }
 
 #[test]
@@ -607,16 +597,22 @@ fn cli_isa_caps_the_instruction_set_and_is_recorded() {
         );
     }
     assert_eq!(batch_lanes(KernelIsa::Baseline), 1);
-    let out_dir = dir().join("isa_bad");
-    let out = cli(&[
-        "run",
-        p.to_str().unwrap(),
-        "--isa",
-        "avx1024",
-        "--out",
-        out_dir.to_str().unwrap(),
-    ]);
-    assert!(!out.status.success());
-    assert!(String::from_utf8_lossy(&out.stderr).contains("--isa"));
+    let (_, err) = run_refused(&p, &["--isa", "avx1024"], "isa_bad");
+    assert!(err.contains("--isa"), "{err}");
+}
+
+/// `lumenscape run SCENE extra… --out DIR`, which must fail without creating DIR: the exit code
+/// and stderr.
+fn run_refused(scene: &Path, extra: &[&str], out_name: &str) -> (Option<i32>, String) {
+    let out_dir = dir().join(out_name);
+    let mut args = vec!["run", scene.to_str().unwrap()];
+    args.extend_from_slice(extra);
+    args.extend(["--out", out_dir.to_str().unwrap()]);
+    let out = cli(&args);
+    assert!(!out.status.success(), "{extra:?} accepted");
     assert!(!out_dir.exists(), "no output folder after a refused run");
+    (
+        out.status.code(),
+        String::from_utf8_lossy(&out.stderr).into_owned(),
+    )
 }

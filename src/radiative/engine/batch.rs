@@ -38,7 +38,7 @@ use crate::radiative::lanes::Lanes;
 use crate::scene::desc::BoundaryMode;
 use glam::DVec3;
 #[cfg(target_arch = "x86_64")]
-use pulp::x86::{V3, V4};
+use pulp::x86::V3;
 
 /// Queued rays after which a chunk's queue is walked (about 20 KiB of queue: long enough that
 /// the lanes stay full for all but the last few rays).
@@ -213,23 +213,21 @@ impl Ctx<'_> {
                     }
                 }
             }
-            /// The 8-lane walk (AVX-512).
-            struct Walk8<'c, 'v, 'o, 'x, const W: usize>(Walk<'c, 'v, 'o, 'x, W>, V4);
-            impl<const W: usize> pulp::WithSimd for Walk8<'_, '_, '_, '_, W> {
+            /// The walk on L lanes of token `S`, run by `pulp` with that token's instruction set:
+            /// 8 lanes with AVX-512 (`V4`), 4 with AVX2 (`V3`; 8 lanes as two AVX2 halves, the
+            /// same bits as AVX-512, measured 40 against 55 Mcross/s/core: spills in 16
+            /// registers).
+            struct WalkOn<'c, 'v, 'o, 'x, S, const L: usize, const W: usize>(
+                Walk<'c, 'v, 'o, 'x, W>,
+                S,
+            );
+            impl<S: Lanes<L>, const L: usize, const W: usize> pulp::WithSimd
+                for WalkOn<'_, '_, '_, '_, S, L, W>
+            {
                 type Output = ();
                 #[inline(always)]
-                fn with_simd<S: pulp::Simd>(self, _simd: S) {
-                    self.0.run::<V4, 8>(self.1)
-                }
-            }
-            /// The 4-lane walk (AVX2). (8 lanes as two AVX2 halves, the same bits as AVX-512,
-            /// measured 40 against 55 Mcross/s/core: spills in 16 registers.)
-            struct Walk4<'c, 'v, 'o, 'x, const W: usize>(Walk<'c, 'v, 'o, 'x, W>, V3);
-            impl<const W: usize> pulp::WithSimd for Walk4<'_, '_, '_, '_, W> {
-                type Output = ();
-                #[inline(always)]
-                fn with_simd<S: pulp::Simd>(self, _simd: S) {
-                    self.0.run::<V3, 4>(self.1)
+                fn with_simd<T: pulp::Simd>(self, _simd: T) {
+                    self.0.run::<S, L>(self.1)
                 }
             }
             let walk = Walk::<W> {
@@ -239,10 +237,10 @@ impl Ctx<'_> {
                 out,
             };
             if let pulp::Arch::V4(v4) = self.arch {
-                return pulp::Simd::vectorize(v4, Walk8(walk, v4));
+                return pulp::Simd::vectorize(v4, WalkOn::<_, 8, W>(walk, v4));
             }
             if let pulp::Arch::V3(v3) = self.arch {
-                return pulp::Simd::vectorize(v3, Walk4(walk, v3));
+                return pulp::Simd::vectorize(v3, WalkOn::<_, 4, W>(walk, v3));
             }
         }
         // No AVX2: the rays one by one, in queue order.
