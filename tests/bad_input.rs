@@ -421,23 +421,7 @@ fn cli_image_oversampling_sets_the_image_pixels() {
         "    directions: Some((count: 40, exact: [(zenith_deg: 0.0, azimuth_deg: 0.0, label: Some(\"nadir\"))])),\n    objects: [",
     );
     let p = write("eta.ron", &text);
-    let out_dir = dir().join("eta_out");
-    let out = cli(&[
-        "run",
-        p.to_str().unwrap(),
-        "--quiet",
-        "--preset",
-        "preview",
-        "--image-oversampling",
-        "3",
-        "--out",
-        out_dir.to_str().unwrap(),
-    ]);
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    let out_dir = run_preview(&p, &["--image-oversampling", "3"], "eta_out");
     let mut n = 0;
     for e in std::fs::read_dir(out_dir.join("images")).unwrap() {
         let path = e.unwrap().path();
@@ -551,23 +535,7 @@ fn cli_isa_caps_the_instruction_set_and_is_recorded() {
     use lumenscape::radiative::engine::{KernelIsa, batch_lanes, instruction_set};
     let p = write("isa.ron", GOOD);
     let run = |isa: &str| {
-        let out_dir = dir().join(format!("isa_{isa}"));
-        let out = cli(&[
-            "run",
-            p.to_str().unwrap(),
-            "--quiet",
-            "--preset",
-            "preview",
-            "--isa",
-            isa,
-            "--out",
-            out_dir.to_str().unwrap(),
-        ]);
-        assert!(
-            out.status.success(),
-            "{}",
-            String::from_utf8_lossy(&out.stderr)
-        );
+        let out_dir = run_preview(&p, &["--isa", isa], &format!("isa_{isa}"));
         let s: serde_json::Value =
             serde_json::from_slice(&std::fs::read(out_dir.join("summary.json")).unwrap()).unwrap();
         s
@@ -599,6 +567,27 @@ fn cli_isa_caps_the_instruction_set_and_is_recorded() {
     assert_eq!(batch_lanes(KernelIsa::Baseline), 1);
     let (_, err) = run_refused(&p, &["--isa", "avx1024"], "isa_bad");
     assert!(err.contains("--isa"), "{err}");
+}
+
+/// `lumenscape run SCENE --quiet --preset preview extra… --out DIR`, which must succeed: DIR.
+fn run_preview(scene: &Path, extra: &[&str], out_name: &str) -> PathBuf {
+    let out_dir = dir().join(out_name);
+    let mut args = vec![
+        "run",
+        scene.to_str().unwrap(),
+        "--quiet",
+        "--preset",
+        "preview",
+    ];
+    args.extend_from_slice(extra);
+    args.extend(["--out", out_dir.to_str().unwrap()]);
+    let out = cli(&args);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    out_dir
 }
 
 /// `lumenscape run SCENE extra… --out DIR`, which must fail without creating DIR: the exit code

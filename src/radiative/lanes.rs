@@ -108,97 +108,108 @@ pub trait Lanes<const L: usize>: Copy {
     fn rows7(self, v: [Self::F; 7]) -> [[f64; 8]; L];
 }
 
+/// The one-line operations of a [`Lanes`] impl, each forwarded to the token's own method: the
+/// `(F, F) → F`, `(F, F) → M`, `(U, U) → U` and `U → U` ones, the selects, and the conversions
+/// between lanes and arrays (`pulp::cast`).
+macro_rules! forward {
+    (
+        ff_f: [$($ff:ident => $fff:ident),*],
+        ff_m: [$($fm:ident => $ffm:ident),*],
+        uu_u: [$($uu:ident => $fuu:ident),*],
+        u_u: [$($u1:ident => $fu1:expr),*],
+        sel: $sel:ident, sel_u: $sel_u:ident, gt_u: $gt_u:ident,
+        splat: $splat:ident, splat_u: $splat_u:ident, n: $n:literal
+    ) => {
+        $(
+            #[inline(always)]
+            fn $ff(self, a: Self::F, b: Self::F) -> Self::F {
+                self.$fff(a, b)
+            }
+        )*
+        $(
+            #[inline(always)]
+            fn $fm(self, a: Self::F, b: Self::F) -> Self::M {
+                self.$ffm(a, b)
+            }
+        )*
+        $(
+            #[inline(always)]
+            fn $uu(self, a: Self::U, b: Self::U) -> Self::U {
+                self.$fuu(a, b)
+            }
+        )*
+        $(
+            #[inline(always)]
+            fn $u1(self, a: Self::U) -> Self::U {
+                $fu1(self, a)
+            }
+        )*
+        #[inline(always)]
+        fn sel(self, m: Self::M, a: Self::F, b: Self::F) -> Self::F {
+            self.$sel(m, a, b)
+        }
+        #[inline(always)]
+        fn sel_u(self, m: Self::M, a: Self::U, b: Self::U) -> Self::U {
+            self.$sel_u(m, a, b)
+        }
+        #[inline(always)]
+        fn gt_u(self, a: Self::U, b: Self::U) -> Self::M {
+            self.$gt_u(a, b)
+        }
+        #[inline(always)]
+        fn splat(self, v: f64) -> Self::F {
+            self.$splat(v)
+        }
+        #[inline(always)]
+        fn splat_u(self, v: u64) -> Self::U {
+            self.$splat_u(v)
+        }
+        #[inline(always)]
+        fn ld(self, a: [f64; $n]) -> Self::F {
+            cast(a)
+        }
+        #[inline(always)]
+        fn st(self, a: Self::F) -> [f64; $n] {
+            cast(a)
+        }
+        #[inline(always)]
+        fn ld_u(self, a: [u64; $n]) -> Self::U {
+            cast(a)
+        }
+        #[inline(always)]
+        fn st_u(self, a: Self::U) -> [u64; $n] {
+            cast(a)
+        }
+        #[inline(always)]
+        fn f_bits(self, a: Self::F) -> Self::U {
+            cast(a)
+        }
+        #[inline(always)]
+        fn f_from_bits(self, a: Self::U) -> Self::F {
+            cast(a)
+        }
+    };
+}
+
 impl Lanes<4> for V3 {
     type F = f64x4;
     type U = u64x4;
     type M = m64x4;
+    forward! {
+        ff_f: [add => add_f64x4, sub => sub_f64x4, mul => mul_f64x4, div => div_f64x4,
+               min => min_f64x4, max => max_f64x4, xor => xor_f64x4],
+        ff_m: [gt => cmp_gt_f64x4, lt => cmp_lt_f64x4, le => cmp_le_f64x4, ge => cmp_ge_f64x4,
+               eq => cmp_eq_f64x4, nlt => cmp_not_lt_f64x4],
+        uu_u: [add_u => wrapping_add_u64x4, sub_u => wrapping_sub_u64x4, and_u => and_u64x4],
+        u_u: [shr7 => |s: V3, a| s.shr_const_u64x4::<7>(a),
+              shr47 => |s: V3, a| s.shr_const_u64x4::<47>(a),
+              shl52 => |s: V3, a| s.shl_const_u64x4::<52>(a)],
+        sel: select_f64x4, sel_u: select_u64x4, gt_u: cmp_gt_u64x4,
+        splat: splat_f64x4, splat_u: splat_u64x4, n: 4
+    }
     #[inline(always)]
     fn v3(self) -> V3 {
         self
-    }
-    #[inline(always)]
-    fn ld(self, a: [f64; 4]) -> f64x4 {
-        cast(a)
-    }
-    #[inline(always)]
-    fn st(self, a: f64x4) -> [f64; 4] {
-        cast(a)
-    }
-    #[inline(always)]
-    fn ld_u(self, a: [u64; 4]) -> u64x4 {
-        cast(a)
-    }
-    #[inline(always)]
-    fn st_u(self, a: u64x4) -> [u64; 4] {
-        cast(a)
-    }
-    #[inline(always)]
-    fn splat(self, v: f64) -> f64x4 {
-        self.splat_f64x4(v)
-    }
-    #[inline(always)]
-    fn splat_u(self, v: u64) -> u64x4 {
-        self.splat_u64x4(v)
-    }
-    #[inline(always)]
-    fn add(self, a: f64x4, b: f64x4) -> f64x4 {
-        self.add_f64x4(a, b)
-    }
-    #[inline(always)]
-    fn sub(self, a: f64x4, b: f64x4) -> f64x4 {
-        self.sub_f64x4(a, b)
-    }
-    #[inline(always)]
-    fn mul(self, a: f64x4, b: f64x4) -> f64x4 {
-        self.mul_f64x4(a, b)
-    }
-    #[inline(always)]
-    fn div(self, a: f64x4, b: f64x4) -> f64x4 {
-        self.div_f64x4(a, b)
-    }
-    #[inline(always)]
-    fn min(self, a: f64x4, b: f64x4) -> f64x4 {
-        self.min_f64x4(a, b)
-    }
-    #[inline(always)]
-    fn max(self, a: f64x4, b: f64x4) -> f64x4 {
-        self.max_f64x4(a, b)
-    }
-    #[inline(always)]
-    fn xor(self, a: f64x4, b: f64x4) -> f64x4 {
-        self.xor_f64x4(a, b)
-    }
-    #[inline(always)]
-    fn gt(self, a: f64x4, b: f64x4) -> m64x4 {
-        self.cmp_gt_f64x4(a, b)
-    }
-    #[inline(always)]
-    fn lt(self, a: f64x4, b: f64x4) -> m64x4 {
-        self.cmp_lt_f64x4(a, b)
-    }
-    #[inline(always)]
-    fn le(self, a: f64x4, b: f64x4) -> m64x4 {
-        self.cmp_le_f64x4(a, b)
-    }
-    #[inline(always)]
-    fn ge(self, a: f64x4, b: f64x4) -> m64x4 {
-        self.cmp_ge_f64x4(a, b)
-    }
-    #[inline(always)]
-    fn eq(self, a: f64x4, b: f64x4) -> m64x4 {
-        self.cmp_eq_f64x4(a, b)
-    }
-    #[inline(always)]
-    fn nlt(self, a: f64x4, b: f64x4) -> m64x4 {
-        self.cmp_not_lt_f64x4(a, b)
-    }
-    #[inline(always)]
-    fn sel(self, m: m64x4, a: f64x4, b: f64x4) -> f64x4 {
-        self.select_f64x4(m, a, b)
-    }
-    #[inline(always)]
-    fn sel_u(self, m: m64x4, a: u64x4, b: u64x4) -> u64x4 {
-        self.select_u64x4(m, a, b)
     }
     #[inline(always)]
     fn and(self, a: m64x4, b: m64x4) -> m64x4 {
@@ -235,42 +246,6 @@ impl Lanes<4> for V3 {
             t
         };
         cast(MASKS[(bits & 15) as usize])
-    }
-    #[inline(always)]
-    fn add_u(self, a: u64x4, b: u64x4) -> u64x4 {
-        self.wrapping_add_u64x4(a, b)
-    }
-    #[inline(always)]
-    fn sub_u(self, a: u64x4, b: u64x4) -> u64x4 {
-        self.wrapping_sub_u64x4(a, b)
-    }
-    #[inline(always)]
-    fn and_u(self, a: u64x4, b: u64x4) -> u64x4 {
-        self.and_u64x4(a, b)
-    }
-    #[inline(always)]
-    fn gt_u(self, a: u64x4, b: u64x4) -> m64x4 {
-        self.cmp_gt_u64x4(a, b)
-    }
-    #[inline(always)]
-    fn shr7(self, a: u64x4) -> u64x4 {
-        self.shr_const_u64x4::<7>(a)
-    }
-    #[inline(always)]
-    fn shr47(self, a: u64x4) -> u64x4 {
-        self.shr_const_u64x4::<47>(a)
-    }
-    #[inline(always)]
-    fn shl52(self, a: u64x4) -> u64x4 {
-        self.shl_const_u64x4::<52>(a)
-    }
-    #[inline(always)]
-    fn f_bits(self, a: f64x4) -> u64x4 {
-        cast(a)
-    }
-    #[inline(always)]
-    fn f_from_bits(self, a: u64x4) -> f64x4 {
-        cast(a)
     }
     #[inline(always)]
     fn pair_columns(self, rows: [&[f64; 8]; 4]) -> ([f64x4; 4], [f64x4; 4]) {
@@ -363,93 +338,25 @@ impl Lanes<8> for V4 {
     type F = f64x8;
     type U = u64x8;
     type M = b8;
+    forward! {
+        ff_f: [add => add_f64x8, sub => sub_f64x8, mul => mul_f64x8, div => div_f64x8,
+               min => min_f64x8, max => max_f64x8],
+        ff_m: [gt => cmp_gt_f64x8, lt => cmp_lt_f64x8, le => cmp_le_f64x8, ge => cmp_ge_f64x8,
+               eq => cmp_eq_f64x8, nlt => cmp_not_lt_f64x8],
+        uu_u: [add_u => wrapping_add_u64x8, sub_u => wrapping_sub_u64x8, and_u => and_u64x8],
+        u_u: [shr7 => |s: V4, a| s.shr_const_u64x8::<7>(a),
+              shr47 => |s: V4, a| s.shr_const_u64x8::<47>(a),
+              shl52 => |s: V4, a| s.shl_const_u64x8::<52>(a)],
+        sel: select_f64x8, sel_u: select_u64x8, gt_u: cmp_gt_u64x8,
+        splat: splat_f64x8, splat_u: splat_u64x8, n: 8
+    }
     #[inline(always)]
     fn v3(self) -> V3 {
         *self
     }
     #[inline(always)]
-    fn ld(self, a: [f64; 8]) -> f64x8 {
-        cast(a)
-    }
-    #[inline(always)]
-    fn st(self, a: f64x8) -> [f64; 8] {
-        cast(a)
-    }
-    #[inline(always)]
-    fn ld_u(self, a: [u64; 8]) -> u64x8 {
-        cast(a)
-    }
-    #[inline(always)]
-    fn st_u(self, a: u64x8) -> [u64; 8] {
-        cast(a)
-    }
-    #[inline(always)]
-    fn splat(self, v: f64) -> f64x8 {
-        self.splat_f64x8(v)
-    }
-    #[inline(always)]
-    fn splat_u(self, v: u64) -> u64x8 {
-        self.splat_u64x8(v)
-    }
-    #[inline(always)]
-    fn add(self, a: f64x8, b: f64x8) -> f64x8 {
-        self.add_f64x8(a, b)
-    }
-    #[inline(always)]
-    fn sub(self, a: f64x8, b: f64x8) -> f64x8 {
-        self.sub_f64x8(a, b)
-    }
-    #[inline(always)]
-    fn mul(self, a: f64x8, b: f64x8) -> f64x8 {
-        self.mul_f64x8(a, b)
-    }
-    #[inline(always)]
-    fn div(self, a: f64x8, b: f64x8) -> f64x8 {
-        self.div_f64x8(a, b)
-    }
-    #[inline(always)]
-    fn min(self, a: f64x8, b: f64x8) -> f64x8 {
-        self.min_f64x8(a, b)
-    }
-    #[inline(always)]
-    fn max(self, a: f64x8, b: f64x8) -> f64x8 {
-        self.max_f64x8(a, b)
-    }
-    #[inline(always)]
     fn xor(self, a: f64x8, b: f64x8) -> f64x8 {
         cast(self.xor_u64x8(cast(a), cast(b)))
-    }
-    #[inline(always)]
-    fn gt(self, a: f64x8, b: f64x8) -> b8 {
-        self.cmp_gt_f64x8(a, b)
-    }
-    #[inline(always)]
-    fn lt(self, a: f64x8, b: f64x8) -> b8 {
-        self.cmp_lt_f64x8(a, b)
-    }
-    #[inline(always)]
-    fn le(self, a: f64x8, b: f64x8) -> b8 {
-        self.cmp_le_f64x8(a, b)
-    }
-    #[inline(always)]
-    fn ge(self, a: f64x8, b: f64x8) -> b8 {
-        self.cmp_ge_f64x8(a, b)
-    }
-    #[inline(always)]
-    fn eq(self, a: f64x8, b: f64x8) -> b8 {
-        self.cmp_eq_f64x8(a, b)
-    }
-    #[inline(always)]
-    fn nlt(self, a: f64x8, b: f64x8) -> b8 {
-        self.cmp_not_lt_f64x8(a, b)
-    }
-    #[inline(always)]
-    fn sel(self, m: b8, a: f64x8, b: f64x8) -> f64x8 {
-        self.select_f64x8(m, a, b)
-    }
-    #[inline(always)]
-    fn sel_u(self, m: b8, a: u64x8, b: u64x8) -> u64x8 {
-        self.select_u64x8(m, a, b)
     }
     #[inline(always)]
     fn and(self, a: b8, b: b8) -> b8 {
@@ -470,42 +377,6 @@ impl Lanes<8> for V4 {
     #[inline(always)]
     fn mask(self, bits: u32) -> b8 {
         b8(bits as u8)
-    }
-    #[inline(always)]
-    fn add_u(self, a: u64x8, b: u64x8) -> u64x8 {
-        self.wrapping_add_u64x8(a, b)
-    }
-    #[inline(always)]
-    fn sub_u(self, a: u64x8, b: u64x8) -> u64x8 {
-        self.wrapping_sub_u64x8(a, b)
-    }
-    #[inline(always)]
-    fn and_u(self, a: u64x8, b: u64x8) -> u64x8 {
-        self.and_u64x8(a, b)
-    }
-    #[inline(always)]
-    fn gt_u(self, a: u64x8, b: u64x8) -> b8 {
-        self.cmp_gt_u64x8(a, b)
-    }
-    #[inline(always)]
-    fn shr7(self, a: u64x8) -> u64x8 {
-        self.shr_const_u64x8::<7>(a)
-    }
-    #[inline(always)]
-    fn shr47(self, a: u64x8) -> u64x8 {
-        self.shr_const_u64x8::<47>(a)
-    }
-    #[inline(always)]
-    fn shl52(self, a: u64x8) -> u64x8 {
-        self.shl_const_u64x8::<52>(a)
-    }
-    #[inline(always)]
-    fn f_bits(self, a: f64x8) -> u64x8 {
-        cast(a)
-    }
-    #[inline(always)]
-    fn f_from_bits(self, a: u64x8) -> f64x8 {
-        cast(a)
     }
     #[inline(always)]
     fn pair_columns(self, rows: [&[f64; 8]; 8]) -> ([f64x8; 4], [f64x8; 4]) {
