@@ -138,20 +138,33 @@ const EXP2_TABLE: [f64; 128] = [
     1.9891988469672663,
 ];
 
-/// `128/ln 2`.
-const INV_LN2_N: f64 = 184.6649652337873;
-/// `ln 2 / 128` split: `LN2_N_HI` has its 32 low mantissa bits cleared, so `k · LN2_N_HI` is
-/// exact for |k| < 2²¹ (|x| < 745 gives |k| < 2¹⁷).
-const LN2_N_HI: f64 = 0.005415208637714386;
-const LN2_N_LO: f64 = 3.710410186743494e-09;
+/// `2^{j/32}`, j = 0..31: every fourth entry of [`EXP2_TABLE`] (`2^{4j/128}`), so correctly
+/// rounded. 32 entries fit two 512-bit registers: the 8-lane walk reads them with one
+/// two-register permute (`vpermt2pd`) instead of eight scalar loads.
+pub(super) const EXP2_32: [f64; 32] = {
+    let mut t = [0.0; 32];
+    let mut j = 0;
+    while j < 32 {
+        t[j] = EXP2_TABLE[4 * j];
+        j += 1;
+    }
+    t
+};
+
+/// `32/ln 2` (`128/ln 2` divided by 4: exact).
+const INV_LN2_N: f64 = 184.6649652337873 / 4.0;
+/// `ln 2 / 32` split (`ln 2 / 128`'s split times 4: exact): `LN2_N_HI` has its 32 low mantissa
+/// bits cleared, so `k · LN2_N_HI` is exact for |k| < 2²¹ (x ∈ (−708, 709) gives |k| < 2¹⁵).
+const LN2_N_HI: f64 = 0.005415208637714386 * 4.0;
+const LN2_N_LO: f64 = 3.710410186743494e-09 * 4.0;
 /// `1.5 · 2⁵²`: adding it rounds a |z| < 2⁵¹ to the nearest integer, held in the low bits.
 const SHIFT: f64 = 6755399441055744.0;
 
 /// `e^x`, within 2 ulp of `f64::exp` (unit test over [−745, 709] and the special values).
 ///
-/// Tang's table method (Tang 1989, ACM TOMS 15(2) 144–157): `x = (128 m + j) ln2/128 + r`
-/// with |r| ≤ ln2/256, `e^x = 2^m · 2^{j/128} · e^r`, `e^r − 1` by its degree-5 Taylor
-/// polynomial (truncation < 6e-19). Outside (−708, 709) (subnormal or infinite results,
+/// Tang's table method (Tang 1989, ACM TOMS 15(2) 144–157): `x = (32 m + j) ln2/32 + r`
+/// with |r| ≤ ln2/64, `e^x = 2^m · 2^{j/32} · e^r`, `e^r − 1` by its degree-6 Taylor
+/// polynomial (truncation < 4e-18). Outside (−708, 709) (subnormal or infinite results,
 /// NaN) it defers to `f64::exp`.
 #[inline(always)]
 pub fn exp(x: f64) -> f64 {
@@ -169,9 +182,11 @@ fn exp_normal(x: f64) -> f64 {
     let kf = shifted - SHIFT;
     let k = (shifted.to_bits() as i64).wrapping_sub(SHIFT.to_bits() as i64);
     let r = (x - kf * LN2_N_HI) - kf * LN2_N_LO;
-    let p = r + r * r * (0.5 + r * (1.0 / 6.0 + r * (1.0 / 24.0 + r * (1.0 / 120.0))));
-    let t = EXP2_TABLE[(k & 127) as usize];
-    let m = k >> 7;
+    let p = r + r
+        * r
+        * (0.5 + r * (1.0 / 6.0 + r * (1.0 / 24.0 + r * (1.0 / 120.0 + r * (1.0 / 720.0)))));
+    let t = EXP2_32[(k & 31) as usize];
+    let m = k >> 5;
     // 2^m is a normal number for m in [−1022, 1023] (here m ∈ [−1022, 1023]).
     let scale = f64::from_bits(((m + 1023) as u64) << 52);
     (t + t * p) * scale
@@ -205,9 +220,9 @@ pub fn attenuation(x: f64) -> (f64, f64) {
 
 /// [`attenuation`] of L optical paths at once (4 lanes in AVX2, 8 in AVX-512; see
 /// [`super::lanes`]), the same bits per lane: the series and the exponential
-/// ([`exp_normal`]'s operations lane-wise, the table read lane by lane, `2^m` built from the
-/// exponent bits) are both computed and the result selected (no branch on x); only lanes with
-/// x ≥ 708 (`f64::exp`, e^{−x} subnormal) take the scalar form.
+/// ([`exp_normal`]'s operations lane-wise, the table read by [`Lanes::exp2_32`], `2^m` built
+/// from the exponent bits) are both computed and the result selected (no branch on x); only
+/// lanes with x ≥ 708 (`f64::exp`, e^{−x} subnormal) take the scalar form.
 #[cfg(target_arch = "x86_64")]
 #[inline(always)]
 pub fn attenuation_l<S: Lanes<L>, const L: usize>(s: S, x: S::F) -> (S::F, S::F) {
@@ -229,16 +244,16 @@ pub fn attenuation_l<S: Lanes<L>, const L: usize>(s: S, x: S::F) -> (S::F, S::F)
     let kf = sub(shifted, sp(SHIFT));
     let k = s.sub_u(s.f_bits(shifted), s.splat_u(SHIFT.to_bits()));
     let r = sub(sub(y, mul(kf, sp(LN2_N_HI))), mul(kf, sp(LN2_N_LO)));
-    let mut p = add(sp(1.0 / 24.0), mul(r, sp(1.0 / 120.0)));
+    let mut p = add(sp(1.0 / 120.0), mul(r, sp(1.0 / 720.0)));
+    p = add(sp(1.0 / 24.0), mul(r, p));
     p = add(sp(1.0 / 6.0), mul(r, p));
     p = add(sp(0.5), mul(r, p));
     p = add(r, mul(mul(r, r), p));
-    let ka: [u64; L] = s.st_u(k);
-    let t = s.ld(std::array::from_fn(|l| EXP2_TABLE[(ka[l] & 127) as usize]));
-    // 2^m with m = k >> 7 (arithmetic): k ≥ −708·128/ln 2 − 1 > −1023·128 for x < 708, so
-    // the logical shift of k + 1023·128 gives m + 1023.
-    let biased = s.add_u(k, s.splat_u(1023 << 7));
-    let scale = s.f_from_bits(s.shl52(s.shr7(biased)));
+    let t = s.exp2_32(k);
+    // 2^m with m = k >> 5 (arithmetic): k ≥ −708·32/ln 2 − 1 > −1023·32 for x < 708, so the
+    // logical shift of k + 1023·32 gives m + 1023.
+    let biased = s.add_u(k, s.splat_u(1023 << 5));
+    let scale = s.f_from_bits(s.shl52(s.shr5(biased)));
     let e = mul(add(t, mul(t, p)), scale);
     let small = s.lt(x, sp(1.0 / 32.0));
     let mut frac = s.sel(small, f, sub(sp(1.0), e));

@@ -16,6 +16,7 @@
 //! stores to retire); 8 lanes as two AVX2 halves run 40 (spills in 16 registers), so AVX2
 //! CPUs walk 4.
 
+use super::fastmath::EXP2_32;
 use pulp::{b8, cast, f64x4, f64x8, m64x4, u64x4, u64x8, x86::V3, x86::V4};
 
 /// `L` f64 lanes and their masks (see the module doc). `F`: L doubles, `U`: L 64-bit integers
@@ -89,8 +90,10 @@ pub trait Lanes<const L: usize>: Copy {
     fn and_u(self, a: Self::U, b: Self::U) -> Self::U;
     /// Unsigned `a > b`.
     fn gt_u(self, a: Self::U, b: Self::U) -> Self::M;
-    /// Logical `a >> 7`.
-    fn shr7(self, a: Self::U) -> Self::U;
+    /// Logical `a >> 5`.
+    fn shr5(self, a: Self::U) -> Self::U;
+    /// `2^{j/32}` with j = the low 5 bits of each lane of `k` ([`super::fastmath::EXP2_32`]).
+    fn exp2_32(self, k: Self::U) -> Self::F;
     /// Logical `a >> 47` (`52 −` the half-barycentre table's mantissa bits).
     fn shr47(self, a: Self::U) -> Self::U;
     /// `a << 52`.
@@ -201,7 +204,7 @@ impl Lanes<4> for V3 {
         ff_m: [gt => cmp_gt_f64x4, lt => cmp_lt_f64x4, le => cmp_le_f64x4, ge => cmp_ge_f64x4,
                eq => cmp_eq_f64x4, nlt => cmp_not_lt_f64x4],
         uu_u: [add_u => wrapping_add_u64x4, sub_u => wrapping_sub_u64x4, and_u => and_u64x4],
-        u_u: [shr7 => |s: V3, a| s.shr_const_u64x4::<7>(a),
+        u_u: [shr5 => |s: V3, a| s.shr_const_u64x4::<5>(a),
               shr47 => |s: V3, a| s.shr_const_u64x4::<47>(a),
               shl52 => |s: V3, a| s.shl_const_u64x4::<52>(a)],
         sel: select_f64x4, sel_u: select_u64x4, gt_u: cmp_gt_u64x4,
@@ -210,6 +213,11 @@ impl Lanes<4> for V3 {
     #[inline(always)]
     fn v3(self) -> V3 {
         self
+    }
+    #[inline(always)]
+    fn exp2_32(self, k: u64x4) -> f64x4 {
+        let ka: [u64; 4] = cast(k);
+        cast(ka.map(|j| EXP2_32[(j & 31) as usize]))
     }
     #[inline(always)]
     fn and(self, a: m64x4, b: m64x4) -> m64x4 {
@@ -344,7 +352,7 @@ impl Lanes<8> for V4 {
         ff_m: [gt => cmp_gt_f64x8, lt => cmp_lt_f64x8, le => cmp_le_f64x8, ge => cmp_ge_f64x8,
                eq => cmp_eq_f64x8, nlt => cmp_not_lt_f64x8],
         uu_u: [add_u => wrapping_add_u64x8, sub_u => wrapping_sub_u64x8, and_u => and_u64x8],
-        u_u: [shr7 => |s: V4, a| s.shr_const_u64x8::<7>(a),
+        u_u: [shr5 => |s: V4, a| s.shr_const_u64x8::<5>(a),
               shr47 => |s: V4, a| s.shr_const_u64x8::<47>(a),
               shl52 => |s: V4, a| s.shl_const_u64x8::<52>(a)],
         sel: select_f64x8, sel_u: select_u64x8, gt_u: cmp_gt_u64x8,
@@ -353,6 +361,20 @@ impl Lanes<8> for V4 {
     #[inline(always)]
     fn v3(self) -> V3 {
         *self
+    }
+    #[inline(always)]
+    fn exp2_32(self, k: u64x8) -> f64x8 {
+        // Two two-register permutes (bits 0–3 of each index pick one of 16 entries, higher
+        // bits ignored), then bit 4 picks the half.
+        let f = self.avx512f;
+        let part = |o: usize| -> core::arch::x86_64::__m512d {
+            cast::<[f64; 8], _>(std::array::from_fn(|i| EXP2_32[o + i]))
+        };
+        let idx: core::arch::x86_64::__m512i = cast(k);
+        let t0 = f._mm512_permutex2var_pd(part(0), idx, part(8));
+        let t1 = f._mm512_permutex2var_pd(part(16), idx, part(24));
+        let upper = f._mm512_test_epi64_mask(idx, cast(self.splat_u64x8(16)));
+        self.select_f64x8(b8(upper), cast(t1), cast(t0))
     }
     #[inline(always)]
     fn xor(self, a: f64x8, b: f64x8) -> f64x8 {
