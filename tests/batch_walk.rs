@@ -131,6 +131,20 @@ fn same_up_to_summation_order(a: &RadiativeProducts, b: &RadiativeProducts, what
     }
 }
 
+/// The LAI 3 layer in red + NIR, sun at 30° zenith and 20° azimuth, with sky (SKYL 0.3 and
+/// 0.2) and ground: the thread and instruction-set tests' scene.
+fn layer_with_sky() -> SceneDesc {
+    let mut d = layer(
+        3.0,
+        vec![BandOptics::red(), BandOptics::nir()],
+        0.2,
+        30.0,
+        20.0,
+    );
+    d.illumination.skyl = vec![0.3, 0.2];
+    d
+}
+
 /// A 1 m periodic turbid layer, 2 m high, spherical LAD, 36 directions.
 fn layer(lai: f64, bands: Vec<BandOptics>, cell: f64, zenith: f64, azimuth: f64) -> SceneDesc {
     let mut d = turbid_layer(&TurbidLayerParams {
@@ -226,14 +240,7 @@ fn batched_walk_matches_the_one_ray_walk_on_hard_geometry() {
 /// and walked in each chunk's own order), with sky and ground.
 #[test]
 fn batched_walk_products_are_bit_identical_on_1_2_and_8_threads() {
-    let mut d = layer(
-        3.0,
-        vec![BandOptics::red(), BandOptics::nir()],
-        0.2,
-        30.0,
-        20.0,
-    );
-    d.illumination.skyl = vec![0.3, 0.2];
+    let d = layer_with_sky();
     let go = |n| {
         let pool = rayon::ThreadPoolBuilder::new()
             .num_threads(n)
@@ -271,14 +278,7 @@ fn walks_agree_on_every_instruction_set() {
     let run_isa = |d: &SceneDesc, batch_walk: bool, kernel_isa: KernelIsa| {
         product_bits(&products(d, batch_walk, kernel_isa))
     };
-    let mut layer = layer(
-        3.0,
-        vec![BandOptics::red(), BandOptics::nir()],
-        0.2,
-        30.0,
-        20.0,
-    );
-    layer.illumination.skyl = vec![0.3, 0.2];
+    let layer = layer_with_sky();
     let mut trees = forest::forest(&forest::ForestParams {
         size_m: 12.0,
         species: vec![forest::broadleaf(2), forest::conifer(2)],
