@@ -1067,8 +1067,9 @@ fn column_return_transmittance_matches_the_shadow_ray() {
             eprintln!(
                 "{estimator:?} {zenith}°: {used} column return transmittances (with other tests running)"
             );
+            // Only debug builds count (see `column_returns`); `cargo test --release` skips this.
             assert!(
-                used > 0,
+                used > 0 || !cfg!(debug_assertions),
                 "{estimator:?} {zenith}°: the column sums were never used"
             );
         }
