@@ -1218,7 +1218,7 @@ impl FootprintMoments {
     }
 
     /// Moments `(m0, m2)` of the corner `{x > a, y > b}` for any a, b (±∞ allowed), from
-    /// [`Self::half`] and [`Self::quadrant`] by the mirror symmetries of the radial density:
+    /// `Self::half` and `Self::quadrant` by the mirror symmetries of the radial density:
     /// [`Self::rect`] is the signed sum of four (callers with many rectangles on one grid of
     /// lines share them).
     #[inline]

@@ -1315,20 +1315,20 @@ impl<'a> Fitter<'a> {
 /// Iteration cap of the legacy fitter run by [`detect_returns_stats`] for comparison (the
 /// previous LiDAR pipeline setting).
 const LEGACY_CAP: usize = 60;
-/// Iterations with Marquardt's damping schedule before [`Fitter::fit`] switches to Nielsen's.
+/// Iterations with Marquardt's damping schedule before `Fitter::fit` switches to Nielsen's.
 pub const LM_MARQUARDT_ITERATIONS: usize = 60;
 /// Initial damping λ of [`Fitter::fit`] (relative to diag(JᵀJ); MNT's τ = 1e-3).
 const LM_LAMBDA0: f64 = 1e-3;
-/// Gradient tolerance of [`Fitter::fit`]: largest cosine between the residual and a Jacobian
+/// Gradient tolerance of `Fitter::fit`: largest cosine between the residual and a Jacobian
 /// column at a stationary point. The three tolerances are ~√ε, MINPACK's defaults (1.49e-8):
 /// on the forest bench (256 pulses × 2 samplers), 1e-10 instead cost 22 % more fit
 /// instructions (fits creeping along flat valleys gain ~1e-9 per step for dozens of steps),
 /// and left 4 instead of 30 of ~1560 fits more than 1e-6 above the legacy fitter.
 pub const LM_GTOL: f64 = 1e-8;
-/// Step tolerance of [`Fitter::fit`]: relative change of energies, and of centres and widths
+/// Step tolerance of `Fitter::fit`: relative change of energies, and of centres and widths
 /// in units of the width.
 pub const LM_XTOL: f64 = 1e-8;
-/// Reduction tolerance of [`Fitter::fit`]: actual and predicted relative reductions of χ².
+/// Reduction tolerance of `Fitter::fit`: actual and predicted relative reductions of χ².
 pub const LM_FTOL: f64 = 1e-8;
 
 /// Solves `a x = b` in place (`b` becomes x) for a symmetric positive-definite row-major

@@ -282,7 +282,7 @@ pub struct LidarChunks {
 /// ([`crate::photon::engine::Beam::far_roulette_m`]); every setting has the same expectation.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub enum FarRoulette {
-    /// Distance scale ρ₀ from the scene ([`far_roulette_scale_m`]; the default).
+    /// Distance scale ρ₀ from the scene (`far_roulette_scale_m`; the default).
     #[default]
     Auto,
     /// A given distance scale ρ₀ (m, > 0): for tests and studies.

@@ -749,7 +749,7 @@ struct ColumnDepth {
 }
 
 /// Debug builds: how many return transmittances were taken from the column sums
-/// ([`ColumnDepth`]), each checked against the shadow walk it replaces (for the tests).
+/// (`ColumnDepth`), each checked against the shadow walk it replaces (for the tests).
 #[cfg(debug_assertions)]
 pub static COLUMN_RETURNS: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(0);
 
@@ -3975,7 +3975,7 @@ fn brdf_event(
 /// LiDAR speed against error).
 const MS_STOP_FACTOR: f64 = 1.0;
 
-/// Smallest distance scale ρ₀ of the far-photon roulette ([`far_roulette_survival`]), in
+/// Smallest distance scale ρ₀ of the far-photon roulette (`far_roulette_survival`), in
 /// horizontal cell sizes (the larger of x and y); the scene's mean free path in the vegetation
 /// raises it (`crate::lidar::simulate::far_roulette_scale_m`).
 pub const FAR_ROULETTE_CELLS: f64 = 2.0;
@@ -4043,7 +4043,7 @@ pub struct Beam {
     /// Pulse energy, J.
     pub energy_j: f64,
     /// Photons (beam rays) of a pulse whose first-order return the column quadrature scores
-    /// ([`FirstOrderColumns`]; the quadrature is planned for this count).
+    /// (`FirstOrderColumns`; the quadrature is planned for this count).
     pub photons: u32,
     /// Photons (beam rays) of a pulse that scores its first-order return per beam ray (the
     /// quadrature does not apply, is off, or falls back).
@@ -4058,10 +4058,10 @@ pub struct Beam {
     /// interaction into multiple scattering (≥ the pulse's beam rays: all).
     pub scattering_photons: u32,
     /// `ExpectedValue`: distance scale ρ₀ (m) of the far-photon roulette of multiple scattering
-    /// ([`far_roulette_survival`]); 0: off.
+    /// (`far_roulette_survival`); 0: off.
     pub far_roulette_m: f64,
     /// `ExpectedValue`: the first-order return by the column quadrature where it applies
-    /// ([`FirstOrderColumns`]); false: every beam ray scores its own (for the equality tests
+    /// (`FirstOrderColumns`); false: every beam ray scores its own (for the equality tests
     /// and for measuring).
     pub first_order_columns: bool,
 }

@@ -678,7 +678,7 @@ impl GTable {
 // Leaf optics and the area scattering phase function Γ
 // ---------------------------------------------------------------------------------------------
 
-/// Optional specular leaf component (cuticle reflection), physics.md §5.4 applied to leaves [rec]:
+/// Optional specular leaf component (cuticle reflection), physics.md §5.4 applied to leaves \[rec\]:
 /// specular fraction `s = factor · R_F(|Ω'·Ω_L|; 1 → n)`, added to the bi-Lambertian terms.
 /// Energy safety: [`LeafOptics::validate`] requires `ρ_L + τ_L + factor ≤ 1`.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]

@@ -17,7 +17,7 @@
 //!   sector. Two interception points per crossing, the barycentres of the first and second halves
 //!   of the intercepted energy (DART stores two points per crossing; physics.md §3.6). Scattered
 //!   power leaves *both* points, half from each — a two-point quadrature of the interception
-//!   distribution. (physics.md's [rec] of sending backward scattering from the first point and
+//!   distribution. (physics.md's \[rec\] of sending backward scattering from the first point and
 //!   forward from the second biases the exitance by O(cell optical depth): +6 % BRF at 0.25 m
 //!   cells on the LAI-3 DISORT case, against −0.96 % … +0 % for the two-point quadrature and
 //!   −2 % for a single barycentre.) Rays scattered by a cell start *inside* it, so within-cell
@@ -360,7 +360,7 @@ pub struct RadiativeResult {
     pub skipped: u64,
     /// Thread-seconds spent tracking rays, summed over all chunks and iterations: the wall time
     /// of each source chunk's launch loop and of each emitter's loop over its outgoing
-    /// directions (ray set-up and [`Ctx::trace`] calls), measured inside the worker threads.
+    /// directions (ray set-up and `Ctx::trace` calls), measured inside the worker threads.
     /// Excludes the emission products (phase rows × intercepted power), the active-emitter
     /// scan, chunk allocation, merging and extrapolation. Tracking throughput per core is
     /// `crossings / kernel_seconds` (time a worker spends descheduled counts as kernel time).
@@ -2137,7 +2137,7 @@ impl Ctx<'_> {
 /// `1 + face · D² + sub-face`, face `2a + [d_a < 0]` for the face of axis a the ray enters
 /// through (0 −x, 1 +x, 2 −y, 3 +y, 4 bottom, 5 top), sub-face `i·D + j` over the face's two
 /// other axes in increasing order. Rules: the segment's start lies on a face when within
-/// [`FACE_TOL`] cell sizes of it and the ray points into the cell through it; a start on an
+/// `FACE_TOL` cell sizes of it and the ray points into the cell through it; a start on an
 /// edge or a vertex (several such faces) is booked to the face the ray crosses most squarely,
 /// the largest |d_a| (ties: the higher axis, so z before y before x); a start on a sub-face
 /// boundary goes to the sub-face given by the floor of its position (clamped into 0..D). Sun
@@ -2180,7 +2180,7 @@ fn sub_face(rel: DVec3, a: usize, dd: u32) -> u32 {
 /// Where a ray leaving `o` (inside the cell `[lo, lo + cell]`) along `d` leaves the cell:
 /// (distance ℓ, m; exit point, on the exit face; exit store `1 + face · D² + sub-face` with the
 /// numbering of [`entry_store`], face `2a + [d_a > 0]`). An exit through an edge or a vertex
-/// (exit distances equal within [`FACE_TOL`] cell sizes) goes to the face with the largest
+/// (exit distances equal within `FACE_TOL` cell sizes) goes to the face with the largest
 /// |d_a|, ties to the higher axis, and the exit point is put exactly on every plane it
 /// reaches (so the tracker starts the merged ray in the diagonal neighbour).
 pub fn cell_exit(lo: DVec3, cell: DVec3, o: DVec3, d: DVec3, dd: u32) -> (f64, DVec3, u32) {
@@ -2266,7 +2266,7 @@ fn add(acc: &mut [f64], v: &[f64]) {
 }
 
 /// Distances from the entry of the barycentres of the first and second halves of the energy
-/// intercepted along a segment of length ℓ with extinction k (physics.md §3.6 [rec]); the split
+/// intercepted along a segment of length ℓ with extinction k (physics.md §3.6 \[rec\]); the split
 /// point is `s½ = −ln((1 + e^{−kℓ})/2)/k`. Series for small kℓ.
 pub fn half_barycentres(k: f64, ell: f64) -> (f64, f64) {
     let x = k * ell;

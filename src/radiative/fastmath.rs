@@ -1,7 +1,7 @@
 //! Inline elementary functions of the flux-tracking kernel (one of each per cell crossing):
 //! [`exp`] (table-driven, ≤ 2 ulp from `f64::exp`), the attenuation pair
 //! [`attenuation`] `(1 − e^{−x}, e^{−x})`, and the tabulated interception points
-//! [`half_barycentres`] (physics.md §3.6). They exist because the libm calls (`exp_m1`,
+//! [`HalfBarycentres`] (physics.md §3.6). They exist because the libm calls (`exp_m1`,
 //! `ln`) were a third of the kernel's instructions; each is tested against the libm form.
 #[cfg(target_arch = "x86_64")]
 use super::lanes::Lanes;
@@ -222,7 +222,7 @@ pub fn attenuation(x: f64) -> (f64, f64) {
 }
 
 /// [`attenuation`] of L optical paths at once (4 lanes in AVX2, 8 in AVX-512; see
-/// [`super::lanes`]), the same bits per lane: [`exp_parts`]'s operations lane-wise (the table
+/// [`super::lanes`]), the same bits per lane: `exp_parts`'s operations lane-wise (the table
 /// read by [`Lanes::exp2_32`], `2^m` built from the exponent bits), no branch on x; only
 /// lanes with x ≥ 708 (`f64::exp`, e^{−x} subnormal) take the scalar form.
 #[cfg(target_arch = "x86_64")]
@@ -279,7 +279,7 @@ const HB_ALLOC: usize = HB_N.next_power_of_two();
 
 /// Cubic pieces of the relative interception points `s₁/ℓ`, `s₂/ℓ` of
 /// [`super::engine::half_barycentres`] as functions of x = kℓ, one per bin of x: the bins are
-/// the top [`HB_BITS`] mantissa bits of x within each octave of [2⁻¹⁴, 2⁶) (640 bins,
+/// the top `HB_BITS` mantissa bits of x within each octave of [2⁻¹⁴, 2⁶) (640 bins,
 /// 64 bytes each), so the bin index is a shift of x's bits (no logarithm). Each piece
 /// interpolates the closed form at the 4 Chebyshev nodes of its bin, in the offset from the
 /// bin's start.

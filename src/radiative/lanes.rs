@@ -92,7 +92,7 @@ pub trait Lanes<const L: usize>: Copy {
     fn gt_u(self, a: Self::U, b: Self::U) -> Self::M;
     /// Logical `a >> 5`.
     fn shr5(self, a: Self::U) -> Self::U;
-    /// `2^{j/32}` with j = the low 5 bits of each lane of `k` ([`super::fastmath::EXP2_32`]).
+    /// `2^{j/32}` with j = the low 5 bits of each lane of `k` (`fastmath::EXP2_32`).
     fn exp2_32(self, k: Self::U) -> Self::F;
     /// Logical `a >> 47` (`52 −` the half-barycentre table's mantissa bits).
     fn shr47(self, a: Self::U) -> Self::U;

@@ -7,7 +7,7 @@
 //! ([`DirectionSet::find_sector`], O(log N)) and the angular-sector partition used to store
 //! intercepted power.
 //!
-//! Algorithm ([rec], physics.md §2.2–2.3; same invariants as Yin et al. 2013 "IUSD"):
+//! Algorithm (\[rec\], physics.md §2.2–2.3; same invariants as Yin et al. 2013 "IUSD"):
 //! 1. each hemisphere is tiled separately (the horizon is always a boundary) by a zonal
 //!    equal-area tiling: a polar cap plus K rings whose exact boundaries are recomputed from
 //!    cumulative cell counts, so every sector has exactly `ΔΩ = 2π/n` (or equal *projected* solid

@@ -705,7 +705,7 @@ pub fn brdf_facet_table(
     ))
 }
 
-/// Distribution of the specular part of a facet's interception (physics.md §5.4 [rec]): the
+/// Distribution of the specular part of a facet's interception (physics.md §5.4 \[rec\]): the
 /// fraction `s = lobe.fraction(μ_i)` is spread over the tiling directions whose representative
 /// lies within `width_deg` of the mirror direction and on the front side, in proportion to their
 /// solid angle (uniform radiance over the lobe); if none qualifies, all goes to the direction

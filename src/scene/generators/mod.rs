@@ -1,4 +1,4 @@
-//! Programmatic scene generators. Each returns a [`SceneDesc`](super::desc::SceneDesc), so
+//! Programmatic scene generators. Each returns a [`SceneDesc`], so
 //! anything generated can be saved as RON and diffed; the CLI exposes them as
 //! `lumenscape generate KIND`.
 
