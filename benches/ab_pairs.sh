@@ -8,13 +8,14 @@
 #
 # ROW is a `--row` of `cargo bench --bench radiative` ("Default 100 0.2", "forest Default",
 # ...); BIN_A / BIN_B are bench executables (`target/release/deps/radiative-*`, copied aside
-# between builds); EXTRA_ARGS go to both (e.g. `--avx2`). Needs 2 idle cores and `taskset`.
+# between builds; each reads its oracle tables from the checkout it was built in, so keep that
+# checkout); EXTRA_ARGS go to both (e.g. `--avx2`). Needs 2 idle cores and `taskset`.
 # On the 2-core CI-class VM, back-to-back runs of one build drift by ±5 % from run to run;
 # the median paired ratio of a build against itself came out 0.9996 and 0.9999 (6 pairs each;
 # single pairs within 0.94–1.06), so 8–10 pairs resolve a 2 % change.
 set -euo pipefail
 if [ $# -lt 4 ]; then
-    sed -n 2,14p "$0"
+    sed -n 2,15p "$0"
     exit 2
 fi
 n=$1 row=$2 bin_a=$3 bin_b=$4
@@ -39,11 +40,19 @@ median() {
 ka=() kb=() ratio=()
 for i in $(seq "$n"); do
     ca=$((i % 2)) cb=$(((i + 1) % 2))
-    RAYON_NUM_THREADS=1 taskset -c "$ca" "$bin_a" --row "$row" "$@" >"$tmp/a" 2>/dev/null &
+    RAYON_NUM_THREADS=1 taskset -c "$ca" "$bin_a" --row "$row" "$@" >"$tmp/a" 2>"$tmp/a.err" &
     pa=$!
-    RAYON_NUM_THREADS=1 taskset -c "$cb" "$bin_b" --row "$row" "$@" >"$tmp/b" 2>/dev/null &
+    RAYON_NUM_THREADS=1 taskset -c "$cb" "$bin_b" --row "$row" "$@" >"$tmp/b" 2>"$tmp/b.err" &
     pb=$!
-    wait "$pa" "$pb"
+    # A bench binary reads its oracle tables from the checkout it was built in.
+    for run in "a $pa $bin_a" "b $pb $bin_b"; do
+        read -r tag pid bin <<<"$run"
+        if ! wait "$pid"; then
+            echo "ab_pairs: $bin failed:" >&2
+            tail -8 "$tmp/$tag.err" >&2
+            exit 1
+        fi
+    done
     a=$(kernel "$tmp/a") b=$(kernel "$tmp/b")
     ka+=("$a") kb+=("$b")
     ratio+=("$(awk -v a="$a" -v b="$b" 'BEGIN {print b / a}')")
