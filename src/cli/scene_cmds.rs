@@ -93,6 +93,10 @@ pub struct SceneOpts {
     /// `baseline`: one ray at a time.
     #[arg(long, value_enum, default_value = "best")]
     pub isa: IsaArg,
+    /// The batched walk in single-precision geometry on 16 lanes on AVX-512 CPUs (faster;
+    /// products ~1e-7 relative from the double-precision walks').
+    #[arg(long)]
+    pub batch_f32: bool,
 }
 
 /// `--isa` values.
@@ -156,6 +160,7 @@ impl SceneOpts {
                 IsaArg::Avx2 => crate::radiative::engine::KernelIsa::Avx2,
                 IsaArg::Baseline => crate::radiative::engine::KernelIsa::Baseline,
             },
+            batch_f32: self.batch_f32,
             lidar_chunk_pulses: crate::lidar::simulate::DEFAULT_CHUNK_PULSES,
             lidar_first_order_columns: true,
             lidar_far_roulette: Default::default(),

@@ -154,6 +154,12 @@ pub struct TrackingParams {
     /// ~1e-15 relative between the two counts (summation order).
     #[serde(skip)]
     pub kernel_isa: KernelIsa,
+    /// The batched walk in single-precision geometry on 16 lanes where the CPU has AVX-512
+    /// (`batch` module, `wide32`): ~1e-7 relative from the f64 walks' products (path lengths
+    /// and fractions in `f32`; powers, bookings and energy closure in `f64`). Off: the f64
+    /// batched walk.
+    #[serde(skip)]
+    pub batch_f32: bool,
     /// A progress bar of the iterations on stderr (a display setting, not written with the
     /// products).
     #[serde(skip)]
@@ -213,6 +219,7 @@ impl TrackingParams {
             turbid_exit_grouping: false,
             batch_walk: true,
             kernel_isa: KernelIsa::Best,
+            batch_f32: false,
             progress: false,
         }
     }
@@ -642,6 +649,11 @@ enum TurAcc {
         np: usize,
         tur: Vec<f64>,
         pts: Vec<f64>,
+        /// Points records of the single-precision batched walk (`batch::wide32`), 8 per index:
+        /// `[Σ wt p₁, Σ wt p₂, Σ wt, 0]` with p in the frame of the index's cell (its corner
+        /// at 0), added to `pts` in scene coordinates at the merge
+        /// ([`TurAcc::for_each_pts_local`]); empty when that walk does not run.
+        pts_loc: Vec<f64>,
         flag: Vec<bool>,
         touched: Vec<u32>,
     },
@@ -661,6 +673,7 @@ struct DenseView<'a> {
     np: usize,
     tur: &'a mut [f64],
     pts: &'a mut [f64],
+    pts_loc: &'a mut [f64],
     flag: &'a mut [bool],
     touched: &'a mut Vec<u32>,
 }
@@ -733,6 +746,7 @@ impl TurAcc {
                 np,
                 tur,
                 pts,
+                pts_loc,
                 flag,
                 touched,
             } => Some(DenseView {
@@ -741,6 +755,7 @@ impl TurAcc {
                 np: *np,
                 tur,
                 pts,
+                pts_loc,
                 flag,
                 touched,
             }),
@@ -757,6 +772,9 @@ impl TurAcc {
                 let e = e as usize;
                 v.tur[e * rec..(e + 1) * rec].fill(0.0);
                 v.pts[e * prec..(e + 1) * prec].fill(0.0);
+                if !v.pts_loc.is_empty() {
+                    v.pts_loc[e * 8..(e + 1) * 8].fill(0.0);
+                }
                 v.flag[e] = false;
             }
             v.touched.clear();
@@ -767,7 +785,8 @@ impl TurAcc {
     }
 
     /// `n_index` accumulator indices, `ns` slots, `w` channels, `np` points records per index.
-    fn new(n_index: usize, ns: usize, w: usize, np: usize) -> Self {
+    /// `local`: with the records of the single-precision batched walk (dense only).
+    fn new(n_index: usize, ns: usize, w: usize, np: usize, local: bool) -> Self {
         if n_index * ns * w <= DENSE_LIMIT && n_index * np * 7 <= DENSE_LIMIT {
             TurAcc::Dense {
                 ns,
@@ -775,6 +794,11 @@ impl TurAcc {
                 np,
                 tur: vec![0.0; n_index * ns * w],
                 pts: vec![0.0; n_index * np * 7],
+                pts_loc: if local {
+                    vec![0.0; n_index * 8]
+                } else {
+                    Vec::new()
+                },
                 flag: vec![false; n_index],
                 touched: Vec::new(),
             }
@@ -883,6 +907,23 @@ impl TurAcc {
                 }
             }
             TurAcc::Sparse { pts, .. } => pts.for_each(f),
+        }
+    }
+
+    /// Visits the single-precision walk's points records of the touched indices: (index,
+    /// `[Σ wt p₁, Σ wt p₂, Σ wt]` in the index's cell frame); none without that walk.
+    fn for_each_pts_local(&self, mut f: impl FnMut(u64, &[f64])) {
+        if let TurAcc::Dense {
+            pts_loc, touched, ..
+        } = self
+            && !pts_loc.is_empty()
+        {
+            for &e in touched {
+                let v = &pts_loc[e as usize * 8..e as usize * 8 + 7];
+                if v[6] != 0.0 {
+                    f(e as u64, v);
+                }
+            }
         }
     }
 }
@@ -1204,6 +1245,9 @@ struct Ctx<'a> {
     /// Per direction (sun last), what a lane of the batched walk takes at a ray start
     /// ([`batch::LaneDir`]; empty when [`Ctx::batch`] is off).
     lane_dirs: Vec<batch::LaneDir>,
+    /// The same for the single-precision 16-lane walk (empty unless it runs:
+    /// [`TrackingParams::batch_f32`], AVX-512, a grid of `i32` indices).
+    lane_dirs32: Vec<batch::LaneDir32>,
     /// Where the walks dispatch ([`TrackingParams::kernel_isa`] on this CPU).
     arch: pulp::Arch,
 }
@@ -2896,10 +2940,12 @@ pub fn run(inp: &RadiativeInput) -> RadiativeResult {
             1
         },
         lane_dirs: Vec::new(),
+        lane_dirs32: Vec::new(),
         arch,
     };
     if ctx.batch {
         ctx.lane_dirs = batch::lane_dirs(&ctx);
+        ctx.lane_dirs32 = batch::lane_dirs32(&ctx);
     }
     let mut res = RadiativeResult {
         n_channels: w,
@@ -3135,6 +3181,7 @@ fn new_out(ctx: &Ctx) -> ChunkOut {
             ctx.n_slots,
             ctx.w,
             ctx.pts_per,
+            !ctx.lane_dirs32.is_empty(),
         ))),
         ..Default::default()
     }
@@ -3361,6 +3408,20 @@ fn merge(
                 for a in 0..3 {
                     pts[a] += v[a];
                     pts[4 + a] += v[3 + a];
+                }
+                pts[3] += v[6];
+                pts[7] += v[6];
+            });
+            // The single-precision walk's records, from their cell's frame: Σ wt (c + p) =
+            // c Σ wt + Σ wt p, c the cell's corner.
+            acc.for_each_pts_local(|e, v| {
+                let spec = ctx.inp.spec;
+                let [i, j, k] = spec.ijk(ctx.entry_cell[e as usize] as usize);
+                let c = spec.origin + DVec3::new(i as f64, j as f64, k as f64) * spec.cell;
+                let pts = &mut st.tur_pts[e as usize];
+                for a in 0..3 {
+                    pts[a] += c[a] * v[6] + v[a];
+                    pts[4 + a] += c[a] * v[6] + v[3 + a];
                 }
                 pts[3] += v[6];
                 pts[7] += v[6];

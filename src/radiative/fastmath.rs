@@ -275,7 +275,7 @@ const HB_X1: f64 = 64.0;
 const HB_N: usize = 20 << HB_BITS;
 /// Bins allocated: [`HB_N`] rounded up to a power of two, so that the index is masked instead
 /// of bound-checked in the hot path (the padding bins are never read).
-const HB_ALLOC: usize = HB_N.next_power_of_two();
+pub(crate) const HB_ALLOC: usize = HB_N.next_power_of_two();
 
 /// Cubic pieces of the relative interception points `s₁/ℓ`, `s₂/ℓ` of
 /// [`super::engine::half_barycentres`] as functions of x = kℓ, one per bin of x: the bins are
@@ -327,6 +327,29 @@ impl HalfBarycentres {
                 .try_into()
                 .expect("20 octaves of bins, padded"),
         }
+    }
+
+    /// The coefficient rows in single precision, and the shift and first bin of an f32 x:
+    /// row `((x.to_bits() >> 18) − first) & (len − 1)` is the piece of x ∈ [2⁻¹⁴, 64) (an f32
+    /// keeps the same 5 leading mantissa bits as the f64 of the same value, so the bins are
+    /// the same pieces), evaluated at `t = x − (x with its low 18 bits cleared)`.
+    /// Also the range of the pieces, [2⁻¹⁴, 64) (below: the series, above: the dense limit).
+    /// (A table of its own, 20 KiB, built once on first use.)
+    pub fn rows32() -> (&'static [[f32; 8]; HB_ALLOC], u32, (f32, f32)) {
+        const { assert!(23 - HB_BITS == 18) };
+        static TABLE: std::sync::OnceLock<Box<[[f32; 8]; HB_ALLOC]>> = std::sync::OnceLock::new();
+        let rows = TABLE.get_or_init(|| {
+            let t = Self::get();
+            let v: Vec<[f32; 8]> = t.bins.iter().map(|r| r.map(|c| c as f32)).collect();
+            v.into_boxed_slice()
+                .try_into()
+                .expect("20 octaves of bins, padded")
+        });
+        (
+            rows,
+            (HB_X0 as f32).to_bits() >> 18,
+            (HB_X0 as f32, HB_X1 as f32),
+        )
     }
 
     /// Distances from the segment entry (m) of the barycentres of the first and second halves

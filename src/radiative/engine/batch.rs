@@ -38,7 +38,35 @@ use crate::radiative::lanes::Lanes;
 use crate::scene::desc::BoundaryMode;
 use glam::DVec3;
 #[cfg(target_arch = "x86_64")]
-use pulp::x86::V3;
+use pulp::x86::{V3, V4};
+
+#[cfg(target_arch = "x86_64")]
+mod wide32;
+#[cfg(target_arch = "x86_64")]
+pub(super) use wide32::LaneDir32;
+/// Placeholder off x86-64 (no single-precision walk there).
+#[cfg(not(target_arch = "x86_64"))]
+#[derive(Debug, Clone, Copy, Default)]
+pub(super) struct LaneDir32;
+
+/// [`LaneDir32`] of every direction of `ctx` (sun last) when the single-precision 16-lane walk
+/// runs ([`super::TrackingParams::batch_f32`] on an AVX-512 CPU, a grid that fits its `i32`
+/// indices); empty otherwise.
+pub(super) fn lane_dirs32(ctx: &Ctx) -> Vec<LaneDir32> {
+    #[cfg(target_arch = "x86_64")]
+    if ctx.inp.params.batch_f32
+        && matches!(ctx.arch, pulp::Arch::V4(_))
+        && wide32::fits(ctx.inp.spec)
+    {
+        return ctx
+            .omega
+            .iter()
+            .map(|&d| LaneDir32::new(ctx.inp.spec, d))
+            .collect();
+    }
+    let _ = ctx;
+    Vec::new()
+}
 
 /// Queued rays after which a chunk's queue is walked (about 20 KiB of queue: long enough that
 /// the lanes stay full for all but the last few rays).
@@ -237,6 +265,23 @@ impl Ctx<'_> {
                 out,
             };
             if let pulp::Arch::V4(v4) = self.arch {
+                if !self.lane_dirs32.is_empty() {
+                    /// The single-precision walk's arguments, run with AVX-512 enabled.
+                    struct Wide<'c, 'v, 'o, 'x, const W: usize>(Walk<'c, 'v, 'o, 'x, W>, V4);
+                    impl<const W: usize> pulp::WithSimd for Wide<'_, '_, '_, '_, W> {
+                        type Output = ();
+                        #[inline(always)]
+                        fn with_simd<T: pulp::Simd>(self, _simd: T) {
+                            let (w, v) = (self.0, self.1);
+                            if w.ctx.n_tm == 1 {
+                                w.ctx.walk_wide32::<W, true>(v, w.queue, w.view, w.out)
+                            } else {
+                                w.ctx.walk_wide32::<W, false>(v, w.queue, w.view, w.out)
+                            }
+                        }
+                    }
+                    return pulp::Simd::vectorize(v4, Wide::<W>(walk, v4));
+                }
                 return pulp::Simd::vectorize(v4, WalkOn::<_, 8, W>(walk, v4));
             }
             if let pulp::Arch::V3(v3) = self.arch {

@@ -94,6 +94,7 @@ struct Ray {
 struct Acc {
     tur: Vec<f64>,
     pts: Vec<f64>,
+    pts32: Vec<f32>,
     flag: Vec<bool>,
     touched: Vec<u32>,
     lost: f64,
@@ -107,6 +108,7 @@ impl Acc {
         Acc {
             tur: vec![0.0; n * NS * W],
             pts: vec![0.0; n * 8],
+            pts32: vec![0.0; n * 8],
             flag: vec![false; n],
             touched: Vec::new(),
             lost: 0.0,
@@ -1444,6 +1446,394 @@ unsafe fn walk32<const GATHER: bool, const MODE: u8>(tb: &Tables, q: &[Ray], acc
     acc.crossings += n_cross;
 }
 
+// ---------------------------------------------------------------- f32x16, cell-local frame (zmm)
+/// `L32` on 16 lanes (AVX-512, session 20).
+struct L32z {
+    org: [[f32; 16]; 3],
+    tmax: [[f32; 16]; 3],
+    dir: [[f32; 16]; 3],
+    delta: [[f32; 16]; 3],
+    face: [[f32; 16]; 3],
+    cell: [[i32; 16]; 3],
+    step: [[i32; 16]; 3],
+    dlin: [[i32; 16]; 3],
+    lin: [i32; 16],
+    pw: [[f64; 16]; W],
+    psum: [f64; 16],
+    minr: [f64; 16],
+    g: [f32; 16],
+    slot: [usize; 16],
+    act: u32,
+    next: usize,
+}
+
+impl Default for L32z {
+    fn default() -> Self {
+        L32z {
+            org: [[0.0; 16]; 3],
+            tmax: [[0.0; 16]; 3],
+            dir: [[0.0; 16]; 3],
+            delta: [[0.0; 16]; 3],
+            face: [[0.0; 16]; 3],
+            cell: [[0; 16]; 3],
+            step: [[0; 16]; 3],
+            dlin: [[0; 16]; 3],
+            lin: [0; 16],
+            pw: [[0.0; 16]; W],
+            psum: [0.0; 16],
+            minr: [0.0; 16],
+            g: [0.0; 16],
+            slot: [0; 16],
+            act: 0,
+            next: 0,
+        }
+    }
+}
+
+impl L32z {
+    /// Same per-lane set-up as `L32::refill`.
+    #[inline(always)]
+    fn refill(&mut self, l: usize, q: &[Ray]) {
+        let Some(r) = q.get(self.next) else {
+            self.act &= !(1 << l);
+            self.lin[l] = 0;
+            return;
+        };
+        self.next += 1;
+        let mut lin = 0i32;
+        for a in 0..3 {
+            let rel = r.p[a] / SIZE;
+            let idx = rel.floor().clamp(0.0, NN[a] as f64 - 1.0);
+            let up = r.d[a] > 0.0;
+            let local = r.p[a] - idx * SIZE;
+            let inv = 1.0 / r.d[a];
+            let bb = if up { SIZE } else { 0.0 };
+            self.org[a][l] = local as f32;
+            self.dir[a][l] = r.d[a] as f32;
+            self.tmax[a][l] = ((bb - local) * inv) as f32;
+            self.delta[a][l] = (SIZE * inv.abs()) as f32;
+            self.face[a][l] = if up { 0.0 } else { SIZE as f32 };
+            self.cell[a][l] = idx as i32;
+            self.step[a][l] = if up { 1 } else { -1 };
+            self.dlin[a][l] = self.step[a][l] * STRIDE[a] as i32;
+            lin += idx as i32 * STRIDE[a] as i32;
+        }
+        self.lin[l] = lin;
+        self.act |= 1 << l;
+        self.pw[0][l] = r.pw[0];
+        self.pw[1][l] = r.pw[1];
+        self.psum[l] = r.pw[0] + r.pw[1];
+        self.minr[l] = r.min_ray;
+        self.g[l] = G as f32;
+        self.slot[l] = r.slot;
+    }
+}
+
+/// 8 × 8 f32 transpose in each 256-bit half of 8 zmm registers at once: out[i] half h, lane j
+/// = r[j] half h, element i.
+#[inline(always)]
+unsafe fn transpose8x2(r: [__m512; 8]) -> [__m512; 8] {
+    let t0 = _mm512_unpacklo_ps(r[0], r[1]);
+    let t1 = _mm512_unpackhi_ps(r[0], r[1]);
+    let t2 = _mm512_unpacklo_ps(r[2], r[3]);
+    let t3 = _mm512_unpackhi_ps(r[2], r[3]);
+    let t4 = _mm512_unpacklo_ps(r[4], r[5]);
+    let t5 = _mm512_unpackhi_ps(r[4], r[5]);
+    let t6 = _mm512_unpacklo_ps(r[6], r[7]);
+    let t7 = _mm512_unpackhi_ps(r[6], r[7]);
+    let s0 = _mm512_shuffle_ps::<0x44>(t0, t2);
+    let s1 = _mm512_shuffle_ps::<0xEE>(t0, t2);
+    let s2 = _mm512_shuffle_ps::<0x44>(t1, t3);
+    let s3 = _mm512_shuffle_ps::<0xEE>(t1, t3);
+    let s4 = _mm512_shuffle_ps::<0x44>(t4, t6);
+    let s5 = _mm512_shuffle_ps::<0xEE>(t4, t6);
+    let s6 = _mm512_shuffle_ps::<0x44>(t5, t7);
+    let s7 = _mm512_shuffle_ps::<0xEE>(t5, t7);
+    // Per 256-bit half: (low 128 of a, low 128 of b) and (high of a, high of b).
+    let lo = _mm512_setr_epi32(0, 1, 2, 3, 16, 17, 18, 19, 8, 9, 10, 11, 24, 25, 26, 27);
+    let hi = _mm512_setr_epi32(4, 5, 6, 7, 20, 21, 22, 23, 12, 13, 14, 15, 28, 29, 30, 31);
+    let p = |a, i, b| _mm512_permutex2var_ps(a, i, b);
+    [
+        p(s0, lo, s4),
+        p(s1, lo, s5),
+        p(s2, lo, s6),
+        p(s3, lo, s7),
+        p(s0, hi, s4),
+        p(s1, hi, s5),
+        p(s2, hi, s6),
+        p(s3, hi, s7),
+    ]
+}
+
+/// `atten32` on 16 lanes: (intercepted, transmitted) promoted to f64 (lanes 0–7, 8–15), the
+/// second as 1 − the first where the series is used, and the intercepted fraction in f32.
+#[inline(always)]
+unsafe fn atten32z(x: __m512) -> ([__m512d; 2], [__m512d; 2], __m512) {
+    let sp = |v: f32| _mm512_set1_ps(v);
+    let mut f = _mm512_fnmadd_ps(x, sp(1.0 / 24.0), sp(1.0 / 6.0));
+    f = _mm512_fnmadd_ps(x, f, sp(0.5));
+    f = _mm512_fnmadd_ps(x, f, sp(1.0));
+    f = _mm512_mul_ps(x, f);
+    let xe = _mm512_min_ps(x, sp(87.0));
+    let y = _mm512_mul_ps(xe, sp(-std::f32::consts::LOG2_E));
+    let n = _mm512_roundscale_ps::<{ _MM_FROUND_TO_NEAREST_INT | _MM_FROUND_NO_EXC }>(y);
+    let r = _mm512_sub_ps(y, n);
+    let mut p = _mm512_fmadd_ps(r, sp(1.540_353e-4), sp(1.339_887e-3));
+    p = _mm512_fmadd_ps(r, p, sp(9.618_437e-3));
+    p = _mm512_fmadd_ps(r, p, sp(5.550_332e-2));
+    p = _mm512_fmadd_ps(r, p, sp(2.402_264e-1));
+    p = _mm512_fmadd_ps(r, p, sp(6.931_472e-1));
+    p = _mm512_fmadd_ps(r, p, sp(1.0));
+    let e = _mm512_scalef_ps(p, n);
+    let small = _mm512_cmp_ps_mask::<_CMP_LT_OQ>(x, sp(1.0 / 32.0));
+    let v = _mm512_mask_blend_ps(small, e, f);
+    let one = _mm512_set1_pd(1.0);
+    let lo = _mm512_cvtps_pd(_mm512_castps512_ps256(v));
+    let hi = _mm512_cvtps_pd(_mm512_extractf32x8_ps::<1>(v));
+    let (sl, sh) = (small as u8, (small >> 8) as u8);
+    let (clo, chi) = (_mm512_sub_pd(one, lo), _mm512_sub_pd(one, hi));
+    (
+        [_mm512_mask_blend_pd(sl, clo, lo), _mm512_mask_blend_pd(sh, chi, hi)],
+        [_mm512_mask_blend_pd(sl, lo, clo), _mm512_mask_blend_pd(sh, hi, chi)],
+        _mm512_mask_blend_ps(small, _mm512_sub_ps(sp(1.0), e), f),
+    )
+}
+
+/// `hb32` on 16 lanes: rows loaded in pairs (lanes l and l + 8 in one zmm), one two-half
+/// 8 × 8 transpose.
+#[inline(always)]
+unsafe fn hb32z(tb: &Tables, x: __m512, ell: __m512) -> (__m512, __m512) {
+    let sp = |v: f32| _mm512_set1_ps(v);
+    let first = ((1.0f32 / 16384.0).to_bits() >> 18) as i32;
+    let bits = _mm512_castps_si512(x);
+    let bin = _mm512_and_si512(
+        _mm512_sub_epi32(_mm512_srli_epi32::<18>(bits), _mm512_set1_epi32(first)),
+        _mm512_set1_epi32(1023),
+    );
+    let start = _mm512_castsi512_ps(_mm512_and_si512(
+        bits,
+        _mm512_set1_epi32(!((1i32 << 18) - 1)),
+    ));
+    let t = _mm512_sub_ps(x, start);
+    let mut ba = [0i32; 16];
+    _mm512_storeu_si512(ba.as_mut_ptr() as *mut __m512i, bin);
+    let mut rows = [_mm512_setzero_ps(); 8];
+    for l in 0..8 {
+        let (a, b) = (ba[l] as usize, ba[l + 8] as usize);
+        rows[l] = _mm512_insertf32x8::<1>(
+            _mm512_castps256_ps512(_mm256_loadu_ps(tb.hb32[a].as_ptr())),
+            _mm256_loadu_ps(tb.hb32[b].as_ptr()),
+        );
+    }
+    let c = transpose8x2(rows);
+    let h = |c0, c1, c2, c3| {
+        let p = _mm512_fmadd_ps(t, c3, c2);
+        let p = _mm512_fmadd_ps(t, p, c1);
+        _mm512_mul_ps(ell, _mm512_fmadd_ps(t, p, c0))
+    };
+    let a = h(c[0], c[2], c[4], c[6]);
+    let b = h(c[1], c[3], c[5], c[7]);
+    let l2 = std::f32::consts::LN_2;
+    let u = _mm512_div_ps(ell, x);
+    let big = _mm512_cmp_ps_mask::<_CMP_GE_OQ>(x, sp(64.0));
+    let a = _mm512_mask_blend_ps(big, a, _mm512_mul_ps(sp(1.0 - l2), u));
+    let b = _mm512_mask_blend_ps(big, b, _mm512_mul_ps(sp(1.0 + l2), u));
+    let small = _mm512_cmp_ps_mask::<_CMP_LT_OQ>(x, sp(1.0 / 16384.0));
+    let x12 = _mm512_mul_ps(x, sp(1.0 / 12.0));
+    let sa = _mm512_mul_ps(ell, _mm512_sub_ps(sp(0.25), x12));
+    let sb = _mm512_mul_ps(ell, _mm512_sub_ps(sp(0.75), x12));
+    (
+        _mm512_mask_blend_ps(small, a, sa),
+        _mm512_mask_blend_ps(small, b, sb),
+    )
+}
+
+/// The f32 × 16 pass. MODE bit 1: no booking; bit 16: point sums in an f32 record (one 32-byte
+/// read-modify-write per booking; otherwise promoted and added to the f64 record as `32p`).
+#[target_feature(enable = "avx512f,avx512dq,avx512bw,avx512vl,avx2,fma")]
+#[inline(never)]
+unsafe fn walk32z<const MODE: u8>(tb: &Tables, q: &[Ray], acc: &mut Acc) {
+    let mut ln = L32z::default();
+    for l in 0..16 {
+        ln.refill(l, q);
+    }
+    let sp = |v: f32| _mm512_set1_ps(v);
+    let zero = sp(0.0);
+    let mut n_cross = 0u64;
+    let (tur, pts, flag, touched) = (&mut acc.tur, &mut acc.pts, &mut acc.flag, &mut acc.touched);
+    let pts32 = &mut acc.pts32;
+    let ld = |p: &[f32; 16]| _mm512_loadu_ps(p.as_ptr());
+    let ldi = |p: &[i32; 16]| _mm512_loadu_si512(p.as_ptr() as *const __m512i);
+    let ncell = (NX * NY * NZ) as u32;
+    while ln.act != 0 {
+        let mut dens = [0.0f32; 16];
+        for l in 0..16 {
+            dens[l] = if (ln.lin[l] as u32) < ncell {
+                DENS as f32
+            } else {
+                0.0
+            };
+        }
+        let dens = ld(&dens);
+        let occ = _mm512_cmp_ps_mask::<_CMP_GT_OQ>(dens, zero);
+        let k = _mm512_mul_ps(ld(&ln.g), dens);
+        let act = ln.act as __mmask16;
+        let ell = _mm512_min_ps(
+            ld(&ln.tmax[2]),
+            _mm512_min_ps(ld(&ln.tmax[1]), ld(&ln.tmax[0])),
+        );
+        let hit_m = act
+            & occ
+            & _mm512_cmp_ps_mask::<_CMP_GT_OQ>(ell, zero)
+            & _mm512_cmp_ps_mask::<_CMP_GT_OQ>(k, zero);
+        let hit = hit_m as u32;
+        let x = _mm512_maskz_mul_ps(hit_m, k, ell);
+        let (frac, tr, frac32) = atten32z(x);
+        let (s1, s2) = hb32z(tb, x, ell);
+        let mut gain = [[0.0f64; 16]; W];
+        for h in 0..2 {
+            let hm = (hit_m >> (8 * h)) as u8;
+            for c in 0..W {
+                let pwc = _mm512_loadu_pd(ln.pw[c].as_ptr().add(8 * h));
+                _mm512_storeu_pd(gain[c].as_mut_ptr().add(8 * h), _mm512_mul_pd(pwc, frac[h]));
+                _mm512_storeu_pd(
+                    ln.pw[c].as_mut_ptr().add(8 * h),
+                    _mm512_mask_mul_pd(pwc, hm, pwc, tr[h]),
+                );
+            }
+        }
+        if MODE & 1 == 0 {
+            let ps32 = _mm512_insertf32x8::<1>(
+                _mm512_castps256_ps512(_mm512_cvtpd_ps(_mm512_loadu_pd(ln.psum.as_ptr()))),
+                _mm512_cvtpd_ps(_mm512_loadu_pd(ln.psum.as_ptr().add(8))),
+            );
+            let w32 = _mm512_mul_ps(ps32, frac32);
+            let p = |a: usize, s: __m512| {
+                _mm512_mul_ps(_mm512_fmadd_ps(ld(&ln.dir[a]), s, ld(&ln.org[a])), w32)
+            };
+            let rv = transpose8x2([
+                p(0, s1),
+                p(1, s1),
+                p(2, s1),
+                p(0, s2),
+                p(1, s2),
+                p(2, s2),
+                w32,
+                zero,
+            ]);
+            for l in 0..16 {
+                if hit & (1 << l) == 0 {
+                    continue;
+                }
+                let rl = if l < 8 {
+                    _mm512_castps512_ps256(rv[l])
+                } else {
+                    _mm512_extractf32x8_ps::<1>(rv[l - 8])
+                };
+                let e = ln.lin[l] as usize;
+                if !flag[e] {
+                    flag[e] = true;
+                    touched.push(e as u32);
+                }
+                let s = (e * NS + ln.slot[l]) * W;
+                let r: &mut [f64; W] = (&mut tur[s..s + W]).try_into().unwrap();
+                for c in 0..W {
+                    r[c] += gain[c][l];
+                }
+                if MODE & 16 != 0 {
+                    let qq: &mut [f32; 8] = (&mut pts32[e * 8..e * 8 + 8]).try_into().unwrap();
+                    _mm256_storeu_ps(qq.as_mut_ptr(), _mm256_add_ps(_mm256_loadu_ps(qq.as_ptr()), rl));
+                } else {
+                    let qq: &mut [f64; 8] = (&mut pts[e * 8..e * 8 + 8]).try_into().unwrap();
+                    let v = _mm512_add_pd(_mm512_loadu_pd(qq.as_ptr()), _mm512_cvtps_pd(rl));
+                    _mm512_storeu_pd(qq.as_mut_ptr(), v);
+                }
+            }
+        }
+        let mut dead = 0u32;
+        for h in 0..2 {
+            let ps = _mm512_add_pd(
+                _mm512_loadu_pd(ln.pw[0].as_ptr().add(8 * h)),
+                _mm512_loadu_pd(ln.pw[1].as_ptr().add(8 * h)),
+            );
+            _mm512_storeu_pd(ln.psum.as_mut_ptr().add(8 * h), ps);
+            dead |= (_mm512_cmp_pd_mask::<_CMP_LT_OQ>(ps, _mm512_loadu_pd(ln.minr.as_ptr().add(8 * h)))
+                as u32)
+                << (8 * h);
+        }
+        dead &= hit;
+        let go = ln.act & !dead;
+        let gom = go as __mmask16;
+        let mut outside: __mmask16 = 0;
+        let mut lin = ldi(&ln.lin);
+        for a in 0..3 {
+            let tmax = ld(&ln.tmax[a]);
+            let m = gom & _mm512_cmp_ps_mask::<_CMP_LE_OQ>(tmax, ell);
+            let o = _mm512_fmadd_ps(ld(&ln.dir[a]), ell, ld(&ln.org[a]));
+            let o = _mm512_mask_blend_ps(m, o, ld(&ln.face[a]));
+            _mm512_storeu_ps(ln.org[a].as_mut_ptr(), o);
+            let tn = _mm512_mask_blend_ps(m, _mm512_sub_ps(tmax, ell), ld(&ln.delta[a]));
+            _mm512_storeu_ps(ln.tmax[a].as_mut_ptr(), tn);
+            let c0 = ldi(&ln.cell[a]);
+            let c = _mm512_mask_add_epi32(c0, m, c0, ldi(&ln.step[a]));
+            _mm512_storeu_si512(ln.cell[a].as_mut_ptr() as *mut __m512i, c);
+            lin = _mm512_mask_add_epi32(lin, m, lin, ldi(&ln.dlin[a]));
+            let inside = _mm512_cmplt_epu32_mask(c, _mm512_set1_epi32(NN[a] as i32));
+            outside |= m & !inside;
+        }
+        _mm512_storeu_si512(ln.lin.as_mut_ptr() as *mut __m512i, lin);
+        n_cross += ln.act.count_ones() as u64;
+        let mut out_b = go & outside as u32;
+        if out_b != 0 {
+            let cz = ldi(&ln.cell[2]);
+            let zout = _mm512_cmpge_epu32_mask(cz, _mm512_set1_epi32(NZ as i32)) as u32;
+            let side = out_b & !zout;
+            if side != 0 {
+                let sm = side as __mmask16;
+                let mut lin = ldi(&ln.lin);
+                for a in 0..2 {
+                    let c = ldi(&ln.cell[a]);
+                    let n = NN[a] as i32;
+                    let below = sm & _mm512_cmplt_epi32_mask(c, _mm512_setzero_si512());
+                    let above = sm & _mm512_cmpgt_epi32_mask(c, _mm512_set1_epi32(n - 1));
+                    let back = _mm512_mask_mov_epi32(
+                        _mm512_maskz_mov_epi32(above, _mm512_set1_epi32(-n)),
+                        below,
+                        _mm512_set1_epi32(n),
+                    );
+                    _mm512_storeu_si512(
+                        ln.cell[a].as_mut_ptr() as *mut __m512i,
+                        _mm512_add_epi32(c, back),
+                    );
+                    lin = _mm512_add_epi32(
+                        lin,
+                        _mm512_mullo_epi32(back, _mm512_set1_epi32(STRIDE[a] as i32)),
+                    );
+                }
+                _mm512_storeu_si512(ln.lin.as_mut_ptr() as *mut __m512i, lin);
+                out_b &= !side;
+            }
+        }
+        let ev = dead | out_b;
+        if ev == 0 {
+            continue;
+        }
+        for l in 0..16 {
+            if ev & (1 << l) == 0 {
+                continue;
+            }
+            let p = ln.pw[0][l] + ln.pw[1][l];
+            if dead & (1 << l) != 0 {
+                acc.lost += p;
+            } else {
+                acc.out += p;
+            }
+            ln.refill(l, q);
+        }
+    }
+    acc.crossings += n_cross;
+}
+
 fn main() {
     let which = std::env::args().nth(1).unwrap_or("64".into());
     let n: usize = std::env::args()
@@ -1475,12 +1865,16 @@ fn main() {
             "32nbh" => walk32::<false, 3>(&tb, &q, &mut acc),
             "32" => walk32::<false, 0>(&tb, &q, &mut acc),
             "32g" => walk32::<true, 0>(&tb, &q, &mut acc),
+            "32z" => walk32z::<0>(&tb, &q, &mut acc),
+            "32z-nb" => walk32z::<1>(&tb, &q, &mut acc),
+            "32zr" => walk32z::<16>(&tb, &q, &mut acc),
             _ => panic!(),
         }
     }
     let dt = cpu() - t0;
     let tur: f64 = acc.tur.iter().sum();
-    let w: f64 = acc.pts.iter().skip(6).step_by(7).sum();
+    let w: f64 = acc.pts.iter().skip(6).step_by(7).sum::<f64>()
+        + acc.pts32.iter().skip(6).step_by(8).map(|&v| v as f64).sum::<f64>();
     println!(
         "{which}: {} crossings ({:.2}/ray), {:.1} Mcross/s, intercepted {:.6}, out {:.6}, lost {:.6}, closure {:.3e}, wt {:.6}",
         acc.crossings,
