@@ -673,7 +673,6 @@ struct DenseView<'a> {
     np: usize,
     tur: &'a mut [f64],
     pts: &'a mut [f64],
-    pts_loc: &'a mut [f64],
     flag: &'a mut [bool],
     touched: &'a mut Vec<u32>,
 }
@@ -746,16 +745,15 @@ impl TurAcc {
                 np,
                 tur,
                 pts,
-                pts_loc,
                 flag,
                 touched,
+                ..
             } => Some(DenseView {
                 ns: *ns,
                 w: *w,
                 np: *np,
                 tur,
                 pts,
-                pts_loc,
                 flag,
                 touched,
             }),
@@ -763,18 +761,54 @@ impl TurAcc {
         }
     }
 
+    /// [`TurAcc::view`] and the single-precision walk's local points records (empty unless
+    /// that walk runs).
+    #[cfg(target_arch = "x86_64")]
+    fn view_local(&mut self) -> Option<(DenseView<'_>, &mut [f64])> {
+        match self {
+            TurAcc::Dense {
+                ns,
+                w,
+                np,
+                tur,
+                pts,
+                pts_loc,
+                flag,
+                touched,
+            } => Some((
+                DenseView {
+                    ns: *ns,
+                    w: *w,
+                    np: *np,
+                    tur,
+                    pts,
+                    flag,
+                    touched,
+                },
+                pts_loc,
+            )),
+            TurAcc::Sparse { .. } => None,
+        }
+    }
+
     /// Back to the state [`TurAcc::new`] builds: the dense arrays zeroed on the touched
     /// indices (the only ones written), the sparse maps emptied.
     fn reset(&mut self) {
+        if let TurAcc::Dense {
+            pts_loc, touched, ..
+        } = self
+            && !pts_loc.is_empty()
+        {
+            for &e in touched.iter() {
+                pts_loc[e as usize * 8..(e as usize + 1) * 8].fill(0.0);
+            }
+        }
         if let Some(v) = self.view() {
             let (rec, prec) = (v.ns * v.w, v.np * 7);
             for &e in v.touched.iter() {
                 let e = e as usize;
                 v.tur[e * rec..(e + 1) * rec].fill(0.0);
                 v.pts[e * prec..(e + 1) * prec].fill(0.0);
-                if !v.pts_loc.is_empty() {
-                    v.pts_loc[e * 8..(e + 1) * 8].fill(0.0);
-                }
                 v.flag[e] = false;
             }
             v.touched.clear();
@@ -1248,6 +1282,10 @@ struct Ctx<'a> {
     /// The same for the single-precision 16-lane walk (empty unless it runs:
     /// [`TrackingParams::batch_f32`], AVX-512, a grid of `i32` indices).
     lane_dirs32: Vec<batch::LaneDir32>,
+    /// Per cell, for the single-precision walk: [`SimpleCell`] packed into 8 bytes, the
+    /// density as `f32` bits (0 for no entry) in the low half, the entry index (empty cell: its
+    /// skip distance) in the high half (empty unless that walk runs).
+    scells32: Vec<u64>,
     /// Where the walks dispatch ([`TrackingParams::kernel_isa`] on this CPU).
     arch: pulp::Arch,
 }
@@ -2941,11 +2979,27 @@ pub fn run(inp: &RadiativeInput) -> RadiativeResult {
         },
         lane_dirs: Vec::new(),
         lane_dirs32: Vec::new(),
+        scells32: Vec::new(),
         arch,
     };
     if ctx.batch {
         ctx.lane_dirs = batch::lane_dirs(&ctx);
         ctx.lane_dirs32 = batch::lane_dirs32(&ctx);
+        if !ctx.lane_dirs32.is_empty() {
+            ctx.scells32 = ctx
+                .scells
+                .iter()
+                .map(|c| {
+                    let d = if c.density > 0.0 {
+                        (c.density as f32).max(f32::MIN_POSITIVE)
+                    } else {
+                        0.0
+                    };
+                    let hi = if c.density > 0.0 { c.idx } else { c.tm };
+                    d.to_bits() as u64 | (hi as u64) << 32
+                })
+                .collect();
+        }
     }
     let mut res = RadiativeResult {
         n_channels: w,

@@ -38,7 +38,7 @@ use crate::radiative::lanes::Lanes;
 use crate::scene::desc::BoundaryMode;
 use glam::DVec3;
 #[cfg(target_arch = "x86_64")]
-use pulp::x86::{V3, V4};
+use pulp::x86::V3;
 
 #[cfg(target_arch = "x86_64")]
 mod wide32;
@@ -204,6 +204,18 @@ impl Ctx<'_> {
         }
         let queue = std::mem::take(&mut out.queue);
         let mut tur = out.tur.take().expect("accumulator");
+        #[cfg(target_arch = "x86_64")]
+        if !self.lane_dirs32.is_empty() {
+            match self.w {
+                1 => self.walk_wide::<1>(&queue, &mut tur, out),
+                2 => self.walk_wide::<2>(&queue, &mut tur, out),
+                _ => self.walk_wide::<4>(&queue, &mut tur, out),
+            }
+            out.tur = Some(tur);
+            out.queue = queue;
+            out.queue.clear();
+            return;
+        }
         match self.w {
             1 => self.walk_batch::<1>(&queue, &mut tur, out),
             2 => self.walk_batch::<2>(&queue, &mut tur, out),
@@ -265,23 +277,6 @@ impl Ctx<'_> {
                 out,
             };
             if let pulp::Arch::V4(v4) = self.arch {
-                if !self.lane_dirs32.is_empty() {
-                    /// The single-precision walk's arguments, run with AVX-512 enabled.
-                    struct Wide<'c, 'v, 'o, 'x, const W: usize>(Walk<'c, 'v, 'o, 'x, W>, V4);
-                    impl<const W: usize> pulp::WithSimd for Wide<'_, '_, '_, '_, W> {
-                        type Output = ();
-                        #[inline(always)]
-                        fn with_simd<T: pulp::Simd>(self, _simd: T) {
-                            let (w, v) = (self.0, self.1);
-                            if w.ctx.n_tm == 1 {
-                                w.ctx.walk_wide32::<W, true>(v, w.queue, w.view, w.out)
-                            } else {
-                                w.ctx.walk_wide32::<W, false>(v, w.queue, w.view, w.out)
-                            }
-                        }
-                    }
-                    return pulp::Simd::vectorize(v4, Wide::<W>(walk, v4));
-                }
                 return pulp::Simd::vectorize(v4, WalkOn::<_, 8, W>(walk, v4));
             }
             if let pulp::Arch::V3(v3) = self.arch {

@@ -21,11 +21,11 @@
 
 use super::{ChunkOut, Ctx, Queued};
 use crate::radiative::dda::{Dda, Exit, floor_i64};
-use crate::radiative::engine::{DenseView, add};
-use crate::radiative::fastmath::{HB_ALLOC, HalfBarycentres};
+use crate::radiative::engine::{DenseView, TurAcc, add};
+use crate::radiative::fastmath::{HB_ALLOC, HB_POLY_DEG, HalfBarycentres};
 use crate::resources::grid::GridSpec;
 use crate::scene::desc::BoundaryMode;
-use core::arch::x86_64::{__m512, __m512d, __m512i};
+use core::arch::x86_64::{__m128, __m256, __m512, __m512d, __m512i};
 use glam::DVec3;
 use pulp::{cast, f64x8, x86::V4};
 
@@ -387,6 +387,38 @@ fn hb16(
 ) -> (__m512, __m512) {
     let f = v.avx512f;
     let sp = |c: f32| f._mm512_set1_ps(c);
+    // x < 1 (a cell's optical depth, the common case): the degree-5 polynomials
+    // (`HalfBarycentres::poly32`, the operations of `eval_poly32`).
+    let c = HalfBarycentres::poly32();
+    let (mut pa, mut pb) = (sp(c[2 * HB_POLY_DEG]), sp(c[2 * HB_POLY_DEG + 1]));
+    for i in (0..HB_POLY_DEG).rev() {
+        pa = f._mm512_fmadd_ps(pa, x, sp(c[2 * i]));
+        pb = f._mm512_fmadd_ps(pb, x, sp(c[2 * i + 1]));
+    }
+    let (pa, pb) = (f._mm512_mul_ps(ell, pa), f._mm512_mul_ps(ell, pb));
+    let poly = f._mm512_cmp_ps_mask::<0x11>(x, sp(1.0));
+    if poly == u16::MAX {
+        return (pa, pb);
+    }
+    let (a, b) = hb16_table(v, rows, first, range, x, ell);
+    (
+        f._mm512_mask_blend_ps(poly, a, pa),
+        f._mm512_mask_blend_ps(poly, b, pb),
+    )
+}
+
+/// [`hb16`] for x ≥ 1: the table's pieces.
+#[inline(always)]
+fn hb16_table(
+    v: V4,
+    rows: &[[f32; 8]; HB_ALLOC],
+    first: u32,
+    range: (f32, f32),
+    x: __m512,
+    ell: __m512,
+) -> (__m512, __m512) {
+    let f = v.avx512f;
+    let sp = |c: f32| f._mm512_set1_ps(c);
     let bits = f._mm512_castps_si512(x);
     let bin = f._mm512_and_si512(
         f._mm512_sub_epi32(
@@ -399,14 +431,16 @@ fn hb16(
         f._mm512_castsi512_ps(f._mm512_and_si512(bits, f._mm512_set1_epi32(!((1 << 18) - 1))));
     let t = f._mm512_sub_ps(x, start);
     let ba: [u32; L] = cast(bin);
-    let pair: [__m512; 8] = std::array::from_fn(|l| {
-        let a: [f32; 8] = rows[ba[l] as usize];
-        let b: [f32; 8] = rows[ba[l + 8] as usize];
-        let mut ab = [0.0f32; 16];
-        ab[..8].copy_from_slice(&a);
-        ab[8..].copy_from_slice(&b);
-        cast(ab)
-    });
+    // Rows of lanes l and l + 8 in one register (two 32-byte loads: a 64-byte load of two
+    // 32-byte stores would not be forwarded).
+    let mut pair = [f._mm512_setzero_ps(); 8];
+    for (l, p) in pair.iter_mut().enumerate() {
+        let a: __m256 = cast(rows[ba[l] as usize]);
+        let b: __m256 = cast(rows[ba[l + 8] as usize]);
+        *p = v
+            .avx512dq
+            ._mm512_insertf32x8::<1>(f._mm512_castps256_ps512(a), b);
+    }
     let c = transpose8x2(v, pair);
     let h = |c0, c1, c2, c3| {
         let p = f._mm512_fmadd_ps(t, c3, c2);
@@ -434,6 +468,59 @@ fn hb16(
 }
 
 impl Ctx<'_> {
+    /// Walks the queued rays on 16 lanes (this module's doc); `tur` must be the dense
+    /// accumulator with the local points records (the walk runs only where
+    /// [`super::lane_dirs32`] is not empty: AVX-512, so the queue is otherwise walked by
+    /// [`Ctx::walk_batch`]).
+    pub(in crate::radiative::engine) fn walk_wide<const W: usize>(
+        &self,
+        queue: &[Queued],
+        tur: &mut TurAcc,
+        out: &mut ChunkOut,
+    ) {
+        let pulp::Arch::V4(v4) = self.arch else {
+            return self.walk_batch::<W>(queue, tur, out);
+        };
+        let (mut view, loc) = tur
+            .view_local()
+            .expect("rays are queued with a dense accumulator only");
+        view.w = W;
+        /// The walk's arguments, run with AVX-512 enabled.
+        struct Run<'c, 'v, 'o, 'x, const W: usize> {
+            ctx: &'c Ctx<'x>,
+            queue: &'o [Queued],
+            view: &'o mut DenseView<'v>,
+            loc: &'o mut [f64],
+            out: &'o mut ChunkOut,
+            v4: V4,
+        }
+        impl<const W: usize> pulp::WithSimd for Run<'_, '_, '_, '_, W> {
+            type Output = ();
+            #[inline(always)]
+            fn with_simd<T: pulp::Simd>(self, _simd: T) {
+                let r = self;
+                if r.ctx.n_tm == 1 {
+                    r.ctx
+                        .walk_wide32::<W, true>(r.v4, r.queue, r.view, r.loc, r.out)
+                } else {
+                    r.ctx
+                        .walk_wide32::<W, false>(r.v4, r.queue, r.view, r.loc, r.out)
+                }
+            }
+        }
+        pulp::Simd::vectorize(
+            v4,
+            Run::<W> {
+                ctx: self,
+                queue,
+                view: &mut view,
+                loc,
+                out,
+                v4,
+            },
+        )
+    }
+
     /// The walk of [`super`]'s module doc on 16 lanes in single-precision geometry (this
     /// module's doc); `ONE_TM`: the scene has one tracked turbid material.
     #[inline(always)]
@@ -442,6 +529,7 @@ impl Ctx<'_> {
         v: V4,
         queue: &[Queued],
         view: &mut DenseView,
+        loc: &mut [f64],
         out: &mut ChunkOut,
     ) {
         let f = v.avx512f;
@@ -454,9 +542,10 @@ impl Ctx<'_> {
         let isolated = spec.boundary == BoundaryMode::Isolated;
         let max_crossings = self.inp.params.max_crossings as u32;
         let scells = &self.scells[..];
+        let packed = &self.scells32[..];
         let ns = view.ns;
         let tur: &mut [[f64; W]] = view.tur.as_chunks_mut::<W>().0;
-        let pts_loc: &mut [[f64; 8]] = view.pts_loc.as_chunks_mut::<8>().0;
+        let pts_loc: &mut [[[f64; 4]; 2]] = loc.as_chunks_mut::<4>().0.as_chunks_mut::<2>().0;
         let flag = &mut *view.flag;
         let touched = &mut *view.touched;
         let mut ln = Wide::<W>::new();
@@ -471,19 +560,38 @@ impl Ctx<'_> {
         let ldi = |a: &[i32; L]| -> __m512i { cast(*a) };
         let zero = sp(0.0);
         while ln.act != 0 {
-            let mut dens = [0.0f32; L];
-            let mut idx = [0u32; L];
-            let mut tms = [0u32; L];
-            let mut far = 0u32;
-            for l in 0..L {
-                // Lanes are inside the grid here (parked lanes: cell 0).
-                let sc = scells[(ln.lin[l] as u32).min(ncell - 1) as usize];
-                dens[l] = sc.density as f32;
-                idx[l] = sc.idx;
-                tms[l] = sc.tm;
-                far |= ((sc.tm > 1) as u32) << l;
-            }
-            let dens = ld(&dens);
+            let (dens, idx, tms, far) = if ONE_TM {
+                // One 8-byte packed record per lane (density bits, entry or skip distance),
+                // split lane-wise into the two halves.
+                let mut rec = [0u64; L];
+                for l in 0..L {
+                    // Lanes are inside the grid here (parked lanes: cell 0).
+                    rec[l] = packed[(ln.lin[l] as u32).min(ncell - 1) as usize];
+                }
+                let r: [__m512i; 2] = cast(rec);
+                let even: __m512i =
+                    cast([0u32, 2, 4, 6, 8, 10, 12, 14, 16, 18, 20, 22, 24, 26, 28, 30]);
+                let odd: __m512i =
+                    cast([1u32, 3, 5, 7, 9, 11, 13, 15, 17, 19, 21, 23, 25, 27, 29, 31]);
+                let dens = f._mm512_castsi512_ps(f._mm512_permutex2var_epi32(r[0], even, r[1]));
+                let hi = f._mm512_permutex2var_epi32(r[0], odd, r[1]);
+                let far = f._mm512_cmpgt_epu32_mask(hi, f._mm512_set1_epi32(1)) as u32;
+                let hi: [u32; L] = cast(hi);
+                (dens, hi, hi, far)
+            } else {
+                let mut dens = [0.0f32; L];
+                let mut idx = [0u32; L];
+                let mut tms = [0u32; L];
+                let mut far = 0u32;
+                for l in 0..L {
+                    let sc = scells[(ln.lin[l] as u32).min(ncell - 1) as usize];
+                    dens[l] = sc.density as f32;
+                    idx[l] = sc.idx;
+                    tms[l] = sc.tm;
+                    far |= ((sc.tm > 1) as u32) << l;
+                }
+                (ld(&dens), idx, tms, far)
+            };
             let occ = f._mm512_cmp_ps_mask::<0x1E>(dens, zero) as u32;
             let skip = !occ & far & ln.act;
             let g = if ONE_TM {
@@ -567,11 +675,17 @@ impl Ctx<'_> {
                 for c in 0..W {
                     r[c] += gain[c][l];
                 }
-                let row: [[f32; 8]; 2] = cast(rv[l % 8]);
-                let row = row[l / 8];
+                // The lane's row promoted by halves and added to the record as two 32-byte
+                // read-modify-writes (one 64-byte add would read a record just written by two
+                // 32-byte stores: not forwarded on Zen 4, session 19).
+                let row: [__m256; 2] = cast(rv[l % 8]);
+                let row: [__m128; 2] = cast(row[l / 8]);
                 let q = &mut pts_loc[e];
-                for i in 0..7 {
-                    q[i] += row[i] as f64;
+                for (h, qh) in q.iter_mut().enumerate() {
+                    let add = v
+                        .avx
+                        ._mm256_add_pd(cast(*qh), v.avx._mm256_cvtps_pd(row[h]));
+                    *qh = cast(add);
                 }
             }
             // The channel sum in channel order.
