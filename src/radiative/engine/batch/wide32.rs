@@ -20,12 +20,12 @@
 //! Measured against the f64 walk in the README (Kernel section) and in `tests/batch_walk.rs`.
 
 use super::{ChunkOut, Ctx, Queued};
-use crate::radiative::dda::{Dda, Exit, floor_i64};
+use crate::radiative::dda::{Dda, Exit};
 use crate::radiative::engine::{DenseView, TurAcc, add};
 use crate::radiative::fastmath::{HB_ALLOC, HB_POLY_DEG, HalfBarycentres};
 use crate::resources::grid::GridSpec;
 use crate::scene::desc::BoundaryMode;
-use core::arch::x86_64::{__m128, __m256, __m512, __m512d, __m512i};
+use core::arch::x86_64::{__m128, __m256, __m256d, __m512, __m512d, __m512i};
 use glam::DVec3;
 use pulp::{cast, f64x8, x86::V4};
 
@@ -49,6 +49,36 @@ pub(in crate::radiative::engine) struct LaneDir32 {
     dlin: [i32; 3],
     /// The cell index a step leaves the grid into: n (step +1), −1 (−1), never (0: −2).
     exit_at: [i32; 3],
+    /// For the start, per axis x, y, z (index 3: padding): `1/d`, and all ones where the step
+    /// is +1, −1, or not 0.
+    inv4: [f64; 4],
+    up4: [u64; 4],
+    down4: [u64; 4],
+    moves4: [u64; 4],
+}
+
+/// The grid's origin, cell sizes, `n + 1e-9` and `n − 1` per axis x, y, z (index 3: padding,
+/// a unit cell at 0), for [`Wide::start`].
+#[derive(Debug, Clone, Copy)]
+struct Grid4 {
+    lo: [f64; 4],
+    size: [f64; 4],
+    n_hi: [f64; 4],
+    n_m1: [f64; 4],
+    n: [i32; 3],
+}
+
+impl Grid4 {
+    fn new(spec: &GridSpec) -> Self {
+        let n = spec.n.map(|v| v as f64);
+        Grid4 {
+            lo: [spec.origin.x, spec.origin.y, spec.origin.z, 0.0],
+            size: [spec.cell.x, spec.cell.y, spec.cell.z, 1.0],
+            n_hi: [n[0] + 1e-9, n[1] + 1e-9, n[2] + 1e-9, 1.0 + 1e-9],
+            n_m1: [n[0] - 1.0, n[1] - 1.0, n[2] - 1.0, 0.0],
+            n: spec.n.map(|v| v as i32),
+        }
+    }
 }
 
 impl LaneDir32 {
@@ -74,7 +104,11 @@ impl LaneDir32 {
                 -1 => -1,
                 _ => -2,
             };
+            c.inv4[a] = c.inv[a];
+            let all = |b: bool| if b { u64::MAX } else { 0 };
+            (c.up4[a], c.down4[a], c.moves4[a]) = (all(step > 0), all(step < 0), all(step != 0));
         }
+        c.inv4[3] = 1.0;
         c
     }
 }
@@ -141,25 +175,49 @@ impl<const W: usize> Wide<W> {
     /// Lane l's traversal from scene point `p` along the direction of `dc` (the cell as
     /// [`Dda::new`] finds it: on a boundary, the cell the ray enters); false if `p` is outside
     /// the grid box.
+    /// The three axes side by side in one vector (per axis the operations of the one-axis
+    /// form [`Wide::set_axis`]: `rel = (p − lo)/size`, `⌊rel⌋`, the cell below on a boundary
+    /// crossed downward, clamped; the point in the cell's frame, clamped to it; the distance
+    /// to the exit boundary).
     #[inline(always)]
-    fn start(&mut self, l: usize, spec: &GridSpec, p: DVec3, dc: &LaneDir32) -> bool {
-        let mut idx = [0i32; 3];
-        for a in 0..3 {
-            let (lo, size, n) = (spec.origin[a], spec.cell[a], spec.n[a] as i64);
-            let rel = (p[a] - lo) / size;
-            if !(rel >= -1e-9 && rel <= n as f64 + 1e-9) {
-                return false;
-            }
-            let mut i = floor_i64(rel);
-            if rel == i as f64 && dc.step[a] < 0 {
-                i -= 1;
-            }
-            let i = i.clamp(0, n - 1);
-            let local = (p[a] - (lo + i as f64 * size)).clamp(0.0, size);
-            self.set_axis(l, a, i as i32, local, dc, size);
-            idx[a] = i as i32;
+    fn start(&mut self, v: V4, l: usize, g: &Grid4, p: DVec3, dc: &LaneDir32) -> bool {
+        let a = v.avx;
+        let sp = |c: f64| a._mm256_set1_pd(c);
+        let (zero, lo, size): (__m256d, __m256d, __m256d) = (sp(0.0), cast(g.lo), cast(g.size));
+        let pv: __m256d = cast([p.x, p.y, p.z, 0.0]);
+        let rel = a._mm256_div_pd(a._mm256_sub_pd(pv, lo), size);
+        let ok = a._mm256_and_pd(
+            a._mm256_cmp_pd::<0x1D>(rel, sp(-1e-9)),
+            a._mm256_cmp_pd::<0x12>(rel, cast(g.n_hi)),
+        );
+        if a._mm256_movemask_pd(ok) & 7 != 7 {
+            return false;
         }
-        let n = spec.n.map(|v| v as i32);
+        let fl = a._mm256_floor_pd(rel);
+        let below = a._mm256_and_pd(a._mm256_cmp_pd::<0x00>(rel, fl), cast(dc.down4));
+        let idx = a._mm256_blendv_pd(fl, a._mm256_sub_pd(fl, sp(1.0)), below);
+        let idx = a._mm256_min_pd(a._mm256_max_pd(idx, zero), cast(g.n_m1));
+        let corner = a._mm256_add_pd(lo, a._mm256_mul_pd(idx, size));
+        let local = a._mm256_min_pd(a._mm256_max_pd(a._mm256_sub_pd(pv, corner), zero), size);
+        let bb = a._mm256_and_pd(size, cast(dc.up4));
+        let tm = a._mm256_mul_pd(a._mm256_sub_pd(bb, local), cast(dc.inv4));
+        let tm = a._mm256_blendv_pd(sp(f64::INFINITY), tm, cast(dc.moves4));
+        let tm = a._mm256_max_pd(tm, zero);
+        let local: [f32; 4] = cast(a._mm256_cvtpd_ps(local));
+        let tm: [f32; 4] = cast(a._mm256_cvtpd_ps(tm));
+        let idx: [i32; 4] = cast(a._mm256_cvttpd_epi32(idx));
+        for ax in 0..3 {
+            self.cell[ax][l] = idx[ax];
+            self.org[ax][l] = local[ax];
+            self.tmax[ax][l] = tm[ax];
+            self.dir[ax][l] = dc.dir[ax];
+            self.delta[ax][l] = dc.delta[ax];
+            self.face[ax][l] = dc.face[ax];
+            self.step[ax][l] = dc.step[ax];
+            self.dlin[ax][l] = dc.dlin[ax];
+            self.exit_at[ax][l] = dc.exit_at[ax];
+        }
+        let n = g.n;
         self.lin[l] = idx[0] + n[0] * (idx[1] + n[1] * idx[2]);
         true
     }
@@ -246,8 +304,11 @@ impl<const W: usize> Wide<W> {
     /// Takes the next queued ray that starts inside the grid into lane l (rays that do not are
     /// booked as lost, as in the f64 walks); parks the lane when the queue is done.
     #[inline(always)]
+    #[allow(clippy::too_many_arguments)]
     fn refill(
         &mut self,
+        v: V4,
+        g: &Grid4,
         ctx: &Ctx,
         dirs: &[LaneDir32],
         l: usize,
@@ -263,7 +324,7 @@ impl<const W: usize> Wide<W> {
             self.next += 1;
             out.rays += 1;
             let dir = r.dir as usize;
-            if !self.start(l, ctx.inp.spec, r.p, &dirs[dir]) {
+            if !self.start(v, l, g, r.p, &dirs[dir]) {
                 add(&mut out.lost, &r.pw[..W]);
                 continue;
             }
@@ -549,11 +610,12 @@ impl Ctx<'_> {
         let flag = &mut *view.flag;
         let touched = &mut *view.touched;
         let mut ln = Wide::<W>::new();
+        let grid4 = Grid4::new(spec);
         let mut n_cross = 0u64;
         let mut n_skip = 0u64;
         let foot_saved = out.foot;
         for l in 0..L {
-            ln.refill(self, dirs, l, queue, out);
+            ln.refill(v, &grid4, self, dirs, l, queue, out);
         }
         let sp = |c: f32| f._mm512_set1_ps(c);
         let ld = |a: &[f32; L]| -> __m512 { cast(*a) };
@@ -820,7 +882,7 @@ impl Ctx<'_> {
                     }
                 };
                 if finished {
-                    ln.refill(self, dirs, l, queue, out);
+                    ln.refill(v, &grid4, self, dirs, l, queue, out);
                 }
             }
         }
