@@ -47,8 +47,6 @@ pub(in crate::radiative::engine) struct LaneDir32 {
     /// Step −1, 0 or 1, and its linear-index increment.
     step: [i32; 3],
     dlin: [i32; 3],
-    /// The cell index a step leaves the grid into: n (step +1), −1 (−1), never (0: −2).
-    exit_at: [i32; 3],
     /// For the start, per axis x, y, z (index 3: padding): `1/d`, and all ones where the step
     /// is +1, −1, or not 0.
     inv4: [f64; 4],
@@ -99,11 +97,6 @@ impl LaneDir32 {
             c.face[a] = if step < 0 { size as f32 } else { 0.0 };
             c.step[a] = step;
             c.dlin[a] = step * stride[a];
-            c.exit_at[a] = match step {
-                1 => n[a],
-                -1 => -1,
-                _ => -2,
-            };
             c.inv4[a] = c.inv[a];
             let all = |b: bool| if b { u64::MAX } else { 0 };
             (c.up4[a], c.down4[a], c.moves4[a]) = (all(step > 0), all(step < 0), all(step != 0));
@@ -129,7 +122,6 @@ struct Wide<const W: usize> {
     cell: [[i32; L]; 3],
     step: [[i32; L]; 3],
     dlin: [[i32; L]; 3],
-    exit_at: [[i32; L]; 3],
     lin: [i32; L],
     act: u32,
     pw: [[f64; L]; W],
@@ -156,7 +148,6 @@ impl<const W: usize> Wide<W> {
             cell: i3,
             step: i3,
             dlin: i3,
-            exit_at: i3,
             lin: [0; L],
             act: 0,
             pw: [[0.0; L]; W],
@@ -215,7 +206,6 @@ impl<const W: usize> Wide<W> {
             self.face[ax][l] = dc.face[ax];
             self.step[ax][l] = dc.step[ax];
             self.dlin[ax][l] = dc.dlin[ax];
-            self.exit_at[ax][l] = dc.exit_at[ax];
         }
         let n = g.n;
         self.lin[l] = idx[0] + n[0] * (idx[1] + n[1] * idx[2]);
@@ -238,7 +228,6 @@ impl<const W: usize> Wide<W> {
         self.face[a][l] = dc.face[a];
         self.step[a][l] = dc.step[a];
         self.dlin[a][l] = dc.dlin[a];
-        self.exit_at[a][l] = dc.exit_at[a];
     }
 
     /// Lane l's point in scene coordinates (m): the cell's corner plus the point in its frame.
@@ -611,6 +600,7 @@ impl Ctx<'_> {
         let touched = &mut *view.touched;
         let mut ln = Wide::<W>::new();
         let grid4 = Grid4::new(spec);
+        let nv: [__m512i; 3] = std::array::from_fn(|a| f._mm512_set1_epi32(n[a]));
         let mut n_cross = 0u64;
         let mut n_skip = 0u64;
         let foot_saved = out.foot;
@@ -788,14 +778,15 @@ impl Ctx<'_> {
                 let c = f._mm512_mask_add_epi32(c0, m, c0, ldi(&ln.step[a]));
                 ln.cell[a] = cast(c);
                 lin = f._mm512_mask_add_epi32(lin, m, lin, ldi(&ln.dlin[a]));
-                outside |= m & f._mm512_cmpeq_epi32_mask(c, ldi(&ln.exit_at[a]));
+                // Outside the grid: the index is −1 or n (one unsigned comparison with n).
+                outside |= m & f._mm512_cmpge_epu32_mask(c, nv[a]);
             }
             ln.lin = cast(lin);
             n_cross += ln.act.count_ones() as u64;
             let mut out_b = go & outside as u32;
             let mut over = 0u32;
             if out_b != 0 && !isolated {
-                let zout = f._mm512_cmpeq_epi32_mask(ldi(&ln.cell[2]), ldi(&ln.exit_at[2])) as u32;
+                let zout = f._mm512_cmpge_epu32_mask(ldi(&ln.cell[2]), nv[2]) as u32;
                 let side = out_b & !zout;
                 if side != 0 {
                     // Side exits of a repetitive scene: the indices move by one period.
@@ -804,7 +795,7 @@ impl Ctx<'_> {
                     let mut wr: __m512i = cast(ln.wraps);
                     for (a, stride) in [(0usize, 1i32), (1, n[0])] {
                         let c = ldi(&ln.cell[a]);
-                        let w = sm & f._mm512_cmpeq_epi32_mask(c, ldi(&ln.exit_at[a]));
+                        let w = sm & f._mm512_cmpge_epu32_mask(c, nv[a]);
                         let back =
                             f._mm512_mullo_epi32(ldi(&ln.step[a]), f._mm512_set1_epi32(-n[a]));
                         ln.cell[a] = cast(f._mm512_mask_add_epi32(c, w, c, back));
