@@ -1503,13 +1503,34 @@ impl Ctx<'_> {
                 as usize;
             let j = floor_i64((hp.y - spec.origin.y) / spec.cell.y).clamp(0, spec.n[1] as i64 - 1)
                 as usize;
-            let sub = self.sub_index(hp, [i, j, 0], 2);
-            out.gnd_key.push(((i + spec.n[0] * j) as u32, slot, sub));
-            out.gnd_val.extend_from_slice(pw);
-            out.gnd_val.extend_from_slice(&[hp.x, hp.y, hp.z, psum]);
+            self.bottom_at(i, j, hp, slot, pw, psum, out);
         } else {
             add(&mut out.lost, pw);
         }
+    }
+
+    /// [`Ctx::bottom`] of a ray whose ground column (i, j) is known (the single-precision
+    /// walk's lane cell): the same booking without locating the column.
+    #[allow(clippy::too_many_arguments)]
+    #[inline(always)]
+    fn bottom_at(
+        &self,
+        i: usize,
+        j: usize,
+        hp: DVec3,
+        slot: u32,
+        pw: &[f64],
+        psum: f64,
+        out: &mut ChunkOut,
+    ) {
+        if self.inp.flat_ground.is_none() {
+            return add(&mut out.lost, pw);
+        }
+        let n0 = self.inp.spec.n[0];
+        let sub = self.sub_index(hp, [i, j, 0], 2);
+        out.gnd_key.push(((i + n0 * j) as u32, slot, sub));
+        out.gnd_val.extend_from_slice(pw);
+        out.gnd_val.extend_from_slice(&[hp.x, hp.y, hp.z, psum]);
     }
 
     /// Lean tracker for the common case (see [`Ctx::simple`]): turbid cells with at most one

@@ -853,7 +853,11 @@ impl Ctx<'_> {
                         }
                         Exit::Bottom => {
                             let slot = ln.slot[l] as u32;
-                            self.bottom(ln.point(l, spec), slot, &lane_pw, ln.psum[l], out);
+                            let (i, j) = (ln.cell[0][l], ln.cell[1][l]);
+                            let (i, j) = (i.clamp(0, n[0] - 1), j.clamp(0, n[1] - 1));
+                            let hp = ln.point(l, spec);
+                            let psum = ln.psum[l];
+                            self.bottom_at(i as usize, j as usize, hp, slot, &lane_pw, psum, out);
                             true
                         }
                         Exit::Side(..) => {
