@@ -1,6 +1,8 @@
 //! The flux tracker's batched walk (`RunSettings::batch_walk`): queued rays walked side by side
-//! in vector lanes against the same rays walked one by one, both lane counts (8 with AVX-512
-//! where the CPU has it, 4 with AVX2, `KernelIsa::Avx2`). Each ray goes through
+//! in vector lanes against the same rays walked one by one, both lane counts of the
+//! double-precision walk (`batch_f32: false`; 8 with AVX-512 where the CPU has it, 4 with
+//! AVX2, `KernelIsa::Avx2`); at the end, the single-precision 16-lane walk (the default on
+//! AVX-512) against the double-precision one. Each ray goes through
 //! the same operations in both walks, so only the order in which the rays' contributions are
 //! summed differs: per turbid entry the intercepted and absorbed power, per direction the
 //! escaped power, per ground column the intercepted power and the image pixels agree to
@@ -23,11 +25,14 @@ use lumenscape::scene::generators::BandOptics;
 use lumenscape::scene::generators::turbid_layer::{TurbidLayerParams, turbid_layer};
 use lumenscape::simulation::Simulation;
 
+/// `desc` with the one-ray walk or the double-precision batched walk (the walks these
+/// equality tests compare; the single-precision walk is compared with them at the end).
 fn run(desc: &SceneDesc, batch_walk: bool) -> RadiativeProducts {
     run_with(
         desc,
         RunSettings {
             batch_walk,
+            batch_f32: false,
             ..Default::default()
         },
     )
@@ -84,6 +89,7 @@ fn batched_equals_one_by_one(d: &SceneDesc, what: &str) {
         d,
         RunSettings {
             batch_walk: true,
+            batch_f32: false,
             kernel_isa: lumenscape::radiative::engine::KernelIsa::Avx2,
             ..Default::default()
         },
@@ -270,6 +276,7 @@ fn walks_agree_on_every_instruction_set() {
     let products = |d: &SceneDesc, batch_walk: bool, kernel_isa: KernelIsa| {
         let settings = RunSettings {
             batch_walk,
+            batch_f32: false,
             kernel_isa,
             ..Default::default()
         };

@@ -1,7 +1,9 @@
 //! The batched walk of the lean tracker: rays that [`Ctx::walk_lean`] would walk one by one
 //! (dense accumulator, `turbid_subfaces: Off`, 1, 2 or 4 channels, a scene that
 //! [`Ctx::simple`] covers) are queued per chunk ([`Ctx::queue`]) and walked L at a time, one
-//! per lane ([`Ctx::flush`]): 8 lanes in AVX-512 registers on CPUs that have it, 4 in AVX2
+//! per lane ([`Ctx::flush`]): by default 16 lanes in single-precision geometry on CPUs with
+//! AVX-512 (module `wide32`, [`super::TrackingParams::batch_f32`]); otherwise (this module's
+//! double-precision walk) 8 lanes in AVX-512 registers on CPUs that have it, 4 in AVX2
 //! elsewhere on x86-64 ([`crate::radiative::lanes`]; `pulp` runtime detection, no unsafe
 //! code; without AVX2 the queued rays are walked one by one by [`Ctx::walk_lean`]). Per
 //! crossing, the lanes' segment lengths, attenuations (`e^{−kℓ}`, [`attenuation_l`]),
@@ -128,8 +130,8 @@ pub(super) fn available(arch: &pulp::Arch) -> bool {
 }
 
 /// The instruction set the flux-tracking walks run on this CPU by default (for the benches'
-/// records): `"AVX-512"` (the batched walk on 8 lanes), `"AVX2"` (4 lanes), or `"baseline"`
-/// (rays one by one).
+/// records): `"AVX-512"` (the batched walk on 16 single-precision or 8 double-precision
+/// lanes), `"AVX2"` (4 lanes), or `"baseline"` (rays one by one).
 pub fn kernel_isa() -> &'static str {
     instruction_set(super::KernelIsa::Best)
 }
@@ -145,11 +147,15 @@ pub fn instruction_set(isa: super::KernelIsa) -> &'static str {
     }
 }
 
-/// Rays the batched walk has in flight on this CPU under cap `isa`: 8 (AVX-512), 4 (AVX2),
-/// 1 (no batched walk). Products of runs with the same count are the same bits; between
-/// counts they differ in the last bits (summation order).
-pub fn batch_lanes(isa: super::KernelIsa) -> usize {
+/// Rays the batched walk has in flight on this CPU under cap `isa`, with or without the
+/// single-precision walk (`batch_f32`, [`super::TrackingParams::batch_f32`]): 16 (AVX-512,
+/// single precision), 8 (AVX-512), 4 (AVX2), 1 (no batched walk). Products of runs with the
+/// same count are the same bits; between 8 and 4 they differ in the last bits (summation
+/// order), between 16 and the others by ~3e-7 relative (single-precision geometry).
+pub fn batch_lanes(isa: super::KernelIsa, batch_f32: bool) -> usize {
     match isa.arch() {
+        #[cfg(target_arch = "x86_64")]
+        pulp::Arch::V4(_) if batch_f32 => 16,
         #[cfg(target_arch = "x86_64")]
         pulp::Arch::V4(_) => 8,
         #[cfg(target_arch = "x86_64")]

@@ -1,23 +1,27 @@
-//! The batched walk in single-precision geometry on 16 lanes (AVX-512;
+//! The batched walk in single-precision geometry on 16 lanes (AVX-512; the default there,
 //! [`super::super::TrackingParams::batch_f32`]): the rays of [`Ctx::walk_batch`], each lane's
 //! traversal kept in the frame of its current cell (issue #4, session 20).
 //!
 //! Per lane: the entry point in the current cell's frame (m, in [0, size] per axis, `f32`),
 //! the distance from it to the next boundary of each axis (`f32`), the cell indices (`i32`).
 //! A crossing moves the point to the exit (the stepped axes onto their entry face, exactly),
-//! so `f32` keeps the geometry to ~1e-7 of a cell whatever the scene size or ray length; a
-//! repetitive wrap moves only the indices. Per crossing, lane-wise: segment ℓ = the nearest
-//! boundary, optical depth `x = k ℓ` (`k = G u_f`), the intercepted fraction `1 − e^{−x}`
-//! (single-precision polynomial, promoted; the transmitted fraction is formed in double so
-//! that the two sum to 1: energy closes as in the f64 walk), the half-barycentres (the f64
-//! table's pieces rounded to `f32`), the interception points (cell frame, `f32`, turned into
-//! scene coordinates and weighted in `f64`), the channel powers (`f64`). The bookings are the
-//! f64 walk's, lane by lane in lane order, so products stay bit-identical on any thread count.
+//! so `f32` keeps the geometry to ~1e-7 of a cell whatever the scene size or ray length (the
+//! 1 mm and 20 m cell tests visit the same crossings); a repetitive wrap moves only the
+//! indices. Per crossing, lane-wise: segment ℓ = the nearest boundary, optical depth
+//! `x = k ℓ` (`k = G u_f`), the intercepted fraction `1 − e^{−x}` (single-precision
+//! polynomial, promoted; the transmitted fraction is formed in double so that the two sum to
+//! 1: energy closes as in the f64 walk), the half-barycentres (degree-5 `f32` polynomials
+//! below x = 1, the f64 table's pieces rounded to `f32` above), the interception points in the
+//! cell's frame weighted in `f32` and added in `f64` to a record of their own (`pts_loc` of
+//! the dense accumulator, moved to scene coordinates at the merge: Σ wt (c + p) = c Σ wt +
+//! Σ wt p, c the cell's corner), the channel powers (`f64`). The bookings are lane by lane in
+//! lane order, so products stay bit-identical on any thread count.
 //!
 //! Same physics as the f64 walks (DART 5 flux tracking, Gastellu-Etchegorry et al. 2015,
-//! Remote Sens. 7, 1667–1701, §3); the products differ from them by ~1e-7 relative
-//! (single-precision path lengths and fractions), far below the DISORT tolerances.
-//! Measured against the f64 walk in the README (Kernel section) and in `tests/batch_walk.rs`.
+//! Remote Sens. 7, 1667–1701, §3); the products differ from theirs by ≤ 2.5e-7 relative on
+//! 0.1–1 m cells and 3.4e-6 on 20 m cells (the f32 exponential), the DISORT errors are
+//! unchanged to the printed digits (tests `f32_walk_*` in `tests/batch_walk.rs`; README,
+//! Kernel, session 20).
 
 use super::{ChunkOut, Ctx, Queued};
 use crate::radiative::dda::{Dda, Exit};
@@ -590,7 +594,7 @@ impl Ctx<'_> {
         let g_dir = &self.g_dir[..];
         let (hb_rows, hb_first, hb_range) = HalfBarycentres::rows32();
         let isolated = spec.boundary == BoundaryMode::Isolated;
-        let max_crossings = self.inp.params.max_crossings as u32;
+        let max_crossings = self.inp.params.max_crossings;
         let scells = &self.scells[..];
         let packed = &self.scells32[..];
         let ns = view.ns;
