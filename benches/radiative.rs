@@ -51,6 +51,9 @@ fn run_timed(
             skip_empty: !std::env::args().any(|a| a == "--no-skip"),
             // `--no-batch`: the one-ray-at-a-time walk, for comparisons.
             batch_walk: !std::env::args().any(|a| a == "--no-batch"),
+            // `--f64`: the double-precision 8-lane batched walk instead of the default
+            // single-precision 16-lane one (AVX-512), for comparisons.
+            batch_f32: !std::env::args().any(|a| a == "--f64"),
             // `--avx2` / `--baseline`: cap the walks' instruction set, for comparisons.
             kernel_isa: if std::env::args().any(|a| a == "--baseline") {
                 lumenscape::radiative::engine::KernelIsa::Baseline

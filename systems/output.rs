@@ -180,10 +180,14 @@ fn write_radiative(
             "per_direction_stores": settings.per_direction_stores,
             "image_oversampling": settings.image_oversampling,
             // What the walks ran on (products of runs with the same batch lanes are the same
-            // bits; 8 and 4 lanes differ in the last bits, see `TrackingParams::kernel_isa`).
+            // bits; 8 and 4 lanes differ in the last bits, 16 (single-precision geometry) from
+            // those by ~3e-7, see `TrackingParams::kernel_isa` and `batch_f32`).
             "instruction_set": crate::radiative::engine::instruction_set(settings.tracking.kernel_isa),
             "batch_lanes": if settings.tracking.batch_walk {
-                crate::radiative::engine::batch_lanes(settings.tracking.kernel_isa)
+                crate::radiative::engine::batch_lanes(
+                    settings.tracking.kernel_isa,
+                    settings.tracking.batch_f32,
+                )
             } else {
                 1
             },

@@ -1,6 +1,8 @@
 //! The flux tracker's batched walk (`RunSettings::batch_walk`): queued rays walked side by side
-//! in vector lanes against the same rays walked one by one, both lane counts (8 with AVX-512
-//! where the CPU has it, 4 with AVX2, `KernelIsa::Avx2`). Each ray goes through
+//! in vector lanes against the same rays walked one by one, both lane counts of the
+//! double-precision walk (`batch_f32: false`; 8 with AVX-512 where the CPU has it, 4 with
+//! AVX2, `KernelIsa::Avx2`); at the end, the single-precision 16-lane walk (the default on
+//! AVX-512) against the double-precision one. Each ray goes through
 //! the same operations in both walks, so only the order in which the rays' contributions are
 //! summed differs: per turbid entry the intercepted and absorbed power, per direction the
 //! escaped power, per ground column the intercepted power and the image pixels agree to
@@ -23,11 +25,14 @@ use lumenscape::scene::generators::BandOptics;
 use lumenscape::scene::generators::turbid_layer::{TurbidLayerParams, turbid_layer};
 use lumenscape::simulation::Simulation;
 
+/// `desc` with the one-ray walk or the double-precision batched walk (the walks these
+/// equality tests compare; the single-precision walk is compared with them at the end).
 fn run(desc: &SceneDesc, batch_walk: bool) -> RadiativeProducts {
     run_with(
         desc,
         RunSettings {
             batch_walk,
+            batch_f32: false,
             ..Default::default()
         },
     )
@@ -84,6 +89,7 @@ fn batched_equals_one_by_one(d: &SceneDesc, what: &str) {
         d,
         RunSettings {
             batch_walk: true,
+            batch_f32: false,
             kernel_isa: lumenscape::radiative::engine::KernelIsa::Avx2,
             ..Default::default()
         },
@@ -270,6 +276,7 @@ fn walks_agree_on_every_instruction_set() {
     let products = |d: &SceneDesc, batch_walk: bool, kernel_isa: KernelIsa| {
         let settings = RunSettings {
             batch_walk,
+            batch_f32: false,
             kernel_isa,
             ..Default::default()
         };
@@ -300,4 +307,194 @@ fn walks_agree_on_every_instruction_set() {
         let base = run_isa(d, true, KernelIsa::Baseline);
         assert!(base == one, "{what}: the baseline walks one ray at a time");
     }
+}
+
+/// The single-precision 16-lane walk (`RunSettings::batch_f32`; AVX-512 CPUs only, elsewhere
+/// the setting changes nothing) against the double-precision batched walk on `d`: the same
+/// physics with path lengths, fractions and interception points in `f32` (each to ~1e-7
+/// relative; powers, bookings and energy closure in `f64`). Tolerances: the band products
+/// (albedo, absorbed and transmitted fractions, BRF and HDRF per direction) within 1e-5
+/// relative (the f32 e^{−x} is good to ~2e-7, so 1 − e^{−x} to ~1e-6 relative for x ~ 0.1, a
+/// cell's optical depth in the 20 m cells below; 0.1 % of the DISORT tolerance), per-entry and per-pixel raw products within 1e-4 relative (a single cell or pixel
+/// sums fewer rays, and a ray whose power is at the stopping threshold may stop one crossing
+/// earlier or later), the visited crossings within 1e-2 (see below); energy closing to 1e-12 as in the f64
+/// walk; no NaN. Measured (session 20, `f32_walk_agrees_*` printouts): band products 0.9–2.5e-7
+/// on the 0.2–0.25 m layers and the dense cells, 3.4e-6 with 20 m cells; raw ≤ 9.3e-5 (one
+/// pixel of the cell-edge case).
+fn f32_walk_agrees(d: &SceneDesc, what: &str) {
+    let with = |f32w: bool| {
+        run_with(
+            d,
+            RunSettings {
+                batch_f32: f32w,
+                ..Default::default()
+            },
+        )
+    };
+    let (a, b) = (with(false), with(true));
+    if lumenscape::radiative::engine::kernel_isa() != "AVX-512" {
+        eprintln!("{what}: no AVX-512 on this CPU, the f32 walk does not run");
+        assert!(
+            product_bits(&a) == product_bits(&b),
+            "{what}: setting changed products"
+        );
+        return;
+    }
+    // The f32 walk ran: its products are not the f64 walk's bits.
+    assert!(
+        product_bits(&a) != product_bits(&b),
+        "{what}: f32 walk did not run"
+    );
+    // Crossings within 1e-2: where a ray passes through cell edges or vertices (the sun
+    // cases below), a tie that one precision resolves as one step is two steps (one of zero
+    // length, intercepting nothing) in the other.
+    let dc = (a.crossings as f64 - b.crossings as f64).abs() / a.crossings as f64;
+    eprintln!(
+        "{what}: crossings {} (f64) {} (f32)",
+        a.crossings, b.crossings
+    );
+    assert!(
+        dc <= 1e-2,
+        "{what}: crossings {} vs {}",
+        a.crossings,
+        b.crossings
+    );
+    let (ra, rb) = (&a.raw, &b.raw);
+    let mut worst_raw = 0f64;
+    for (name, x, y) in [
+        (
+            "intercepted turbid",
+            &ra.intercepted_turbid,
+            &rb.intercepted_turbid,
+        ),
+        ("absorbed turbid", &ra.absorbed_turbid, &rb.absorbed_turbid),
+        ("escaped", &ra.escaped, &rb.escaped),
+        (
+            "intercepted ground",
+            &ra.intercepted_ground,
+            &rb.intercepted_ground,
+        ),
+        ("images", &ra.images, &rb.images),
+    ] {
+        let r = worst_rel(x, y, &format!("{what}: {name}"));
+        assert!(r <= 1e-4, "{what}: {name} differs by {r:e} relative");
+        worst_raw = worst_raw.max(r);
+    }
+    let mut worst_band = 0f64;
+    for (x, y) in a.bands.iter().zip(&b.bands) {
+        assert!(
+            y.energy_closure <= 1e-12,
+            "{what}: closure {:e}",
+            y.energy_closure
+        );
+        let mut v = vec![(x.albedo, y.albedo), (x.fabs, y.fabs), (x.ftran, y.ftran)];
+        for (p, q) in x.brf.iter().zip(&y.brf) {
+            v.push((p.brf, q.brf));
+            if let (Some(p), Some(q)) = (p.hdrf, q.hdrf) {
+                v.push((p, q));
+            }
+        }
+        for (p, q) in v {
+            assert!(q.is_finite(), "{what}: NaN");
+            let r = (p - q).abs() / p.abs().max(q.abs()).max(1e-300);
+            worst_band = worst_band.max(r);
+        }
+    }
+    eprintln!("{what}: f32 walk vs f64: band products {worst_band:.2e}, raw {worst_raw:.2e}");
+    assert!(
+        worst_band <= 1e-5,
+        "{what}: band products differ by {worst_band:e}"
+    );
+}
+
+#[test]
+fn f32_walk_agrees_with_the_f64_walk_with_1_2_and_4_channels_and_sky() {
+    f32_walk_agrees(
+        &layer(3.0, vec![BandOptics::red()], 0.2, 30.0, 20.0),
+        "1 channel",
+    );
+    f32_walk_agrees(&layer_with_sky(), "red + NIR with sky");
+    let band = |name: &str, nm: f64, r: f64| BandOptics {
+        name: name.into(),
+        wavelength_nm: nm,
+        leaf_r: r,
+        leaf_t: 0.8 * r,
+        soil_r: 0.2,
+    };
+    let four = vec![
+        band("b1", 500.0, 0.05),
+        band("b2", 600.0, 0.1),
+        band("b3", 700.0, 0.2),
+        band("b4", 800.0, 0.4),
+    ];
+    f32_walk_agrees(&layer(3.0, four, 0.2, 30.0, 20.0), "4 channels");
+}
+
+#[test]
+fn f32_walk_agrees_with_the_f64_walk_on_hard_geometry() {
+    let two = || vec![BandOptics::red(), BandOptics::nir()];
+    let vz = 2f64.sqrt().atan().to_degrees();
+    f32_walk_agrees(&layer(3.0, two(), 0.25, vz, 45.0), "sun through vertices");
+    f32_walk_agrees(&layer(3.0, two(), 0.25, 45.0, 0.0), "sun along cell edges");
+    f32_walk_agrees(&layer(3.0, two(), 0.25, 89.0, 33.0), "sun 89°");
+    let mut dense = turbid_layer(&TurbidLayerParams {
+        lai: 25.0,
+        height_m: 0.5,
+        cell_m: 0.125,
+        size_m: 1.0,
+        ..Default::default()
+    });
+    no_hotspot(&mut dense);
+    dense.directions.as_mut().expect("directions").count = 36;
+    f32_walk_agrees(&dense, "dense u_f 50");
+    let mut iso = layer(3.0, two(), 0.25, 40.0, 20.0);
+    iso.grid.boundary = BoundaryMode::Isolated;
+    f32_walk_agrees(&iso, "isolated layer");
+    // A huge scene (cells of 20 m, a 100 m × 100 m tile 200 m high) and a tiny one (1 mm
+    // cells): the cell frame keeps f32 relative to the cell, whatever the scene's size.
+    let mut huge = turbid_layer(&TurbidLayerParams {
+        lai: 3.0,
+        height_m: 200.0,
+        cell_m: 20.0,
+        size_m: 100.0,
+        ..Default::default()
+    });
+    no_hotspot(&mut huge);
+    huge.directions.as_mut().expect("directions").count = 36;
+    f32_walk_agrees(&huge, "huge cells");
+    let mut tiny = turbid_layer(&TurbidLayerParams {
+        lai: 3.0,
+        height_m: 0.01,
+        cell_m: 0.001,
+        size_m: 0.005,
+        ..Default::default()
+    });
+    no_hotspot(&mut tiny);
+    tiny.directions.as_mut().expect("directions").count = 36;
+    f32_walk_agrees(&tiny, "tiny cells");
+}
+
+/// The f32 walk's products are bit-identical on 1, 2 and 8 threads.
+#[test]
+fn f32_walk_products_are_bit_identical_on_1_2_and_8_threads() {
+    let d = layer_with_sky();
+    let go = |n| {
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(n)
+            .build()
+            .expect("thread pool");
+        pool.install(|| {
+            product_bits(&run_with(
+                &d,
+                RunSettings {
+                    batch_f32: true,
+                    ..Default::default()
+                },
+            ))
+        })
+    };
+    let one = go(1);
+    assert!(one.1 > 0, "rays walked");
+    assert!(go(2) == one, "2 threads differ from 1");
+    assert!(go(8) == one, "8 threads differ from 1");
 }

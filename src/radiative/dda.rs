@@ -168,6 +168,13 @@ impl Dda {
         true
     }
 
+    /// Per axis, the distance at which the ray leaves the current cell's slab (+∞ for an axis
+    /// it does not step along).
+    #[inline]
+    pub fn t_max(&self) -> [f64; 3] {
+        self.t_max
+    }
+
     /// Linear index of the current cell.
     #[inline]
     pub fn index(&self) -> usize {

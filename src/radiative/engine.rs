@@ -140,11 +140,12 @@ pub struct TrackingParams {
     /// With `Faces` / `Subfaces`: a turbid cell's scattered rays are followed to the cell's
     /// exit and merged per (exit face or sub-face, direction) (DART 5 paper Figure 7c).
     pub turbid_exit_grouping: bool,
-    /// The lean tracker's rays queued per chunk and walked eight (AVX-512) or four (AVX2) at a
-    /// time (see the `batch` module of the engine): the same rays, each with the same
-    /// operations, so the products agree to rounding (only the summation order of the rays'
-    /// contributions changes). Off: one ray at a time (kept for the equality tests and for
-    /// measuring).
+    /// The lean tracker's rays queued per chunk and walked sixteen (AVX-512, single-precision
+    /// geometry: [`TrackingParams::batch_f32`]), eight (AVX-512, double precision) or four
+    /// (AVX2) at a time (see the `batch` module of the engine). In double precision: the same
+    /// rays, each with the same operations as the one-ray walk, so the products agree to
+    /// rounding (only the summation order of the rays' contributions changes). Off: one ray
+    /// at a time (kept for the equality tests and for measuring).
     pub batch_walk: bool,
     /// Most capable instruction set the walks may use (default: the best this CPU has; the
     /// others for reproducing bits across machines, the equality tests and measuring). Every
@@ -154,6 +155,14 @@ pub struct TrackingParams {
     /// ~1e-15 relative between the two counts (summation order).
     #[serde(skip)]
     pub kernel_isa: KernelIsa,
+    /// The batched walk in single-precision geometry on 16 lanes where the CPU has AVX-512
+    /// (default on; `batch` module, `wide32`: each lane's traversal in its cell's frame, path
+    /// lengths, fractions and interception points in `f32`; powers, bookings and energy
+    /// closure in `f64`): products within ~3e-7 relative of the f64 walks' on cells of 0.1–1 m
+    /// (3.4e-6 with 20 m cells), 1.4× faster (README, Kernel). Off, or on CPUs without
+    /// AVX-512: the f64 batched walk (8 or 4 lanes).
+    #[serde(skip)]
+    pub batch_f32: bool,
     /// A progress bar of the iterations on stderr (a display setting, not written with the
     /// products).
     #[serde(skip)]
@@ -163,8 +172,9 @@ pub struct TrackingParams {
 /// Instruction set cap of the flux-tracking walks ([`TrackingParams::kernel_isa`]).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub enum KernelIsa {
-    /// The best the CPU has: AVX-512 (the batched walk on 8 lanes, the one-ray walks compiled
-    /// with it), else AVX2 + FMA, else the baseline.
+    /// The best the CPU has: AVX-512 (the batched walk on 16 single-precision or 8
+    /// double-precision lanes, the one-ray walks compiled with it), else AVX2 + FMA, else the
+    /// baseline.
     #[default]
     Best,
     /// At most AVX2 + FMA (what CPUs without AVX-512 run: the batched walk on 4 lanes).
@@ -213,6 +223,7 @@ impl TrackingParams {
             turbid_exit_grouping: false,
             batch_walk: true,
             kernel_isa: KernelIsa::Best,
+            batch_f32: true,
             progress: false,
         }
     }
@@ -642,6 +653,11 @@ enum TurAcc {
         np: usize,
         tur: Vec<f64>,
         pts: Vec<f64>,
+        /// Points records of the single-precision batched walk (`batch::wide32`), 8 per index:
+        /// `[Σ wt p₁, Σ wt p₂, Σ wt, 0]` with p in the frame of the index's cell (its corner
+        /// at 0), added to `pts` in scene coordinates at the merge
+        /// ([`TurAcc::for_each_pts_local`]); empty when that walk does not run.
+        pts_loc: Vec<f64>,
         flag: Vec<bool>,
         touched: Vec<u32>,
     },
@@ -735,6 +751,7 @@ impl TurAcc {
                 pts,
                 flag,
                 touched,
+                ..
             } => Some(DenseView {
                 ns: *ns,
                 w: *w,
@@ -748,9 +765,48 @@ impl TurAcc {
         }
     }
 
+    /// [`TurAcc::view`] and the single-precision walk's local points records (empty unless
+    /// that walk runs).
+    #[cfg(target_arch = "x86_64")]
+    fn view_local(&mut self) -> Option<(DenseView<'_>, &mut [f64])> {
+        match self {
+            TurAcc::Dense {
+                ns,
+                w,
+                np,
+                tur,
+                pts,
+                pts_loc,
+                flag,
+                touched,
+            } => Some((
+                DenseView {
+                    ns: *ns,
+                    w: *w,
+                    np: *np,
+                    tur,
+                    pts,
+                    flag,
+                    touched,
+                },
+                pts_loc,
+            )),
+            TurAcc::Sparse { .. } => None,
+        }
+    }
+
     /// Back to the state [`TurAcc::new`] builds: the dense arrays zeroed on the touched
     /// indices (the only ones written), the sparse maps emptied.
     fn reset(&mut self) {
+        if let TurAcc::Dense {
+            pts_loc, touched, ..
+        } = self
+            && !pts_loc.is_empty()
+        {
+            for &e in touched.iter() {
+                pts_loc[e as usize * 8..(e as usize + 1) * 8].fill(0.0);
+            }
+        }
         if let Some(v) = self.view() {
             let (rec, prec) = (v.ns * v.w, v.np * 7);
             for &e in v.touched.iter() {
@@ -767,7 +823,8 @@ impl TurAcc {
     }
 
     /// `n_index` accumulator indices, `ns` slots, `w` channels, `np` points records per index.
-    fn new(n_index: usize, ns: usize, w: usize, np: usize) -> Self {
+    /// `local`: with the records of the single-precision batched walk (dense only).
+    fn new(n_index: usize, ns: usize, w: usize, np: usize, local: bool) -> Self {
         if n_index * ns * w <= DENSE_LIMIT && n_index * np * 7 <= DENSE_LIMIT {
             TurAcc::Dense {
                 ns,
@@ -775,6 +832,11 @@ impl TurAcc {
                 np,
                 tur: vec![0.0; n_index * ns * w],
                 pts: vec![0.0; n_index * np * 7],
+                pts_loc: if local {
+                    vec![0.0; n_index * 8]
+                } else {
+                    Vec::new()
+                },
                 flag: vec![false; n_index],
                 touched: Vec::new(),
             }
@@ -883,6 +945,23 @@ impl TurAcc {
                 }
             }
             TurAcc::Sparse { pts, .. } => pts.for_each(f),
+        }
+    }
+
+    /// Visits the single-precision walk's points records of the touched indices: (index,
+    /// `[Σ wt p₁, Σ wt p₂, Σ wt]` in the index's cell frame); none without that walk.
+    fn for_each_pts_local(&self, mut f: impl FnMut(u64, &[f64])) {
+        if let TurAcc::Dense {
+            pts_loc, touched, ..
+        } = self
+            && !pts_loc.is_empty()
+        {
+            for &e in touched {
+                let v = &pts_loc[e as usize * 8..e as usize * 8 + 7];
+                if v[6] != 0.0 {
+                    f(e as u64, v);
+                }
+            }
         }
     }
 }
@@ -1204,6 +1283,13 @@ struct Ctx<'a> {
     /// Per direction (sun last), what a lane of the batched walk takes at a ray start
     /// ([`batch::LaneDir`]; empty when [`Ctx::batch`] is off).
     lane_dirs: Vec<batch::LaneDir>,
+    /// The same for the single-precision 16-lane walk (empty unless it runs:
+    /// [`TrackingParams::batch_f32`], AVX-512, a grid of `i32` indices).
+    lane_dirs32: Vec<batch::LaneDir32>,
+    /// Per cell, for the single-precision walk: [`SimpleCell`] packed into 8 bytes, the
+    /// density as `f32` bits (0 for no entry) in the low half, the entry index (empty cell: its
+    /// skip distance) in the high half (empty unless that walk runs).
+    scells32: Vec<u64>,
     /// Where the walks dispatch ([`TrackingParams::kernel_isa`] on this CPU).
     arch: pulp::Arch,
 }
@@ -1421,13 +1507,34 @@ impl Ctx<'_> {
                 as usize;
             let j = floor_i64((hp.y - spec.origin.y) / spec.cell.y).clamp(0, spec.n[1] as i64 - 1)
                 as usize;
-            let sub = self.sub_index(hp, [i, j, 0], 2);
-            out.gnd_key.push(((i + spec.n[0] * j) as u32, slot, sub));
-            out.gnd_val.extend_from_slice(pw);
-            out.gnd_val.extend_from_slice(&[hp.x, hp.y, hp.z, psum]);
+            self.bottom_at(i, j, hp, slot, pw, psum, out);
         } else {
             add(&mut out.lost, pw);
         }
+    }
+
+    /// [`Ctx::bottom`] of a ray whose ground column (i, j) is known (the single-precision
+    /// walk's lane cell): the same booking without locating the column.
+    #[allow(clippy::too_many_arguments)]
+    #[inline(always)]
+    fn bottom_at(
+        &self,
+        i: usize,
+        j: usize,
+        hp: DVec3,
+        slot: u32,
+        pw: &[f64],
+        psum: f64,
+        out: &mut ChunkOut,
+    ) {
+        if self.inp.flat_ground.is_none() {
+            return add(&mut out.lost, pw);
+        }
+        let n0 = self.inp.spec.n[0];
+        let sub = self.sub_index(hp, [i, j, 0], 2);
+        out.gnd_key.push(((i + n0 * j) as u32, slot, sub));
+        out.gnd_val.extend_from_slice(pw);
+        out.gnd_val.extend_from_slice(&[hp.x, hp.y, hp.z, psum]);
     }
 
     /// Lean tracker for the common case (see [`Ctx::simple`]): turbid cells with at most one
@@ -2896,10 +3003,28 @@ pub fn run(inp: &RadiativeInput) -> RadiativeResult {
             1
         },
         lane_dirs: Vec::new(),
+        lane_dirs32: Vec::new(),
+        scells32: Vec::new(),
         arch,
     };
     if ctx.batch {
         ctx.lane_dirs = batch::lane_dirs(&ctx);
+        ctx.lane_dirs32 = batch::lane_dirs32(&ctx);
+        if !ctx.lane_dirs32.is_empty() {
+            ctx.scells32 = ctx
+                .scells
+                .iter()
+                .map(|c| {
+                    let d = if c.density > 0.0 {
+                        (c.density as f32).max(f32::MIN_POSITIVE)
+                    } else {
+                        0.0
+                    };
+                    let hi = if c.density > 0.0 { c.idx } else { c.tm };
+                    d.to_bits() as u64 | (hi as u64) << 32
+                })
+                .collect();
+        }
     }
     let mut res = RadiativeResult {
         n_channels: w,
@@ -3135,6 +3260,7 @@ fn new_out(ctx: &Ctx) -> ChunkOut {
             ctx.n_slots,
             ctx.w,
             ctx.pts_per,
+            !ctx.lane_dirs32.is_empty(),
         ))),
         ..Default::default()
     }
@@ -3361,6 +3487,20 @@ fn merge(
                 for a in 0..3 {
                     pts[a] += v[a];
                     pts[4 + a] += v[3 + a];
+                }
+                pts[3] += v[6];
+                pts[7] += v[6];
+            });
+            // The single-precision walk's records, from their cell's frame: Σ wt (c + p) =
+            // c Σ wt + Σ wt p, c the cell's corner.
+            acc.for_each_pts_local(|e, v| {
+                let spec = ctx.inp.spec;
+                let [i, j, k] = spec.ijk(ctx.entry_cell[e as usize] as usize);
+                let c = spec.origin + DVec3::new(i as f64, j as f64, k as f64) * spec.cell;
+                let pts = &mut st.tur_pts[e as usize];
+                for a in 0..3 {
+                    pts[a] += c[a] * v[6] + v[a];
+                    pts[4 + a] += c[a] * v[6] + v[3 + a];
                 }
                 pts[3] += v[6];
                 pts[7] += v[6];

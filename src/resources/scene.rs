@@ -93,6 +93,10 @@ pub struct RunSettings {
     /// has; products equal to rounding on each, see
     /// [`crate::radiative::engine::TrackingParams::kernel_isa`]).
     pub kernel_isa: crate::radiative::engine::KernelIsa,
+    /// The batched walk in single-precision geometry on 16 lanes on AVX-512 CPUs (default on;
+    /// see [`crate::radiative::engine::TrackingParams::batch_f32`]). Off: the double-precision
+    /// batched walk on 8 lanes, whose products agree with the one-ray walk's to rounding.
+    pub batch_f32: bool,
     /// LiDAR pulses tracked per chunk; with an output folder, a scan of more pulses than one
     /// chunk streams its waveforms to disk chunk by chunk (memory bounded by a chunk, same
     /// products; [`crate::lidar::simulate::LidarChunks`]).
@@ -147,6 +151,7 @@ impl Default for RunSettings {
             skip_empty: true,
             batch_walk: true,
             kernel_isa: Default::default(),
+            batch_f32: true,
             lidar_chunk_pulses: crate::lidar::simulate::DEFAULT_CHUNK_PULSES,
             lidar_far_roulette: Default::default(),
             lidar_first_order_columns: true,

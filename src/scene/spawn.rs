@@ -627,6 +627,7 @@ pub fn spawn_scene(
     if let Some(s) = world.get_resource::<crate::resources::scene::RunSettings>() {
         radiative.tracking.skip_empty = s.skip_empty;
         radiative.tracking.batch_walk = s.batch_walk;
+        radiative.tracking.batch_f32 = s.batch_f32;
         radiative.tracking.kernel_isa = s.kernel_isa;
         radiative.tracking.progress = s.progress;
     }

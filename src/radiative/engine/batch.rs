@@ -1,7 +1,9 @@
 //! The batched walk of the lean tracker: rays that [`Ctx::walk_lean`] would walk one by one
 //! (dense accumulator, `turbid_subfaces: Off`, 1, 2 or 4 channels, a scene that
 //! [`Ctx::simple`] covers) are queued per chunk ([`Ctx::queue`]) and walked L at a time, one
-//! per lane ([`Ctx::flush`]): 8 lanes in AVX-512 registers on CPUs that have it, 4 in AVX2
+//! per lane ([`Ctx::flush`]): by default 16 lanes in single-precision geometry on CPUs with
+//! AVX-512 (module `wide32`, [`super::TrackingParams::batch_f32`]); otherwise (this module's
+//! double-precision walk) 8 lanes in AVX-512 registers on CPUs that have it, 4 in AVX2
 //! elsewhere on x86-64 ([`crate::radiative::lanes`]; `pulp` runtime detection, no unsafe
 //! code; without AVX2 the queued rays are walked one by one by [`Ctx::walk_lean`]). Per
 //! crossing, the lanes' segment lengths, attenuations (`e^{−kℓ}`, [`attenuation_l`]),
@@ -40,9 +42,42 @@ use glam::DVec3;
 #[cfg(target_arch = "x86_64")]
 use pulp::x86::V3;
 
+#[cfg(target_arch = "x86_64")]
+mod wide32;
+#[cfg(target_arch = "x86_64")]
+pub(super) use wide32::LaneDir32;
+/// Placeholder off x86-64 (no single-precision walk there).
+#[cfg(not(target_arch = "x86_64"))]
+#[derive(Debug, Clone, Copy, Default)]
+pub(super) struct LaneDir32;
+
+/// [`LaneDir32`] of every direction of `ctx` (sun last) when the single-precision 16-lane walk
+/// runs ([`super::TrackingParams::batch_f32`] on an AVX-512 CPU, a grid that fits its `i32`
+/// indices); empty otherwise.
+pub(super) fn lane_dirs32(ctx: &Ctx) -> Vec<LaneDir32> {
+    #[cfg(target_arch = "x86_64")]
+    if ctx.inp.params.batch_f32
+        && matches!(ctx.arch, pulp::Arch::V4(_))
+        && wide32::fits(ctx.inp.spec)
+    {
+        return ctx
+            .omega
+            .iter()
+            .map(|&d| LaneDir32::new(ctx.inp.spec, d))
+            .collect();
+    }
+    let _ = ctx;
+    Vec::new()
+}
+
 /// Queued rays after which a chunk's queue is walked (about 20 KiB of queue: long enough that
 /// the lanes stay full for all but the last few rays).
 const FLUSH_AT: usize = 256;
+
+/// [`FLUSH_AT`] of the single-precision 16-lane walk: with twice the lanes, the passes at the
+/// queue's end where lanes run out weigh more (measured, paired, Default 100 0.2: 512 rays
+/// 1.03× of 256 together with `bottom_at`, 1024 a further 1.016×).
+const FLUSH_AT_WIDE: usize = 1024;
 
 /// A ray waiting for the batched walk: start point (m), tiling direction, channel powers (W,
 /// the first `w` used), factor on its power threshold (see [`ChunkOut::ray_scale`]) and the
@@ -95,8 +130,8 @@ pub(super) fn available(arch: &pulp::Arch) -> bool {
 }
 
 /// The instruction set the flux-tracking walks run on this CPU by default (for the benches'
-/// records): `"AVX-512"` (the batched walk on 8 lanes), `"AVX2"` (4 lanes), or `"baseline"`
-/// (rays one by one).
+/// records): `"AVX-512"` (the batched walk on 16 single-precision or 8 double-precision
+/// lanes), `"AVX2"` (4 lanes), or `"baseline"` (rays one by one).
 pub fn kernel_isa() -> &'static str {
     instruction_set(super::KernelIsa::Best)
 }
@@ -112,11 +147,15 @@ pub fn instruction_set(isa: super::KernelIsa) -> &'static str {
     }
 }
 
-/// Rays the batched walk has in flight on this CPU under cap `isa`: 8 (AVX-512), 4 (AVX2),
-/// 1 (no batched walk). Products of runs with the same count are the same bits; between
-/// counts they differ in the last bits (summation order).
-pub fn batch_lanes(isa: super::KernelIsa) -> usize {
+/// Rays the batched walk has in flight on this CPU under cap `isa`, with or without the
+/// single-precision walk (`batch_f32`, [`super::TrackingParams::batch_f32`]): 16 (AVX-512,
+/// single precision), 8 (AVX-512), 4 (AVX2), 1 (no batched walk). Products of runs with the
+/// same count are the same bits; between 8 and 4 they differ in the last bits (summation
+/// order), between 16 and the others by ~3e-7 relative (single-precision geometry).
+pub fn batch_lanes(isa: super::KernelIsa, batch_f32: bool) -> usize {
     match isa.arch() {
+        #[cfg(target_arch = "x86_64")]
+        pulp::Arch::V4(_) if batch_f32 => 16,
         #[cfg(target_arch = "x86_64")]
         pulp::Arch::V4(_) => 8,
         #[cfg(target_arch = "x86_64")]
@@ -138,7 +177,7 @@ impl Ctx<'_> {
         };
         q.pw[..self.w].copy_from_slice(&pw[..self.w]);
         out.queue.push(q);
-        if out.queue.len() >= FLUSH_AT {
+        if out.queue.len() >= self.flush_at() {
             self.flush(out);
         }
     }
@@ -164,8 +203,18 @@ impl Ctx<'_> {
             *a = b * share;
         }
         out.queue.push(q);
-        if out.queue.len() >= FLUSH_AT {
+        if out.queue.len() >= self.flush_at() {
             self.flush(out);
+        }
+    }
+
+    /// Queue length at which the queue is walked.
+    #[inline(always)]
+    fn flush_at(&self) -> usize {
+        if self.lane_dirs32.is_empty() {
+            FLUSH_AT
+        } else {
+            FLUSH_AT_WIDE
         }
     }
 
@@ -176,6 +225,18 @@ impl Ctx<'_> {
         }
         let queue = std::mem::take(&mut out.queue);
         let mut tur = out.tur.take().expect("accumulator");
+        #[cfg(target_arch = "x86_64")]
+        if !self.lane_dirs32.is_empty() {
+            match self.w {
+                1 => self.walk_wide::<1>(&queue, &mut tur, out),
+                2 => self.walk_wide::<2>(&queue, &mut tur, out),
+                _ => self.walk_wide::<4>(&queue, &mut tur, out),
+            }
+            out.tur = Some(tur);
+            out.queue = queue;
+            out.queue.clear();
+            return;
+        }
         match self.w {
             1 => self.walk_batch::<1>(&queue, &mut tur, out),
             2 => self.walk_batch::<2>(&queue, &mut tur, out),
