@@ -84,10 +84,11 @@
 //! without; an f32 points record adds only 3–5 %. (A first build ran at 60 M/s: the
 //! `_mm512_insertf32x8` inside an `array::from_fn` closure was not inlined — intrinsics in
 //! closures of a `#[target_feature]` function need a plain loop.) Ported into the product
-//! (branch `wip-f32-walk`, session 20) the same pass measured 1.18× the product's f64 × 8
-//! walk, not 1.6×: the product's per-lane scalar work (cell records, events, refills, side
-//! wraps) that this prototype does not have takes the rest; the lane-wise side wrap alone
-//! moved that port from 1.055× to 1.123×.
+//! (session 20, `src/radiative/engine/batch/wide32.rs`, the default on AVX-512) the pass first
+//! measured 1.18× the product's f64 × 8 walk, not 1.6×: the product's per-lane scalar work
+//! (cell records, events, refills, side wraps) that this prototype does not have took the
+//! rest; with that work cut (README, Kernel, session 20) it runs 1.42× (102–103 against 70–72
+//! Mcross/s/core on one thread).
 //!
 //! Not product code: `unsafe` intrinsics, simplified events (no empty-space skip, no sky/ground
 //! events, no wrap limit).
