@@ -29,7 +29,7 @@ use crate::radiative::engine::{DenseView, TurAcc, add};
 use crate::radiative::fastmath::{HB_ALLOC, HB_POLY_DEG, HalfBarycentres};
 use crate::resources::grid::GridSpec;
 use crate::scene::desc::BoundaryMode;
-use core::arch::x86_64::{__m128, __m256, __m256d, __m512, __m512d, __m512i};
+use core::arch::x86_64::{__m256, __m256d, __m512, __m512d, __m512i};
 use glam::DVec3;
 use pulp::{cast, f64x8, x86::V4};
 
@@ -717,6 +717,7 @@ impl Ctx<'_> {
                     zero,
                 ],
             );
+            let rows: [[[f32; 4]; 4]; 8] = cast(rv);
             // Interceptions booked lane by lane (a fixed order).
             for l in 0..L {
                 if hit & (1 << l) == 0 {
@@ -734,13 +735,13 @@ impl Ctx<'_> {
                 // The lane's row promoted by halves and added to the record as two 32-byte
                 // read-modify-writes (one 64-byte add would read a record just written by two
                 // 32-byte stores: not forwarded on Zen 4, session 19).
-                let row: [__m256; 2] = cast(rv[l % 8]);
-                let row: [__m128; 2] = cast(row[l / 8]);
+                // (Lane l's row is half l / 8 of register l % 8, read in place.)
+                let half = &rows[l % 8][2 * (l / 8)..2 * (l / 8) + 2];
                 let q = &mut pts_loc[e];
-                for (h, qh) in q.iter_mut().enumerate() {
+                for (qh, r) in q.iter_mut().zip(half) {
                     let add = v
                         .avx
-                        ._mm256_add_pd(cast(*qh), v.avx._mm256_cvtps_pd(row[h]));
+                        ._mm256_add_pd(cast(*qh), v.avx._mm256_cvtps_pd(cast(*r)));
                     *qh = cast(add);
                 }
             }
