@@ -216,16 +216,19 @@ fn batched_walk_matches_the_one_ray_walk_with_1_2_and_4_channels() {
 
 #[test]
 fn batched_walk_matches_the_one_ray_walk_on_hard_geometry() {
+    for (d, what) in hard_geometry() {
+        batched_equals_one_by_one(&d, what);
+    }
+}
+
+/// The hard-geometry scenes: cubic 0.25 m cells with the sun through cell vertices (azimuth
+/// 45°, zenith atan √2) and along cell edges (azimuth 0°, zenith 45°: x and z steps tie); a
+/// grazing sun (long oblique walks with many periodic wraps); very dense cells (u_f = 50
+/// m²/m³: LAI 25 in 0.5 m), where the power threshold ends most walks after a few cells; an
+/// isolated scene (rays leaving through the sides are lost).
+fn hard_geometry() -> Vec<(SceneDesc, &'static str)> {
     let two = || vec![BandOptics::red(), BandOptics::nir()];
-    // Cubic 0.25 m cells: sun through cell vertices (azimuth 45°, zenith atan √2) and along
-    // cell edges (azimuth 0°, zenith 45°: x and z steps tie).
     let vz = 2f64.sqrt().atan().to_degrees();
-    batched_equals_one_by_one(&layer(3.0, two(), 0.25, vz, 45.0), "sun through vertices");
-    batched_equals_one_by_one(&layer(3.0, two(), 0.25, 45.0, 0.0), "sun along cell edges");
-    // Grazing sun: long oblique walks with many periodic wraps.
-    batched_equals_one_by_one(&layer(3.0, two(), 0.25, 89.0, 33.0), "sun 89°");
-    // Very dense cells (u_f = 50 m²/m³: LAI 25 in 0.5 m), where the power threshold ends
-    // most walks after a few cells.
     let mut dense = turbid_layer(&TurbidLayerParams {
         lai: 25.0,
         height_m: 0.5,
@@ -235,11 +238,15 @@ fn batched_walk_matches_the_one_ray_walk_on_hard_geometry() {
     });
     no_hotspot(&mut dense);
     dense.directions.as_mut().expect("directions").count = 36;
-    batched_equals_one_by_one(&dense, "dense u_f 50");
-    // An isolated scene: rays leaving through the sides are lost.
     let mut iso = layer(3.0, two(), 0.25, 40.0, 20.0);
     iso.grid.boundary = BoundaryMode::Isolated;
-    batched_equals_one_by_one(&iso, "isolated layer");
+    vec![
+        (layer(3.0, two(), 0.25, vz, 45.0), "sun through vertices"),
+        (layer(3.0, two(), 0.25, 45.0, 0.0), "sun along cell edges"),
+        (layer(3.0, two(), 0.25, 89.0, 33.0), "sun 89°"),
+        (dense, "dense u_f 50"),
+        (iso, "isolated layer"),
+    ]
 }
 
 /// The batched walk's products are bit-identical on 1, 2 and 8 threads (the queues are filled
@@ -432,24 +439,9 @@ fn f32_walk_agrees_with_the_f64_walk_with_1_2_and_4_channels_and_sky() {
 
 #[test]
 fn f32_walk_agrees_with_the_f64_walk_on_hard_geometry() {
-    let two = || vec![BandOptics::red(), BandOptics::nir()];
-    let vz = 2f64.sqrt().atan().to_degrees();
-    f32_walk_agrees(&layer(3.0, two(), 0.25, vz, 45.0), "sun through vertices");
-    f32_walk_agrees(&layer(3.0, two(), 0.25, 45.0, 0.0), "sun along cell edges");
-    f32_walk_agrees(&layer(3.0, two(), 0.25, 89.0, 33.0), "sun 89°");
-    let mut dense = turbid_layer(&TurbidLayerParams {
-        lai: 25.0,
-        height_m: 0.5,
-        cell_m: 0.125,
-        size_m: 1.0,
-        ..Default::default()
-    });
-    no_hotspot(&mut dense);
-    dense.directions.as_mut().expect("directions").count = 36;
-    f32_walk_agrees(&dense, "dense u_f 50");
-    let mut iso = layer(3.0, two(), 0.25, 40.0, 20.0);
-    iso.grid.boundary = BoundaryMode::Isolated;
-    f32_walk_agrees(&iso, "isolated layer");
+    for (d, what) in hard_geometry() {
+        f32_walk_agrees(&d, what);
+    }
     // A huge scene (cells of 20 m, a 100 m × 100 m tile 200 m high) and a tiny one (1 mm
     // cells): the cell frame keeps f32 relative to the cell, whatever the scene's size.
     let mut huge = turbid_layer(&TurbidLayerParams {

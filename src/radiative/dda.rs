@@ -44,6 +44,25 @@ pub enum Exit {
     Bottom,
 }
 
+/// How a traversal whose cell indices are `cell` on a grid of `n` cells per axis, stepping by
+/// `step`, has left the grid: top and bottom first, then the x side, then the y side (the
+/// exit [`Dda::advance_at`] reports); [`Exit::Inside`] if it has not.
+#[inline(always)]
+pub fn exit_of(cell: [i64; 3], n: [i64; 3], step: [i64; 3]) -> Exit {
+    let out = |a: usize| cell[a] < 0 || cell[a] >= n[a];
+    if cell[2] >= n[2] {
+        Exit::Top
+    } else if cell[2] < 0 {
+        Exit::Bottom
+    } else if out(0) {
+        Exit::Side(0, step[0])
+    } else if out(1) {
+        Exit::Side(1, step[1])
+    } else {
+        Exit::Inside
+    }
+}
+
 /// Traversal state.
 #[derive(Debug, Clone)]
 pub struct Dda {
@@ -277,18 +296,7 @@ impl Dda {
     /// bottom win over the sides, the x side over the y side).
     #[inline]
     pub fn exit_kind(&self) -> Exit {
-        let k = self.cell[2];
-        if k >= self.n[2] {
-            Exit::Top
-        } else if k < 0 {
-            Exit::Bottom
-        } else if self.cell[0] < 0 || self.cell[0] >= self.n[0] {
-            Exit::Side(0, self.step[0])
-        } else if self.cell[1] < 0 || self.cell[1] >= self.n[1] {
-            Exit::Side(1, self.step[1])
-        } else {
-            Exit::Inside
-        }
+        exit_of(self.cell, self.n, self.step)
     }
 
     /// Empty-space skipping, first half: the distance at which the ray leaves the box of cells
@@ -759,19 +767,13 @@ impl<const L: usize> DdaL<L> {
     /// [`Dda::exit_kind`] of lane `l`.
     #[inline]
     pub fn exit_kind(&self, l: usize) -> Exit {
-        let c = |a: usize| self.cell[a][l];
-        let out = |a: usize| c(a) < 0.0 || c(a) >= self.n[a];
-        if c(2) >= self.n[2] {
-            Exit::Top
-        } else if c(2) < 0.0 {
-            Exit::Bottom
-        } else if out(0) {
-            Exit::Side(0, self.step[0][l] as i64)
-        } else if out(1) {
-            Exit::Side(1, self.step[1][l] as i64)
-        } else {
-            Exit::Inside
-        }
+        // Cell indices are integer-valued doubles (exact as i64).
+        let cell = std::array::from_fn(|a| self.cell[a][l] as i64);
+        exit_of(
+            cell,
+            self.n_int,
+            std::array::from_fn(|a| self.step[a][l] as i64),
+        )
     }
 
     /// [`Dda::point`] of lane `l` at its segment start `t`.

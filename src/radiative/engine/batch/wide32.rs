@@ -24,7 +24,7 @@
 //! Kernel, session 20).
 
 use super::{ChunkOut, Ctx, Queued};
-use crate::radiative::dda::{Dda, Exit};
+use crate::radiative::dda::{Dda, Exit, exit_of};
 use crate::radiative::engine::{DenseView, TurAcc, add};
 use crate::radiative::fastmath::{HB_ALLOC, HB_POLY_DEG, HalfBarycentres};
 use crate::resources::grid::GridSpec;
@@ -262,19 +262,8 @@ impl<const W: usize> Wide<W> {
     /// [`Dda::exit_kind`] of lane l.
     #[inline]
     fn exit_kind(&self, l: usize, n: [i32; 3]) -> Exit {
-        let c = |a: usize| self.cell[a][l];
-        let out = |a: usize| c(a) < 0 || c(a) >= n[a];
-        if c(2) >= n[2] {
-            Exit::Top
-        } else if c(2) < 0 {
-            Exit::Bottom
-        } else if out(0) {
-            Exit::Side(0, self.step[0][l] as i64)
-        } else if out(1) {
-            Exit::Side(1, self.step[1][l] as i64)
-        } else {
-            Exit::Inside
-        }
+        let c = |v: &[[i32; L]; 3]| std::array::from_fn(|a| v[a][l] as i64);
+        exit_of(c(&self.cell), n.map(|v| v as i64), c(&self.step))
     }
 
     /// Repetitive wrap of lane l's side axes outside the grid (the indices move by one period;
