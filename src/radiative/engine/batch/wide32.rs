@@ -41,8 +41,6 @@ const L: usize = 16;
 pub(in crate::radiative::engine) struct LaneDir32 {
     /// Unit direction.
     dir: [f32; 3],
-    /// `1/d` (±∞ for a zero component).
-    inv: [f64; 3],
     /// Cell size over |d|: the distance between two boundaries of the axis (+∞ for d = 0).
     delta: [f32; 3],
     /// Coordinate of the point in the next cell's frame after a step along the axis: 0 for a
@@ -51,8 +49,8 @@ pub(in crate::radiative::engine) struct LaneDir32 {
     /// Step −1, 0 or 1, and its linear-index increment.
     step: [i32; 3],
     dlin: [i32; 3],
-    /// For the start, per axis x, y, z (index 3: padding): `1/d`, and all ones where the step
-    /// is +1, −1, or not 0.
+    /// Per axis x, y, z (index 3: padding, for the start's vector): `1/d` (±∞ for a zero
+    /// component), and all ones where the step is +1, −1, or not 0.
     inv4: [f64; 4],
     up4: [u64; 4],
     down4: [u64; 4],
@@ -92,16 +90,15 @@ impl LaneDir32 {
             let size = spec.cell[a];
             let step = (d[a] > 0.0) as i32 - (d[a] < 0.0) as i32;
             c.dir[a] = d[a] as f32;
-            c.inv[a] = 1.0 / d[a];
+            c.inv4[a] = 1.0 / d[a];
             c.delta[a] = if step == 0 {
                 f32::INFINITY
             } else {
-                (size * c.inv[a].abs()) as f32
+                (size * c.inv4[a].abs()) as f32
             };
             c.face[a] = if step < 0 { size as f32 } else { 0.0 };
             c.step[a] = step;
             c.dlin[a] = step * stride[a];
-            c.inv4[a] = c.inv[a];
             let all = |b: bool| if b { u64::MAX } else { 0 };
             (c.up4[a], c.down4[a], c.moves4[a]) = (all(step > 0), all(step < 0), all(step != 0));
         }
@@ -220,8 +217,8 @@ impl<const W: usize> Wide<W> {
     #[inline(always)]
     fn set_axis(&mut self, l: usize, a: usize, i: i32, local: f64, dc: &LaneDir32, size: f64) {
         let tm = match dc.step[a] {
-            1 => (size - local) * dc.inv[a],
-            -1 => -local * dc.inv[a],
+            1 => (size - local) * dc.inv4[a],
+            -1 => -local * dc.inv4[a],
             _ => f64::INFINITY,
         };
         self.cell[a][l] = i;
