@@ -80,6 +80,31 @@ fn worst_rel(a: &[f64], b: &[f64], what: &str) -> f64 {
         .fold(0.0, f64::max)
 }
 
+/// The raw product arrays of two runs side by side, with their names: per turbid entry the
+/// intercepted and absorbed power, per direction the escaped power, per ground column the
+/// intercepted power, the image pixels.
+fn raw_pairs<'a>(
+    a: &'a RadiativeProducts,
+    b: &'a RadiativeProducts,
+) -> [(&'static str, &'a [f64], &'a [f64]); 5] {
+    let (ra, rb) = (&a.raw, &b.raw);
+    [
+        (
+            "intercepted turbid",
+            &ra.intercepted_turbid,
+            &rb.intercepted_turbid,
+        ),
+        ("absorbed turbid", &ra.absorbed_turbid, &rb.absorbed_turbid),
+        ("escaped", &ra.escaped, &rb.escaped),
+        (
+            "intercepted ground",
+            &ra.intercepted_ground,
+            &rb.intercepted_ground,
+        ),
+        ("images", &ra.images, &rb.images),
+    ]
+}
+
 fn batched_equals_one_by_one(d: &SceneDesc, what: &str) {
     let one = run(d, false);
     same_up_to_summation_order(&run(d, true), &one, what);
@@ -110,21 +135,7 @@ fn same_up_to_summation_order(a: &RadiativeProducts, b: &RadiativeProducts, what
         ra.intercepted_turbid.iter().any(|&v| v > 0.0),
         "{what}: nothing intercepted"
     );
-    for (name, x, y) in [
-        (
-            "intercepted turbid",
-            &ra.intercepted_turbid,
-            &rb.intercepted_turbid,
-        ),
-        ("absorbed turbid", &ra.absorbed_turbid, &rb.absorbed_turbid),
-        ("escaped", &ra.escaped, &rb.escaped),
-        (
-            "intercepted ground",
-            &ra.intercepted_ground,
-            &rb.intercepted_ground,
-        ),
-        ("images", &ra.images, &rb.images),
-    ] {
+    for (name, x, y) in raw_pairs(a, b) {
         let r = worst_rel(x, y, &format!("{what}: {name}"));
         assert!(r <= 1e-12, "{what}: {name} differs by {r:e} relative");
     }
@@ -366,23 +377,8 @@ fn f32_walk_agrees(d: &SceneDesc, what: &str) {
         a.crossings,
         b.crossings
     );
-    let (ra, rb) = (&a.raw, &b.raw);
     let mut worst_raw = 0f64;
-    for (name, x, y) in [
-        (
-            "intercepted turbid",
-            &ra.intercepted_turbid,
-            &rb.intercepted_turbid,
-        ),
-        ("absorbed turbid", &ra.absorbed_turbid, &rb.absorbed_turbid),
-        ("escaped", &ra.escaped, &rb.escaped),
-        (
-            "intercepted ground",
-            &ra.intercepted_ground,
-            &rb.intercepted_ground,
-        ),
-        ("images", &ra.images, &rb.images),
-    ] {
+    for (name, x, y) in raw_pairs(&a, &b) {
         let r = worst_rel(x, y, &format!("{what}: {name}"));
         assert!(r <= 1e-4, "{what}: {name} differs by {r:e} relative");
         worst_raw = worst_raw.max(r);
