@@ -162,6 +162,23 @@ fn layer_with_sky() -> SceneDesc {
     d
 }
 
+/// Four bands (W = 4): leaf reflectance 0.05–0.4, transmittance 0.8 × it, soil 0.2.
+fn four_bands() -> Vec<BandOptics> {
+    let band = |name: &str, nm: f64, r: f64| BandOptics {
+        name: name.into(),
+        wavelength_nm: nm,
+        leaf_r: r,
+        leaf_t: 0.8 * r,
+        soil_r: 0.2,
+    };
+    vec![
+        band("b1", 500.0, 0.05),
+        band("b2", 600.0, 0.1),
+        band("b3", 700.0, 0.2),
+        band("b4", 800.0, 0.4),
+    ]
+}
+
 /// A 1 m periodic turbid layer, 2 m high, spherical LAD, 36 directions.
 fn layer(lai: f64, bands: Vec<BandOptics>, cell: f64, zenith: f64, azimuth: f64) -> SceneDesc {
     let mut d = turbid_layer(&TurbidLayerParams {
@@ -188,19 +205,7 @@ fn batched_walk_matches_the_one_ray_walk_with_1_2_and_4_channels() {
         &layer(3.0, two(), 0.2, 20.0, 0.0),
         "LAI 3, red + NIR (W = 2)",
     );
-    let band = |name: &str, nm: f64, r: f64| BandOptics {
-        name: name.into(),
-        wavelength_nm: nm,
-        leaf_r: r,
-        leaf_t: 0.8 * r,
-        soil_r: 0.2,
-    };
-    let four = vec![
-        band("b1", 500.0, 0.05),
-        band("b2", 600.0, 0.1),
-        band("b3", 700.0, 0.2),
-        band("b4", 800.0, 0.4),
-    ];
+    let four = four_bands();
     batched_equals_one_by_one(&layer(3.0, four, 0.2, 20.0, 0.0), "4 bands (W = 4)");
     // Sun and sky channels (W = 2 × 2 bands), without the ground: with it, the later orders of
     // this scene move by up to ~1e-6 per entry under any reordering of the sums (the batched
@@ -417,19 +422,7 @@ fn f32_walk_agrees_with_the_f64_walk_with_1_2_and_4_channels_and_sky() {
         "1 channel",
     );
     f32_walk_agrees(&layer_with_sky(), "red + NIR with sky");
-    let band = |name: &str, nm: f64, r: f64| BandOptics {
-        name: name.into(),
-        wavelength_nm: nm,
-        leaf_r: r,
-        leaf_t: 0.8 * r,
-        soil_r: 0.2,
-    };
-    let four = vec![
-        band("b1", 500.0, 0.05),
-        band("b2", 600.0, 0.1),
-        band("b3", 700.0, 0.2),
-        band("b4", 800.0, 0.4),
-    ];
+    let four = four_bands();
     f32_walk_agrees(&layer(3.0, four, 0.2, 30.0, 20.0), "4 channels");
 }
 
