@@ -26,12 +26,15 @@
 
 pub mod cli;
 pub mod components;
+pub mod direction;
 pub mod geometry;
 pub mod io;
 pub mod lidar;
+pub mod phase;
 pub mod photon;
 pub mod physics;
 pub mod radiative;
+pub mod random;
 pub mod resources;
 pub mod scene;
 pub mod simulation;

@@ -5,9 +5,10 @@
 use crate::resources::scene::{RunSettings, StageErrors};
 use crate::scene::desc::SceneDesc;
 use crate::scene::error::SceneError;
-use crate::scene::{SceneSource, load_scene, spawn::spawn_scene};
+use crate::scene::{SceneSource, load_scene};
 use crate::systems::maket::{add_maket_systems, add_plan_systems, no_stage_error};
 use crate::systems::output::{OutputDir, write_maket_products};
+use crate::systems::spawn::spawn_scene;
 use bevy_ecs::prelude::*;
 use bevy_ecs::schedule::ScheduleLabel;
 use std::path::Path;

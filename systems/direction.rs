@@ -2,7 +2,7 @@
 //! the scene's `directions` section (physics.md §2), keeps the sun direction exact, and groups
 //! directions into interception slots (angular sectors, or one per direction).
 
-use crate::resources::directions::{DirectionSet, direction_from_deg};
+use crate::direction::{DirectionSet, direction_from_deg};
 use crate::resources::scene::{SceneInfo, StageErrors};
 use crate::resources::tracking::{
     DirectionRequest, Directions, REFERENCE_MIN_DIRECTIONS, RadiativeSettings,

@@ -14,3 +14,4 @@ pub mod output;
 pub mod phase;
 pub mod photon;
 pub mod radiative;
+pub mod spawn;

@@ -436,11 +436,7 @@ fn write_images(
         .collect();
     let mut img = 0usize;
     for d in dirs.set.tiling() {
-        if !(matches!(
-            d.kind,
-            crate::resources::directions::DirectionKind::Exact { .. }
-        ) && d.omega.z > 0.0)
-        {
+        if !(matches!(d.kind, crate::direction::DirectionKind::Exact { .. }) && d.omega.z > 0.0) {
             continue;
         }
         let mut channels = Vec::new();

@@ -4,10 +4,10 @@
 //! materials become Lambertian (R, T_d, T_dir) models. Only what the scene uses is tabulated.
 
 use crate::components::{ImportedMesh, TurbidCrown, TurbidPlot};
+use crate::phase::vegetation_unit_tables;
 use crate::physics::lad::{LeafAngleDistribution, LeafOptics};
 use crate::radiative::engine::TrackOptics;
 use crate::resources::materials::{MaterialKind, Materials};
-use crate::resources::phase_tables::vegetation_unit_tables;
 use crate::resources::scene::StageErrors;
 use crate::resources::tracking::{Directions, OpticsTables, RadiativeSettings};
 use bevy_ecs::prelude::*;

@@ -8,9 +8,7 @@
 //! angles (a sun at view angles (30°, 225°) propagates along (150°, 45°)). `--exact` takes the
 //! same propagation angles.
 
-use crate::resources::directions::{
-    DirectionParams, DirectionSet, ExactDirection, OversampleRegion,
-};
+use crate::direction::{DirectionParams, DirectionSet, ExactDirection, OversampleRegion};
 
 /// Output format.
 #[derive(clap::ValueEnum, Debug, Clone, Copy, PartialEq, Eq, Default)]

@@ -289,7 +289,7 @@ fn radiative_estimate(sim: &mut Simulation, report: &MaketReport) -> (u64, usize
     if settings.preset == crate::scene::desc::Preset::Reference {
         params.count = params.count.max(REFERENCE_MIN_DIRECTIONS);
     }
-    let Ok(set) = crate::resources::directions::DirectionSet::new(&params) else {
+    let Ok(set) = crate::direction::DirectionSet::new(&params) else {
         return (0, 0, 0);
     };
     let n_dirs = set.tiling().len();
@@ -306,10 +306,7 @@ fn radiative_estimate(sim: &mut Simulation, report: &MaketReport) -> (u64, usize
         .tiling()
         .iter()
         .filter(|d| {
-            matches!(
-                d.kind,
-                crate::resources::directions::DirectionKind::Exact { .. }
-            ) && d.omega.z > 0.0
+            matches!(d.kind, crate::direction::DirectionKind::Exact { .. }) && d.omega.z > 0.0
         })
         .count();
     let eta = settings.image_oversampling.max(1) as usize;

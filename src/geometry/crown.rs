@@ -12,8 +12,22 @@
 //! quadrature tolerance (≈1e-12 relative).
 
 use super::quadrature::{gauss10, integrate};
-use crate::scene::desc::CrownShape;
+use serde::{Deserialize, Serialize};
 use std::f64::consts::PI;
+
+/// Crown shapes of DART trees.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+pub enum CrownShape {
+    /// Ellipsoid with horizontal semi-axes (radius_x, radius_y) and vertical semi-axis height/2.
+    Ellipsoid,
+    /// Cone: base ellipse at the crown base, apex at the crown top.
+    Cone,
+    /// Truncated cone (frustum): bottom ellipse at the crown base, top ellipse scaled by
+    /// `top_radius_fraction`.
+    Trapezoid,
+    /// Elliptic cylinder.
+    Cylinder,
+}
 
 /// A crown placed in the scene, in grid coordinates (metres; z above the grid origin).
 #[derive(Debug, Clone, PartialEq)]

@@ -155,24 +155,6 @@ pub fn triangulate(poly: &[DVec2]) -> Option<Vec<[DVec2; 3]>> {
     Some(tris)
 }
 
-/// The footprint of a [`crate::scene::desc::FootprintDesc`] as an anticlockwise polygon.
-pub fn footprint_polygon(fp: &crate::scene::desc::FootprintDesc) -> Vec<DVec2> {
-    use crate::scene::desc::FootprintDesc;
-    let mut p: Vec<DVec2> = match fp {
-        FootprintDesc::Box((x0, y0, x1, y1)) => vec![
-            DVec2::new(*x0, *y0),
-            DVec2::new(*x1, *y0),
-            DVec2::new(*x1, *y1),
-            DVec2::new(*x0, *y1),
-        ],
-        FootprintDesc::Polygon(v) => v.iter().map(|&(x, y)| DVec2::new(x, y)).collect(),
-    };
-    if signed_area(&p) < 0.0 {
-        p.reverse();
-    }
-    p
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -71,7 +71,7 @@ pub fn tanh_sinh<F: FnMut(f64, f64, f64) -> f64>(a: f64, b: f64, f: F) -> f64 {
 
 /// [`tanh_sinh`] with half the nodes (step 1/8, 73 nodes): for integrands smooth inside the
 /// interval with at most square-root behaviour at its ends (the projected solid angles of
-/// [`crate::resources::phase_tables::projected_solid_angle`]: within 1.5e-15 of a sector's
+/// [`crate::phase::projected_solid_angle`]: within 1.5e-15 of a sector's
 /// solid angle of the 145-node rule on 200 normals × 400 sectors; step 1/4 gave 2.5e-11).
 pub fn tanh_sinh_coarse<F: FnMut(f64, f64, f64) -> f64>(a: f64, b: f64, f: F) -> f64 {
     tanh_sinh_on(tanh_sinh_nodes_coarse(), a, b, f)

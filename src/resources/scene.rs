@@ -43,23 +43,7 @@ pub struct SceneInfo {
     pub boundary: BoundaryMode,
 }
 
-/// Sun and diffuse sky as the stages see them (resolved from `scene::desc::IlluminationDesc` at
-/// spawn): the date-and-place form is already turned into angles, and every list has one value
-/// per band.
-#[derive(Debug, Clone, PartialEq)]
-pub struct Illumination {
-    /// Sun zenith angle of the ground→sun direction, degrees, in [0, 90) (the apparent,
-    /// refracted zenith when the scene asked for refraction).
-    pub sun_zenith_deg: f64,
-    /// Sun azimuth of the ground→sun direction, degrees, anticlockwise from +x (DART convention).
-    pub sun_azimuth_deg: f64,
-    /// Diffuse sky fraction SKYL = E_diff / (E_dir + E_diff) per band (0 when not given).
-    pub skyl: Vec<f64>,
-    /// Total bottom-of-atmosphere irradiance on a horizontal plane per band, W m⁻² µm⁻¹ (1 when
-    /// not given: products are then relative), including the Earth–Sun distance factor
-    /// `SceneInfo::irradiance_distance_factor` when one was applied.
-    pub irradiance_w_m2_um: Vec<f64>,
-}
+pub use crate::scene::resolve::Illumination;
 
 /// The ground shape (flat when the scene has no `Ground` with a DEM).
 #[derive(Debug, Clone, Resource)]

@@ -1,8 +1,8 @@
 //! Resources of the Direction, Phase and Radiative stages.
 
+use crate::direction::DirectionSet;
+use crate::phase::TableParams;
 use crate::radiative::engine::{TrackOptics, TrackingParams};
-use crate::resources::directions::DirectionSet;
-use crate::resources::phase_tables::TableParams;
 use crate::scene::desc::{Preset, RadiativeDesc};
 use bevy_ecs::prelude::Resource;
 use glam::DVec3;
@@ -13,7 +13,7 @@ pub const REFERENCE_MIN_DIRECTIONS: usize = 400;
 
 /// The scene's direction parameters (resource inserted at spawn; defaults when absent).
 #[derive(Debug, Clone, Default, Resource)]
-pub struct DirectionRequest(pub crate::resources::directions::DirectionParams);
+pub struct DirectionRequest(pub crate::direction::DirectionParams);
 
 /// Settings of the Direction/Phase/Radiative stages after applying preset and scene knobs.
 #[derive(Debug, Clone, Resource)]

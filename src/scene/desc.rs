@@ -47,7 +47,7 @@ pub struct SceneDesc {
     /// Discrete directions (Direction stage): count, exact view directions, oversampled
     /// regions, fictive directions, angular sectors. Default: 100 directions (DART default).
     #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub directions: Option<crate::resources::directions::DirectionParams>,
+    pub directions: Option<crate::direction::DirectionParams>,
     /// Radiative-stage settings (preset and individual knobs).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub radiative: Option<RadiativeDesc>,
@@ -616,19 +616,7 @@ pub struct RasterFileDesc {
     pub origin_m: Xy,
 }
 
-/// Crown shapes of DART trees.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
-pub enum CrownShape {
-    /// Ellipsoid with horizontal semi-axes (radius_x, radius_y) and vertical semi-axis height/2.
-    Ellipsoid,
-    /// Cone: base ellipse at the crown base, apex at the crown top.
-    Cone,
-    /// Truncated cone (frustum): bottom ellipse at the crown base, top ellipse scaled by
-    /// `top_radius_fraction`.
-    Trapezoid,
-    /// Elliptic cylinder.
-    Cylinder,
-}
+pub use crate::geometry::crown::CrownShape;
 
 /// Amount of foliage in a crown or plot.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
@@ -1122,4 +1110,22 @@ fn default_filter() -> f64 {
 }
 fn default_shots() -> u32 {
     1
+}
+
+/// The footprint of a [`FootprintDesc`] as an anticlockwise polygon (m).
+pub fn footprint_polygon(fp: &FootprintDesc) -> Vec<glam::DVec2> {
+    use glam::DVec2;
+    let mut p: Vec<DVec2> = match fp {
+        FootprintDesc::Box((x0, y0, x1, y1)) => vec![
+            DVec2::new(*x0, *y0),
+            DVec2::new(*x1, *y0),
+            DVec2::new(*x1, *y1),
+            DVec2::new(*x0, *y1),
+        ],
+        FootprintDesc::Polygon(v) => v.iter().map(|&(x, y)| DVec2::new(x, y)).collect(),
+    };
+    if crate::geometry::polygon::signed_area(&p) < 0.0 {
+        p.reverse();
+    }
+    p
 }

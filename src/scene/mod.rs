@@ -1,12 +1,13 @@
 //! The RON scene format: authoring types ([`desc`]), loading with file/line/field errors,
-//! validation, the spawn step and the programmatic generators.
+//! validation, the ground's raster input and the programmatic generators (the spawn step that
+//! turns a description into entities is ECS glue: `systems/spawn.rs`).
 
 pub mod desc;
 pub mod error;
 pub mod generators;
 pub mod locate;
 pub mod resolve;
-pub mod spawn;
+pub mod terrain_input;
 pub mod validate;
 
 use desc::SceneDesc;
@@ -51,4 +52,9 @@ pub fn to_ron(desc: &SceneDesc) -> String {
         .depth_limit(5)
         .compact_arrays(true);
     ron::ser::to_string_pretty(desc, cfg).expect("scene descriptions always serialise")
+}
+
+/// Transitional path of the seeded streams (now [`crate::random`]).
+pub mod spawn {
+    pub use crate::random::{stream, uniform};
 }

@@ -15,7 +15,6 @@ use crate::physics::sun::{
     Observer, Refraction, SPA_ATMOS_REFRACT_DEG, SceneAngles, SolarPosition, SunError, UtcDateTime,
     delta_t_estimate_s, solar_position,
 };
-use crate::resources::scene::Illumination;
 use std::path::Path;
 
 /// Name of a shipped sensor as written in scenes (the stem of its file in `assets/sensors/`,
@@ -252,6 +251,24 @@ pub fn sun_from_position(
         ));
     }
     Ok((pos, angles))
+}
+
+/// Sun and diffuse sky as the stages see them (resolved from `scene::desc::IlluminationDesc` at
+/// spawn): the date-and-place form is already turned into angles, and every list has one value
+/// per band.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Illumination {
+    /// Sun zenith angle of the ground→sun direction, degrees, in [0, 90) (the apparent,
+    /// refracted zenith when the scene asked for refraction).
+    pub sun_zenith_deg: f64,
+    /// Sun azimuth of the ground→sun direction, degrees, anticlockwise from +x (DART convention).
+    pub sun_azimuth_deg: f64,
+    /// Diffuse sky fraction SKYL = E_diff / (E_dir + E_diff) per band (0 when not given).
+    pub skyl: Vec<f64>,
+    /// Total bottom-of-atmosphere irradiance on a horizontal plane per band, W m⁻² µm⁻¹ (1 when
+    /// not given: products are then relative), including the Earth–Sun distance factor
+    /// `SceneInfo::irradiance_distance_factor` when one was applied.
+    pub irradiance_w_m2_um: Vec<f64>,
 }
 
 /// Illumination resolved for the stages, with what the spawn step records beside it.

@@ -356,7 +356,7 @@ pub fn validate(desc: &SceneDesc, src: &SceneSource) -> Result<(), SceneError> {
         }
     }
     if let Some(dp) = &desc.directions
-        && let Err(e) = crate::resources::directions::DirectionSet::new(dp)
+        && let Err(e) = crate::direction::DirectionSet::new(dp)
     {
         return Err(src.invalid(format!("directions.{}", e.field), e.reason));
     }

@@ -106,10 +106,7 @@ pub fn track_photons(
         .iter()
         .enumerate()
         .filter(|(_, d)| {
-            matches!(
-                d.kind,
-                crate::resources::directions::DirectionKind::Exact { .. }
-            ) && d.omega.z > 0.0
+            matches!(d.kind, crate::direction::DirectionKind::Exact { .. }) && d.omega.z > 0.0
         })
         .map(|(j, _)| j)
         .collect();

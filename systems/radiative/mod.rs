@@ -6,12 +6,12 @@
 
 use crate::components::Ground;
 use crate::geometry::terrain::Terrain;
+use crate::phase::lambertian_facet_fractions;
 use crate::radiative::engine::{RadiativeInput, TrackOptics, remap_wrong_side, run};
 use crate::radiative::products::RadiativeProducts;
 use crate::resources::facets::FacetStore;
 use crate::resources::grid::{CellGrid, GridSpec};
 use crate::resources::materials::{MaterialKind, Materials};
-use crate::resources::phase_tables::lambertian_facet_fractions;
 use crate::resources::scene::{SceneInfo, StageErrors, TerrainRes};
 use crate::resources::tracking::{Directions, OpticsTables, RadiativeSettings};
 use bevy_ecs::prelude::*;
@@ -68,7 +68,7 @@ pub fn track_flux(
         if let Some(models) = per_band {
             let mut tables_b = Vec::new();
             for model in &models {
-                match crate::resources::phase_tables::brdf_facet_table(
+                match crate::phase::brdf_facet_table(
                     &dirs.set,
                     model,
                     glam::DVec3::Z,
@@ -91,7 +91,7 @@ pub fn track_flux(
         .set
         .tiling()
         .iter()
-        .map(|d| d.kind == crate::resources::directions::DirectionKind::Regular)
+        .map(|d| d.kind == crate::direction::DirectionKind::Regular)
         .collect();
     let fractions: Vec<(Vec<f32>, Vec<f32>)> = if facets.facets.len() * n_dirs
         <= EXACT_FRACTIONS_LIMIT
@@ -154,11 +154,7 @@ pub fn track_flux(
         .tiling()
         .iter()
         .map(|d| {
-            if matches!(
-                d.kind,
-                crate::resources::directions::DirectionKind::Exact { .. }
-            ) && d.omega.z > 0.0
-            {
+            if matches!(d.kind, crate::direction::DirectionKind::Exact { .. }) && d.omega.z > 0.0 {
                 n_img += 1;
                 n_img - 1
             } else {
@@ -211,7 +207,7 @@ pub fn track_flux(
 }
 
 /// Table sets of the RPV/Hapke facets: `facet_brdf[f]` indexes `sets` (u32::MAX for other
-/// facets); each set holds one [`brdf_facet_table`](crate::resources::phase_tables::brdf_facet_table)
+/// facets); each set holds one [`brdf_facet_table`](crate::phase::brdf_facet_table)
 /// per band for the facet's material and its normal quantised to 1/64 per component (≤ 0.9°:
 /// far below the sector width of the direction sets), so facets with the same orientation share
 /// one set.
@@ -222,13 +218,7 @@ fn brdf_facet_tables(
     dirs: &Directions,
     settings: &RadiativeSettings,
     nb: usize,
-) -> Result<
-    (
-        Vec<u32>,
-        Vec<Vec<crate::resources::phase_tables::PhaseTable>>,
-    ),
-    String,
-> {
+) -> Result<(Vec<u32>, Vec<Vec<crate::phase::PhaseTable>>), String> {
     use std::collections::HashMap;
     let mut key_of: HashMap<(u32, [i32; 3]), u32> = HashMap::new();
     let mut keys: Vec<(u32, [i32; 3])> = Vec::new();
@@ -266,7 +256,7 @@ fn brdf_facet_tables(
             models
                 .iter()
                 .map(|model| {
-                    crate::resources::phase_tables::brdf_facet_table(
+                    crate::phase::brdf_facet_table(
                         &dirs.set,
                         model,
                         n,

@@ -192,12 +192,12 @@ pub fn disk_canopy_gap_fraction(desc: &SceneDesc, n_rays: u32) -> (f64, f64) {
     let d = -DVec3::new(sza.sin() * saz.cos(), sza.sin() * saz.sin(), sza.cos());
     let (sx, sy) = desc.grid.size_m;
     let top = leaves.disks.iter().map(|k| k.2).fold(0.0, f64::max) + 0.2;
-    let mut rng = lumenscape::scene::spawn::stream(99, 1, 2);
+    let mut rng = lumenscape::random::stream(99, 1, 2);
     let mut miss = 0u32;
     for _ in 0..n_rays {
         let o = DVec3::new(
-            lumenscape::scene::spawn::uniform(&mut rng) * sx,
-            lumenscape::scene::spawn::uniform(&mut rng) * sy,
+            lumenscape::random::uniform(&mut rng) * sx,
+            lumenscape::random::uniform(&mut rng) * sy,
             top,
         );
         let blocked = leaves.disks.iter().any(|k| {

@@ -7,7 +7,7 @@
 //! from the LAD.
 
 use super::*;
-use crate::scene::spawn::{stream, uniform};
+use crate::random::{stream, uniform};
 use glam::DVec3;
 use std::f64::consts::{FRAC_PI_2, PI};
 

@@ -2,7 +2,7 @@
 //! crown) on flat ground or on a DEM slope (continuous-topography repetitive scene).
 
 use super::*;
-use crate::scene::spawn::{stream, uniform};
+use crate::random::{stream, uniform};
 
 /// A species of the forest generator.
 #[derive(Debug, Clone, PartialEq)]

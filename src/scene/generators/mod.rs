@@ -148,8 +148,8 @@ pub fn standard_optics(
 /// plane, view zenith 0–75° every 15° on the sun side (view azimuth = sun azimuth) and the
 /// opposite side, and the same zeniths in the cross plane (sun azimuth ± 90°)
 /// (Pinty et al. 2004, RAMI-2 measurement protocol).
-pub fn rami_directions(sun_azimuth_deg: f64) -> crate::resources::directions::DirectionParams {
-    use crate::resources::directions::{DirectionParams, ExactDirection};
+pub fn rami_directions(sun_azimuth_deg: f64) -> crate::direction::DirectionParams {
+    use crate::direction::{DirectionParams, ExactDirection};
     let mut exact = vec![ExactDirection {
         zenith_deg: 0.0,
         azimuth_deg: 0.0,
@@ -176,10 +176,8 @@ pub fn rami_directions(sun_azimuth_deg: f64) -> crate::resources::directions::Di
 /// Nadir and the principal plane every 15° up to 75° on both sides of the sun (11 exact view
 /// directions): the cheapest set for oracle comparisons (each exact direction costs a peel-off
 /// trace per Monte Carlo event).
-pub fn principal_plane_directions(
-    sun_azimuth_deg: f64,
-) -> crate::resources::directions::DirectionParams {
-    use crate::resources::directions::{DirectionParams, ExactDirection};
+pub fn principal_plane_directions(sun_azimuth_deg: f64) -> crate::direction::DirectionParams {
+    use crate::direction::{DirectionParams, ExactDirection};
     let mut exact = vec![ExactDirection::new(0.0, 0.0)];
     for k in 1..=5 {
         let z = 15.0 * k as f64;

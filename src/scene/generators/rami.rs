@@ -52,9 +52,9 @@
 use super::disk_canopy::{DiskCanopyParams, disk_canopy, disk_canopy_from_list};
 use super::turbid_layer::{TurbidLayerParams, turbid_layer};
 use super::*;
+use crate::direction::{DirectionParams, ExactDirection};
 use crate::io::rami_mes::{Plane, signed_view_zeniths_deg};
-use crate::resources::directions::{DirectionParams, ExactDirection};
-use crate::scene::spawn::{stream, uniform};
+use crate::random::{stream, uniform};
 use std::f64::consts::PI;
 use std::fmt;
 

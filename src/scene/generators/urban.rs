@@ -2,7 +2,7 @@
 //! trees, on flat ground; isolated scene.
 
 use super::*;
-use crate::scene::spawn::{stream, uniform};
+use crate::random::{stream, uniform};
 
 /// Parameters.
 #[derive(Debug, Clone, PartialEq)]

@@ -1,40 +1,25 @@
-//! The spawn step: a validated [`SceneDesc`] becomes entities and resources of a bevy `World`.
+//! The spawn step (ECS glue of the scene format): a validated [`SceneDesc`] becomes entities
+//! and resources of a bevy `World`.
 //!
 //! External files (DEM rasters, meshes) are read here, trees of stands are placed (seeded), and
 //! every object gets absolute coordinates (scene frame, metres, z = altitude). Maket then turns
 //! the entities into the cell grid.
 
-use super::desc::*;
-use super::error::SceneError;
-use super::validate::{SceneSource, validate};
 use crate::components::*;
 use crate::geometry::crown::CrownGeom;
-use crate::geometry::polygon::{footprint_polygon, signed_area};
+use crate::geometry::polygon::signed_area;
 use crate::geometry::shapes::Roof;
-use crate::geometry::terrain::{Terrain, build_terrain};
+use crate::geometry::terrain::Terrain;
+use crate::random::{stream, uniform};
 use crate::resources::materials::{Material, MaterialKind, Materials};
 use crate::resources::scene::{SceneInfo, TerrainRes, Warnings};
+use crate::scene::desc::*;
+use crate::scene::error::SceneError;
+use crate::scene::terrain_input::build_terrain;
+use crate::scene::validate::{SceneSource, validate};
 use bevy_ecs::prelude::*;
 use glam::{DMat4, DVec3};
-use rand_xoshiro::Xoshiro256PlusPlus;
-use rand_xoshiro::rand_core::{Rng, SeedableRng};
 use std::f64::consts::PI;
-
-/// Uniform draw in [0, 1) with 53 random bits.
-pub fn uniform(rng: &mut Xoshiro256PlusPlus) -> f64 {
-    (rng.next_u64() >> 11) as f64 * (1.0 / (1u64 << 53) as f64)
-}
-
-/// A generator stream for (scene seed, purpose, item): reproducible whatever the thread count.
-pub fn stream(seed: u64, purpose: u64, item: u64) -> Xoshiro256PlusPlus {
-    // SplitMix64-style mixing of the three words into one seed.
-    let mut z = seed
-        ^ purpose.wrapping_mul(0x9E37_79B9_7F4A_7C15)
-        ^ item.wrapping_mul(0xBF58_476D_1CE4_E5B9);
-    z = (z ^ (z >> 30)).wrapping_mul(0xBF58_476D_1CE4_E5B9);
-    z = (z ^ (z >> 27)).wrapping_mul(0x94D0_49BB_1331_11EB);
-    Xoshiro256PlusPlus::seed_from_u64(z ^ (z >> 31))
-}
 
 /// Leaf area of a crown from its foliage description.
 pub fn crown_geom(c: &CrownDesc, x: f64, y: f64, ground_z: f64) -> CrownGeom {
@@ -228,10 +213,10 @@ pub fn spawn_scene(
     validate(desc, src)?;
     // Band responses (SRF files read here), then per-band optics (PROSPECT leaves integrated
     // over the responses) and the sun (date and place resolved to final angles).
-    let responses = super::resolve::band_responses(desc, src)?;
+    let responses = crate::scene::resolve::band_responses(desc, src)?;
     let mut mats = Materials::from_desc(&desc.optics, &desc.bands, &responses)
         .map_err(|e| src.invalid(e.field, e.message))?;
-    let sun = super::resolve::illumination(desc, src)?;
+    let sun = crate::scene::resolve::illumination(desc, src)?;
     let mut warnings = Vec::new();
     let base_dir = src.base_dir();
     let size = desc.grid.size_m;
@@ -596,7 +581,7 @@ pub fn spawn_scene(
         name: desc.name.clone(),
         source: src.path.clone(),
         seed: desc.seed,
-        bands: super::resolve::bands_with_wavelengths(&desc.bands, &responses),
+        bands: crate::scene::resolve::bands_with_wavelengths(&desc.bands, &responses),
         band_responses: responses,
         illumination: sun.illumination,
         irradiance_distance_factor: sun.irradiance_distance_factor,

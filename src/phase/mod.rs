@@ -23,13 +23,13 @@ use glam::DVec3;
 use std::collections::HashMap;
 use std::f64::consts::{FRAC_PI_2, PI};
 
+use crate::direction::{Direction, DirectionKind, DirectionSet};
 use crate::physics::brdf::{Brdf, BrdfError, LocalGeometry, SpecularLobe, mirror};
 use crate::physics::lad::{
     LadError, LeafAngleDistribution, LeafOptics, LeafSpecular, VolscattKernel, gamma_specular,
     specular_albedo, tanh_sinh_pieces, tanh_sinh_pieces_coarse,
 };
 use crate::physics::phase::{FluidPhase, PhaseError};
-use crate::resources::directions::{Direction, DirectionKind, DirectionSet};
 
 /// Resolution of the sector integrations.
 #[derive(Debug, Clone, Copy, PartialEq)]

@@ -1,0 +1,258 @@
+//! The scene's ground from its description: ESRI ASCII and raw `f32` raster files, inline
+//! rasters and scattered points, turned into a [`Terrain`] (the geometry lives in
+//! [`crate::geometry::terrain`]). Errors name the scene file, the raster file and the field.
+
+use crate::geometry::terrain::{Raster, Terrain, TinVertex};
+use crate::scene::desc::{RasterDesc, RasterFileDesc, RasterFormat, TopographyDesc};
+use crate::scene::error::{Location, SceneError};
+use glam::DVec3;
+use spade::{DelaunayTriangulation, Point2, Triangulation};
+use std::path::Path;
+
+fn err(path: &Path, line: Option<usize>, field: &str, message: impl Into<String>) -> SceneError {
+    SceneError::Invalid {
+        at: Location {
+            file: path.to_path_buf(),
+            line_col: line.map(|l| (l, 1)),
+        },
+        field: field.into(),
+        message: message.into(),
+    }
+}
+
+/// Reads an ESRI ASCII grid; node values are taken at cell centres.
+pub fn read_esri_ascii(path: &Path, text: &str, offset: (f64, f64)) -> Result<Raster, SceneError> {
+    let mut header = std::collections::HashMap::new();
+    let mut lines = text.lines().enumerate().peekable();
+    while let Some((_, l)) = lines.peek() {
+        let mut it = l.split_whitespace();
+        let Some(key) = it.next() else {
+            lines.next();
+            continue;
+        };
+        if key.chars().next().is_some_and(|c| c.is_ascii_alphabetic()) {
+            let (ln, l) = lines.next().unwrap_or((0, ""));
+            let mut it = l.split_whitespace();
+            let key = it.next().unwrap_or("").to_ascii_lowercase();
+            let val: f64 = it.next().and_then(|v| v.parse().ok()).ok_or_else(|| {
+                err(
+                    path,
+                    Some(ln + 1),
+                    &key,
+                    "header value is missing or not a number",
+                )
+            })?;
+            header.insert(key, (val, ln + 1));
+        } else {
+            break;
+        }
+    }
+    let get = |k: &str| header.get(k).map(|v| v.0);
+    let ncols = get("ncols").ok_or_else(|| err(path, None, "ncols", "missing header entry"))?;
+    let nrows = get("nrows").ok_or_else(|| err(path, None, "nrows", "missing header entry"))?;
+    let cs = get("cellsize").ok_or_else(|| err(path, None, "cellsize", "missing header entry"))?;
+    if ncols < 2.0 || nrows < 2.0 || ncols.fract() != 0.0 || nrows.fract() != 0.0 {
+        return Err(err(path, None, "ncols/nrows", "need whole numbers >= 2"));
+    }
+    if !(cs > 0.0 && cs.is_finite()) {
+        return Err(err(
+            path,
+            header.get("cellsize").map(|v| v.1),
+            "cellsize",
+            format!("must be > 0, got {cs}"),
+        ));
+    }
+    let (x0, y0) = match (
+        get("xllcorner"),
+        get("yllcorner"),
+        get("xllcenter"),
+        get("yllcenter"),
+    ) {
+        (Some(x), Some(y), _, _) => (x + 0.5 * cs, y + 0.5 * cs),
+        (_, _, Some(x), Some(y)) => (x, y),
+        _ => {
+            return Err(err(
+                path,
+                None,
+                "xllcorner",
+                "missing xllcorner/yllcorner (or xllcenter/yllcenter)",
+            ));
+        }
+    };
+    let nodata = get("nodata_value");
+    let (nx, ny) = (ncols as usize, nrows as usize);
+    let mut z = vec![0.0; nx * ny];
+    let mut count = 0usize;
+    for (ln, l) in lines {
+        for tok in l.split_whitespace() {
+            let v: f64 = tok.parse().map_err(|_| {
+                err(
+                    path,
+                    Some(ln + 1),
+                    "values",
+                    format!("`{tok}` is not a number"),
+                )
+            })?;
+            if !v.is_finite() || nodata == Some(v) {
+                return Err(err(
+                    path,
+                    Some(ln + 1),
+                    "values",
+                    "no-data or non-finite altitude: DEM holes are not supported",
+                ));
+            }
+            if count >= nx * ny {
+                return Err(err(
+                    path,
+                    Some(ln + 1),
+                    "values",
+                    format!("more than ncols × nrows = {} values", nx * ny),
+                ));
+            }
+            let (col, row) = (count % nx, count / nx);
+            z[col + (ny - 1 - row) * nx] = v;
+            count += 1;
+        }
+    }
+    if count != nx * ny {
+        return Err(err(
+            path,
+            None,
+            "values",
+            format!("expected {} values, found {count}", nx * ny),
+        ));
+    }
+    Ok(Raster {
+        nodes: (nx, ny),
+        spacing: (cs, cs),
+        origin: (x0 - offset.0, y0 - offset.1),
+        z,
+    })
+}
+
+/// Builds the terrain of a scene; `base_dir` resolves raster file paths; `field` names the
+/// topography in errors.
+pub fn build_terrain(
+    topo: &TopographyDesc,
+    base_dir: &Path,
+    scene_file: &Path,
+    field: &str,
+    size: (f64, f64),
+) -> Result<Terrain, SceneError> {
+    let inv = |m: String| SceneError::Invalid {
+        at: Location {
+            file: scene_file.to_path_buf(),
+            line_col: None,
+        },
+        field: field.to_string(),
+        message: m,
+    };
+    let terrain = match topo {
+        TopographyDesc::Flat => Terrain::Flat(0.0),
+        TopographyDesc::Raster(RasterDesc {
+            nodes,
+            spacing_m,
+            origin_m,
+            altitude_m,
+        }) => Terrain::Raster(Raster {
+            nodes: *nodes,
+            spacing: *spacing_m,
+            origin: *origin_m,
+            z: altitude_m.clone(),
+        }),
+        TopographyDesc::RasterFile(RasterFileDesc {
+            path,
+            format,
+            origin_m,
+        }) => {
+            let p = base_dir.join(path);
+            match format {
+                RasterFormat::EsriAscii => {
+                    let text = std::fs::read_to_string(&p).map_err(|e| SceneError::Io {
+                        path: p.clone(),
+                        source: e,
+                    })?;
+                    Terrain::Raster(read_esri_ascii(&p, &text, *origin_m)?)
+                }
+                RasterFormat::BinaryF32 { nodes, spacing_m } => {
+                    let bytes = std::fs::read(&p).map_err(|e| SceneError::Io {
+                        path: p.clone(),
+                        source: e,
+                    })?;
+                    let n = nodes.0 * nodes.1;
+                    if nodes.0 < 2 || nodes.1 < 2 || bytes.len() != 4 * n {
+                        return Err(err(
+                            &p,
+                            None,
+                            "nodes",
+                            format!(
+                                "expected {} × {} f32 values = {} bytes, file has {}",
+                                nodes.0,
+                                nodes.1,
+                                4 * n,
+                                bytes.len()
+                            ),
+                        ));
+                    }
+                    let z: Vec<f64> = bytes
+                        .chunks_exact(4)
+                        .map(|c| f32::from_le_bytes([c[0], c[1], c[2], c[3]]) as f64)
+                        .collect();
+                    if let Some(k) = z.iter().position(|v| !v.is_finite()) {
+                        return Err(err(&p, None, "values", format!("value {k} is not finite")));
+                    }
+                    Terrain::Raster(Raster {
+                        nodes: *nodes,
+                        spacing: *spacing_m,
+                        origin: *origin_m,
+                        z,
+                    })
+                }
+            }
+        }
+        TopographyDesc::Points { points_m } => {
+            let verts: Vec<TinVertex> = points_m
+                .iter()
+                .map(|&(x, y, z)| TinVertex {
+                    p: DVec3::new(x, y, z),
+                })
+                .collect();
+            let dt = DelaunayTriangulation::<TinVertex>::bulk_load(verts)
+                .map_err(|e| inv(format!("cannot triangulate the points: {e:?}")))?;
+            if dt.num_inner_faces() == 0 {
+                return Err(inv("points are collinear: no triangle".into()));
+            }
+            Terrain::Tin(Box::new(dt))
+        }
+    };
+    // The DEM must cover the scene.
+    match &terrain {
+        Terrain::Raster(r) => {
+            let x1 = r.origin.0 + (r.nodes.0 - 1) as f64 * r.spacing.0;
+            let y1 = r.origin.1 + (r.nodes.1 - 1) as f64 * r.spacing.1;
+            let eps = 1e-9 * size.0.max(size.1);
+            if r.origin.0 > eps || r.origin.1 > eps || x1 < size.0 - eps || y1 < size.1 - eps {
+                return Err(inv(format!(
+                    "raster covers x [{:.3}, {x1:.3}], y [{:.3}, {y1:.3}] m but the scene is [0, {}] × [0, {}] m",
+                    r.origin.0, r.origin.1, size.0, size.1
+                )));
+            }
+        }
+        Terrain::Tin(dt) => {
+            use spade::FloatTriangulation;
+            for (x, y) in [(0.0, 0.0), (size.0, 0.0), (0.0, size.1), (size.0, size.1)] {
+                if dt
+                    .barycentric()
+                    .interpolate(|v| v.data().p.z, Point2::new(x, y))
+                    .is_none()
+                {
+                    return Err(inv(format!(
+                        "the points' convex hull does not cover the scene corner ({x}, {y})"
+                    )));
+                }
+            }
+        }
+        Terrain::Flat(_) => {}
+    }
+    Ok(terrain)
+}
