@@ -6,8 +6,8 @@ use crate::resources::scene::{RunSettings, StageErrors};
 use crate::scene::desc::SceneDesc;
 use crate::scene::error::SceneError;
 use crate::scene::{SceneSource, load_scene};
-use crate::systems::maket::{add_maket_systems, add_plan_systems, no_stage_error};
-use crate::systems::output::{OutputDir, write_maket_products};
+use crate::systems::maket::add_plan_systems;
+use crate::systems::output::OutputDir;
 use crate::systems::spawn::spawn_scene;
 use bevy_ecs::prelude::*;
 use bevy_ecs::schedule::ScheduleLabel;
@@ -98,86 +98,20 @@ impl Simulation {
     }
 
     fn add_schedules(&mut self) {
+        use crate::systems::{direction, maket, output, phase, photon, radiative};
         for stage in Stage::ALL {
             let mut s = Schedule::new(stage);
             match stage {
-                Stage::Direction => {
-                    s.add_systems(crate::systems::direction::build_directions);
-                }
-                Stage::Phase => {
-                    s.add_systems(
-                        crate::systems::phase::tabulate_phase
-                            .run_if(resource_exists::<crate::resources::tracking::Directions>)
-                            .run_if(
-                                |s: Res<RunSettings>,
-                                 skip: Option<Res<crate::resources::scene::SkipPassive>>,
-                                 l: Option<Res<crate::resources::lidar::LidarInstruments>>| {
-                                    (skip.is_none() && s.solver.needs_phase_tables())
-                                        || l.is_some_and(|l| {
-                                            l.0.iter().any(|d| {
-                                                d.sampler
-                                                    == crate::scene::desc::LidarSampler::Discrete
-                                            })
-                                        })
-                                },
-                            ),
-                    );
-                }
-                Stage::Maket => add_maket_systems(&mut s),
-                Stage::Radiative => {
-                    s.add_systems(
-                        crate::systems::radiative::track_flux
-                            .run_if(resource_exists::<crate::resources::tracking::OpticsTables>)
-                            .run_if(resource_exists::<crate::resources::grid::CellGrid>)
-                            .run_if(|s: Res<RunSettings>| !s.solver.is_monte_carlo())
-                            .run_if(not(resource_exists::<crate::resources::scene::SkipPassive>))
-                            .run_if(no_stage_error),
-                    );
-                }
-                Stage::Photon => {
-                    s.add_systems(
-                        (
-                            crate::systems::photon::track_photons
-                                .run_if(resource_exists::<crate::resources::tracking::Directions>)
-                                .run_if(resource_exists::<crate::resources::grid::CellGrid>)
-                                .run_if(|s: Res<RunSettings>| s.solver.is_monte_carlo())
-                                .run_if(not(
-                                    resource_exists::<crate::resources::scene::SkipPassive>,
-                                ))
-                                .run_if(no_stage_error),
-                            crate::systems::lidar::run_lidars
-                                .run_if(
-                                    resource_exists::<crate::resources::lidar::LidarInstruments>,
-                                )
-                                .run_if(resource_exists::<crate::resources::tracking::Directions>)
-                                .run_if(resource_exists::<crate::resources::grid::CellGrid>)
-                                .run_if(no_stage_error),
-                        )
-                            .chain(),
-                    );
-                }
-                Stage::Output => {
-                    s.add_systems((
-                        write_maket_products
-                            .run_if(resource_exists::<OutputDir>)
-                            .run_if(resource_exists::<crate::resources::grid::CellGrid>)
-                            .run_if(resource_exists::<crate::resources::maket_report::MaketReport>)
-                            .run_if(no_stage_error),
-                        crate::systems::output::write_radiative_products
-                            .run_if(resource_exists::<OutputDir>)
-                            .run_if(
-                                resource_exists::<crate::radiative::products::RadiativeProducts>,
-                            )
-                            .run_if(no_stage_error),
-                        crate::systems::output::write_lidar_products
-                            .run_if(resource_exists::<OutputDir>)
-                            .run_if(resource_exists::<crate::resources::lidar::LidarProducts>)
-                            .run_if(no_stage_error),
-                    ));
-                }
-                // Not implemented yet: the schedule exists so that ordering is fixed; it has no
-                // systems, so it does nothing (and `run` reports it as skipped).
-                _ => {}
+                Stage::Direction => direction::add_systems(&mut s),
+                Stage::Phase => phase::add_systems(&mut s),
+                Stage::Maket => maket::add_systems(&mut s),
+                Stage::Radiative => radiative::add_systems(&mut s),
+                // The passive Monte Carlo solver, then the LiDARs.
+                Stage::Photon => photon::add_systems(&mut s),
+                Stage::Output => output::add_systems(&mut s),
+                // No systems yet: the schedule exists so that the order is fixed, and `run`
+                // reports the stage as not implemented.
+                Stage::Sensor => {}
             }
             self.world.add_schedule(s);
         }

@@ -52,3 +52,15 @@ pub fn build_directions(
         n_sectors,
     });
 }
+
+/// The Direction stage's systems.
+#[derive(SystemSet, Debug, Clone, PartialEq, Eq, Hash)]
+pub enum DirectionSystems {
+    /// Discrete directions, sun and view directions, interception slots.
+    Build,
+}
+
+/// Adds the Direction stage's systems to its schedule.
+pub fn add_systems(s: &mut Schedule) {
+    s.add_systems(build_directions.in_set(DirectionSystems::Build));
+}

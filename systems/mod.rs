@@ -15,3 +15,12 @@ pub mod phase;
 pub mod photon;
 pub mod radiative;
 pub mod spawn;
+
+use crate::resources::scene::StageErrors;
+use bevy_ecs::prelude::Res;
+
+/// Run condition: true while no system of the stage has reported an error (later systems of a
+/// stage are gated with `run_if(no_stage_error)`).
+pub fn no_stage_error(e: Res<StageErrors>) -> bool {
+    e.0.is_empty()
+}

@@ -535,3 +535,34 @@ pub fn write_lidar_products(
         errors.0.push(e);
     }
 }
+
+/// The Output stage's systems (each writes the products of one stage that ran).
+#[derive(SystemSet, Debug, Clone, PartialEq, Eq, Hash)]
+pub enum OutputSystems {
+    /// Maket, Radiative/Photon and LiDAR products.
+    Write,
+}
+
+/// Adds the Output stage's systems: each runs when an output folder is set and its stage's
+/// products exist.
+pub fn add_systems(s: &mut Schedule) {
+    use crate::systems::no_stage_error;
+    s.add_systems(
+        (
+            write_maket_products
+                .run_if(resource_exists::<OutputDir>)
+                .run_if(resource_exists::<CellGrid>)
+                .run_if(resource_exists::<MaketReport>)
+                .run_if(no_stage_error),
+            write_radiative_products
+                .run_if(resource_exists::<OutputDir>)
+                .run_if(resource_exists::<crate::radiative::products::RadiativeProducts>)
+                .run_if(no_stage_error),
+            write_lidar_products
+                .run_if(resource_exists::<OutputDir>)
+                .run_if(resource_exists::<crate::resources::lidar::LidarProducts>)
+                .run_if(no_stage_error),
+        )
+            .in_set(OutputSystems::Write),
+    );
+}

@@ -104,3 +104,34 @@ pub fn tabulate_phase(
         max_renormalisation: renorm,
     });
 }
+
+/// The Phase stage's systems.
+#[derive(SystemSet, Debug, Clone, PartialEq, Eq, Hash)]
+pub enum PhaseSystems {
+    /// Phase tables of the turbid materials the scene uses.
+    Tabulate,
+}
+
+/// True when the phase tables are needed: a passive solver that uses the discrete directions
+/// runs, or a LiDAR samples them (`sampler: Discrete`).
+fn phase_tables_needed(
+    s: Res<crate::resources::scene::RunSettings>,
+    skip: Option<Res<crate::resources::scene::SkipPassive>>,
+    l: Option<Res<crate::resources::lidar::LidarInstruments>>,
+) -> bool {
+    (skip.is_none() && s.solver.needs_phase_tables())
+        || l.is_some_and(|l| {
+            l.0.iter()
+                .any(|d| d.sampler == crate::scene::desc::LidarSampler::Discrete)
+        })
+}
+
+/// Adds the Phase stage's systems to its schedule (they run only when the tables are needed).
+pub fn add_systems(s: &mut Schedule) {
+    s.add_systems(
+        tabulate_phase
+            .in_set(PhaseSystems::Tabulate)
+            .run_if(resource_exists::<Directions>)
+            .run_if(phase_tables_needed),
+    );
+}

@@ -17,6 +17,7 @@ use crate::resources::maket_report::{MaketReport, MemoryEstimate};
 use crate::resources::materials::Materials;
 use crate::resources::scene::{RunSettings, SceneInfo, StageErrors, TerrainRes, Warnings};
 use crate::scene::desc::BoundaryMode;
+use crate::systems::no_stage_error;
 use bevy_ecs::prelude::*;
 use glam::DVec3;
 use rayon::prelude::*;
@@ -38,13 +39,8 @@ pub enum MaketSystems {
     Summarise,
 }
 
-/// True while no system has reported an error.
-pub fn no_stage_error(e: Res<StageErrors>) -> bool {
-    e.0.is_empty()
-}
-
 /// Adds the Maket systems to a schedule.
-pub fn add_maket_systems(s: &mut Schedule) {
+pub fn add_systems(s: &mut Schedule) {
     s.configure_sets(
         (
             MaketSystems::Facets,

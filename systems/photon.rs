@@ -262,3 +262,33 @@ pub fn used_turbid(
     }
     used
 }
+
+/// The Photon stage's systems, in order: the passive Monte Carlo solver, then the LiDARs (whose
+/// photon counting and fusion read the passive radiance).
+#[derive(SystemSet, Debug, Clone, PartialEq, Eq, Hash)]
+pub enum PhotonSystems {
+    /// Passive Monte Carlo (`--solver monte-carlo`).
+    Passive,
+    /// LiDAR instruments ([`crate::systems::lidar`]).
+    Lidar,
+}
+
+/// Adds the Photon stage's systems: the passive Monte Carlo solver when chosen, then every LiDAR.
+pub fn add_systems(s: &mut Schedule) {
+    s.configure_sets((PhotonSystems::Passive, PhotonSystems::Lidar).chain());
+    s.add_systems((
+        track_photons
+            .in_set(PhotonSystems::Passive)
+            .run_if(resource_exists::<Directions>)
+            .run_if(resource_exists::<CellGrid>)
+            .run_if(|s: Res<RunSettings>| s.solver.is_monte_carlo())
+            .run_if(not(resource_exists::<crate::resources::scene::SkipPassive>))
+            .run_if(crate::systems::no_stage_error),
+        crate::systems::lidar::run_lidars
+            .in_set(PhotonSystems::Lidar)
+            .run_if(resource_exists::<crate::resources::lidar::LidarInstruments>)
+            .run_if(resource_exists::<Directions>)
+            .run_if(resource_exists::<CellGrid>)
+            .run_if(crate::systems::no_stage_error),
+    ));
+}

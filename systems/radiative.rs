@@ -270,3 +270,24 @@ fn brdf_facet_tables(
         .collect();
     Ok((facet_brdf, sets?))
 }
+
+/// The Radiative stage's systems.
+#[derive(SystemSet, Debug, Clone, PartialEq, Eq, Hash)]
+pub enum RadiativeSystems {
+    /// Flux tracking (illumination, iterations, extrapolation, products).
+    Track,
+}
+
+/// Adds the Radiative stage's systems: flux tracking runs when the flux-tracking solver is chosen,
+/// the scene runs a passive solver and Maket and Phase produced their resources.
+pub fn add_systems(s: &mut Schedule) {
+    s.add_systems(
+        track_flux
+            .in_set(RadiativeSystems::Track)
+            .run_if(resource_exists::<OpticsTables>)
+            .run_if(resource_exists::<CellGrid>)
+            .run_if(|s: Res<crate::resources::scene::RunSettings>| !s.solver.is_monte_carlo())
+            .run_if(not(resource_exists::<crate::resources::scene::SkipPassive>))
+            .run_if(crate::systems::no_stage_error),
+    );
+}
