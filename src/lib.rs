@@ -30,6 +30,7 @@ pub mod direction;
 pub mod geometry;
 pub mod io;
 pub mod lidar;
+pub mod maket;
 pub mod phase;
 pub mod photon;
 pub mod physics;

@@ -151,11 +151,7 @@ impl Simulation {
     /// The Maket report available after [`Simulation::plan`] (areas, cells, memory estimate; no
     /// rasterisation), or `None` if planning did not get that far.
     pub fn plan_report(&mut self) -> Option<crate::resources::maket_report::MaketReport> {
-        use crate::components::{ImportedMesh, TurbidCrown, TurbidPlot};
-        use crate::resources::{
-            facets::FacetStore, grid::GridSpec, maket_report::MemoryEstimate, materials::Materials,
-            scene::Warnings,
-        };
+        use crate::resources::{grid::GridSpec, maket_report::MemoryEstimate};
         use bevy_ecs::system::RunSystemOnce;
         if !self.world.contains_resource::<MemoryEstimate>()
             || !self.world.contains_resource::<GridSpec>()
@@ -163,21 +159,7 @@ impl Simulation {
             return None;
         }
         self.world
-            .run_system_once(
-                |spec: Res<GridSpec>,
-                 est: Res<MemoryEstimate>,
-                 mats: Res<Materials>,
-                 facets: Res<FacetStore>,
-                 crowns: Query<&TurbidCrown>,
-                 plots: Query<&TurbidPlot>,
-                 meshes: Query<&ImportedMesh>,
-                 warnings: Res<Warnings>| {
-                    crate::systems::maket::make_report(
-                        &spec, &est, &mats, &facets, None, None, &crowns, &plots, &meshes,
-                        &warnings,
-                    )
-                },
-            )
+            .run_system_once(crate::systems::maket::plan_report)
             .ok()
     }
 

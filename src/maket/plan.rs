@@ -1,0 +1,187 @@
+//! Maket: the grid's extent (z0 = the lowest ground or object point, the top, the cell counts,
+//! the continuous-topography edge offsets) and the memory estimate, computed from bounding boxes
+//! before anything is allocated (checked against `--max-memory`).
+
+use super::TurbidObjects;
+use super::rasterise::cell_range;
+use crate::components::*;
+use crate::geometry::terrain::Terrain;
+use crate::resources::facets::{Facet, FacetStore};
+use crate::resources::grid::GridSpec;
+use crate::resources::maket_report::MemoryEstimate;
+use crate::resources::scene::SceneInfo;
+use crate::scene::desc::BoundaryMode;
+use glam::DVec3;
+
+/// The planned grid.
+pub struct GridPlan {
+    /// Grid extent and cells.
+    pub spec: GridSpec,
+    /// Memory estimate.
+    pub est: MemoryEstimate,
+    /// The refusal message when the estimate exceeds the memory limit.
+    pub over_limit: Option<String>,
+}
+
+fn turbid_bounds(
+    crowns: &[&TurbidCrown],
+    plots: &[&TurbidPlot],
+    meshes: &[&ImportedMesh],
+    terrain: &Terrain,
+) -> (f64, f64) {
+    let mut lo = f64::INFINITY;
+    let mut hi = f64::NEG_INFINITY;
+    for c in crowns {
+        lo = lo.min(c.geom.z_base);
+        hi = hi.max(c.geom.z_base + c.geom.height);
+    }
+    for p in plots {
+        for v in &p.footprint {
+            let g = terrain.height(v.x, v.y);
+            lo = lo.min(g + p.bottom);
+            hi = hi.max(g + p.top);
+        }
+    }
+    for m in meshes {
+        for v in m
+            .parts
+            .iter()
+            .filter(|p| p.as_turbid)
+            .flat_map(|p| p.triangles.iter().flatten())
+        {
+            lo = lo.min(v.z);
+            hi = hi.max(v.z);
+        }
+    }
+    (lo, hi)
+}
+
+/// The grid's extent and the memory estimate (upper bounds from bounding boxes), before any
+/// allocation. `Err` when the objects reach above the scene's height; otherwise the plan, with
+/// `over_limit` set when the estimate exceeds `max_memory_bytes` (`--max-memory`).
+pub fn plan_grid(
+    info: &SceneInfo,
+    terrain: &Terrain,
+    facets: &FacetStore,
+    max_memory_bytes: u64,
+    objects: &TurbidObjects,
+) -> Result<GridPlan, String> {
+    let TurbidObjects {
+        crowns,
+        plots,
+        meshes,
+    } = objects;
+    let (sx, sy) = info.size;
+    let (dx, dy, dz) = info.cell;
+    let ground_lo = match terrain {
+        Terrain::Flat(z) => *z,
+        t => t
+            .triangles(sx, sy)
+            .iter()
+            .flatten()
+            .map(|v| v.z)
+            .fold(f64::INFINITY, f64::min),
+    };
+    let (tl, th) = turbid_bounds(crowns, plots, meshes, terrain);
+    let (fl, fh) = facets
+        .facets
+        .iter()
+        .flat_map(|f| f.v)
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), v| {
+            (a.min(v.z), b.max(v.z))
+        });
+    let z0 = ground_lo.min(tl).min(fl);
+    let z0 = if z0.is_finite() { z0 } else { 0.0 };
+    let top = th.max(fh).max(z0 + dz);
+    let nz = match info.height {
+        Some(h) => {
+            if top > z0 + h + 1e-9 {
+                return Err(format!(
+                    "grid.height_m: objects reach {:.3} m above the lowest point, above the scene height {h} m",
+                    top - z0
+                ));
+            }
+            (h / dz).ceil().max(1.0) as usize
+        }
+        None => (((top - z0) / dz) - 1e-9).ceil().max(1.0) as usize,
+    };
+    let n = [(sx / dx).round() as usize, (sy / dy).round() as usize, nz];
+    let topography_offset = if info.boundary == BoundaryMode::RepetitiveContinuousTopography {
+        terrain.edge_offsets(sx, sy)
+    } else {
+        (0.0, 0.0)
+    };
+    let spec = GridSpec {
+        n,
+        cell: DVec3::new(dx, dy, dz),
+        origin: DVec3::new(0.0, 0.0, z0),
+        subcells: info.subcells,
+        boundary: info.boundary,
+        topography_offset,
+    };
+    // Memory estimate (upper bounds from bounding boxes), before any allocation.
+    let n_cells = spec.n_cells() as u64;
+    let bbox_cells = |lo: DVec3, hi: DVec3| -> u64 {
+        let (a, b) = cell_range(lo.x, hi.x, 0.0, dx);
+        let (c, d) = cell_range(lo.y, hi.y, 0.0, dy);
+        let (e, f) = cell_range(lo.z, hi.z, z0, dz);
+        ((b - a) * (d - c) * (f - e)) as u64
+    };
+    let mut turbid_max = 0u64;
+    for c in crowns.iter() {
+        let b = c.geom.bounds();
+        turbid_max += bbox_cells(DVec3::new(b[0], b[1], b[2]), DVec3::new(b[3], b[4], b[5]));
+    }
+    for p in plots.iter() {
+        let (lo, hi) = p.footprint_bounds();
+        turbid_max += bbox_cells(lo.extend(z0), hi.extend(top));
+    }
+    for m in meshes.iter() {
+        for t in m
+            .parts
+            .iter()
+            .filter(|p| p.as_turbid)
+            .flat_map(|p| &p.triangles)
+        {
+            turbid_max += bbox_cells(t[0].min(t[1]).min(t[2]), t[0].max(t[1]).max(t[2]));
+        }
+    }
+    let refs_max: u64 = facets
+        .facets
+        .iter()
+        .map(|f| {
+            bbox_cells(
+                f.v[0].min(f.v[1]).min(f.v[2]),
+                f.v[0].max(f.v[1]).max(f.v[2]),
+            )
+        })
+        .sum();
+    let nf = facets.facets.len() as u64;
+    let cell_index_bytes = 8 * (n_cells + 1);
+    let facet_bytes = nf * (std::mem::size_of::<Facet>() as u64 + 36 + 64);
+    // Build buffers: (cell, material, area) triples of 16 B and (cell, facet) pairs of 8 B.
+    let peak = cell_index_bytes + turbid_max * (8 + 16) + refs_max * (4 + 8) + facet_bytes;
+    let est = MemoryEstimate {
+        cell_index_bytes,
+        turbid_entries_max: turbid_max,
+        facet_refs_max: refs_max,
+        facet_bytes,
+        peak_bytes: peak,
+        limit_bytes: max_memory_bytes,
+    };
+    let over_limit = (peak > max_memory_bytes).then(|| {
+        format!(
+            "the grid of {} × {} × {} cells needs an estimated {:.2} GiB, above the limit of {:.2} GiB (--max-memory): use larger cells or a smaller scene",
+            n[0],
+            n[1],
+            n[2],
+            peak as f64 / (1u64 << 30) as f64,
+            max_memory_bytes as f64 / (1u64 << 30) as f64
+        )
+    });
+    Ok(GridPlan {
+        spec,
+        est,
+        over_limit,
+    })
+}
