@@ -13,6 +13,7 @@ use crate::components::{Ground, ImportedMesh, TurbidCrown, TurbidPlot};
 use crate::geometry::terrain::Terrain;
 use crate::lidar::simulate::{DEFAULT_CHUNK_PULSES, LidarChunks, PassiveRadiance, simulate_lidar};
 use crate::photon::engine::{PhotonInput, PhotonParams, SamplerKind};
+use crate::photon::material_optics::build_photon_optics;
 use crate::radiative::products::RadiativeProducts;
 use crate::resources::facets::{FacetKind, FacetStore};
 use crate::resources::grid::{CellGrid, GridSpec};
@@ -21,7 +22,7 @@ use crate::resources::materials::Materials;
 use crate::resources::scene::{SceneInfo, StageErrors, TerrainRes};
 use crate::resources::tracking::{Directions, OpticsTables};
 use crate::scene::desc::LidarSampler;
-use crate::systems::photon::{LadOpticsCache, build_photon_optics, used_turbid};
+use crate::systems::photon::{LadOpticsCache, used_turbid};
 use crate::systems::radiative::ImageDirections;
 use bevy_ecs::prelude::*;
 
@@ -179,7 +180,7 @@ pub fn run_lidars(
             LidarSampler::Continuous => (1, SamplerKind::Continuous),
         };
         if built[slot].is_none() {
-            match build_photon_optics(&mats, &used, tables.as_deref(), kind, nb, &mut cache) {
+            match build_photon_optics(&mats, &used, tables.as_deref(), kind, nb, &mut cache.0) {
                 Ok(o) => built[slot] = Some(o),
                 Err(e) => {
                     errors.0.push(format!("lidar `{}`: {e}", l.name));

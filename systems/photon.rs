@@ -9,59 +9,21 @@
 
 use crate::components::{Ground, ImportedMesh, TurbidCrown, TurbidPlot};
 use crate::geometry::terrain::Terrain;
-use crate::photon::engine::{DiscreteRows, PhotonInput, PhotonOptics, PhotonParams, run};
+use crate::photon::engine::{PhotonInput, PhotonParams, run};
+use crate::photon::material_optics::{LadCache, build_photon_optics};
 use crate::photon::products::photon_products;
-use crate::photon::sampling::{BrdfSampler, LeafSampler};
-use crate::physics::lad::{GTable, LeafAngleDistribution, VolscattKernel};
-use crate::radiative::engine::TrackOptics;
 use crate::resources::facets::{FacetKind, FacetStore};
 use crate::resources::grid::{CellGrid, GridSpec};
-use crate::resources::materials::{MaterialKind, Materials};
+use crate::resources::materials::Materials;
 use crate::resources::scene::{RunSettings, SceneInfo, Solver, StageErrors, TerrainRes};
 use crate::resources::tracking::{Directions, OpticsTables};
-use crate::scene::desc::LadDesc;
 use bevy_ecs::prelude::*;
-use std::sync::Arc;
 
-/// Inclination bins of the Γ kernel used for peel-off values of non-spherical LADs (the
-/// spherical LAD uses its closed form); the binning error is O(n⁻²) (physics.md §3.3).
-pub const PEEL_LAD_BINS: usize = 180;
-/// Intervals of the G(μ) table (interpolation error ≈ 1e-8 for the classical LADs).
-pub const G_TABLE_INTERVALS: usize = 4096;
-
-/// The LAD-derived part of a turbid material's photon optics (leaf-normal sampler, Γ kernel,
-/// G table), by far the costly part of [`build_photon_optics`]: the G table alone is
-/// [`G_TABLE_INTERVALS`]` + 1` tanh–sinh quadratures (≈320 M instructions for a non-spherical
-/// LAD). Built once per LAD and run, and shared by the passive Monte Carlo solver and every
-/// LiDAR instrument of the Photon stage (keyed by the LAD itself, so materials with the same
-/// LAD share one entry). Inserted empty by [`crate::simulation::Simulation`].
+/// The LAD-derived photon optics shared by the passive Monte Carlo solver and every LiDAR
+/// instrument of the Photon stage ([`LadCache`]). Inserted empty by
+/// [`crate::simulation::Simulation`].
 #[derive(Default, Resource)]
-pub struct LadOpticsCache(Vec<(LadDesc, Arc<LadOptics>)>);
-
-/// One entry of [`LadOpticsCache`].
-#[derive(Debug)]
-pub struct LadOptics {
-    sampler: LeafSampler,
-    kernel: VolscattKernel,
-    g: GTable,
-}
-
-impl LadOpticsCache {
-    /// The optics of `lad`, built on first use.
-    fn get(&mut self, lad: &LadDesc) -> Result<Arc<LadOptics>, String> {
-        if let Some((_, o)) = self.0.iter().find(|(l, _)| l == lad) {
-            return Ok(o.clone());
-        }
-        let d = LeafAngleDistribution::new(lad).map_err(|e| e.to_string())?;
-        let o = Arc::new(LadOptics {
-            sampler: LeafSampler::new(&d).map_err(|e| e.to_string())?,
-            kernel: VolscattKernel::new(&d, PEEL_LAD_BINS, false),
-            g: GTable::new(&d, G_TABLE_INTERVALS),
-        });
-        self.0.push((lad.clone(), o.clone()));
-        Ok(o)
-    }
-}
+pub struct LadOpticsCache(pub LadCache);
 
 /// Photon · reads the Maket grid, directions, materials and illumination · writes
 /// RadiativeProducts.
@@ -89,14 +51,14 @@ pub fn track_photons(
     };
     let nb = info.bands.len();
     let used = used_turbid(mats.list.len(), &crowns, &plots, &meshes);
-    let optics = match build_photon_optics(&mats, &used, tables.as_deref(), sampler, nb, &mut cache)
-    {
-        Ok(o) => o,
-        Err(e) => {
-            errors.0.push(e);
-            return;
-        }
-    };
+    let optics =
+        match build_photon_optics(&mats, &used, tables.as_deref(), sampler, nb, &mut cache.0) {
+            Ok(o) => o,
+            Err(e) => {
+                errors.0.push(e);
+                return;
+            }
+        };
     let flat_ground = match (&terrain.0, grounds.iter().next()) {
         (Terrain::Flat(_), Some(g)) => Some(g.optics),
         _ => None,
@@ -160,85 +122,6 @@ pub fn track_photons(
         &ground_facet,
         secs,
     ));
-}
-
-/// Photon-tracker optics of every material (`used[id]`: turbid materials a component uses);
-/// the LAD-derived parts come from (and go into) `cache`.
-pub fn build_photon_optics(
-    mats: &Materials,
-    used: &[bool],
-    tables: Option<&OpticsTables>,
-    sampler: crate::photon::engine::SamplerKind,
-    nb: usize,
-    cache: &mut LadOpticsCache,
-) -> Result<Vec<PhotonOptics>, String> {
-    let mut optics = Vec::with_capacity(mats.list.len());
-    for (id, m) in mats.list.iter().enumerate() {
-        let o = match &m.kind {
-            MaterialKind::Turbid {
-                reflectance,
-                transmittance,
-                lad,
-                specular,
-                leaf_size_m,
-            } if used[id] => {
-                if specular.is_some() {
-                    return Err(format!(
-                        "material `{}`: specular leaves are not supported by the Monte Carlo solver yet (use the flux-tracking solver)",
-                        m.name
-                    ));
-                }
-                let lo = cache
-                    .get(lad)
-                    .map_err(|e| format!("material `{}`: {e}", m.name))?;
-                let discrete = if sampler.is_discrete() {
-                    let Some(TrackOptics::Turbid { tables, .. }) =
-                        tables.and_then(|t| t.optics.get(id))
-                    else {
-                        return Err(format!(
-                            "material `{}`: discrete Monte Carlo needs the Phase tables",
-                            m.name
-                        ));
-                    };
-                    match DiscreteRows::new(tables.clone(), sampler) {
-                        Ok(r) => Some(r),
-                        Err(e) => {
-                            return Err(format!("material `{}`: {e}", m.name));
-                        }
-                    }
-                } else {
-                    None
-                };
-                PhotonOptics::Turbid {
-                    sampler: lo.sampler.clone(),
-                    kernel: lo.kernel.clone(),
-                    g: lo.g.clone(),
-                    rho: reflectance.clone(),
-                    tau: transmittance.clone(),
-                    discrete,
-                    leaf_size_m: *leaf_size_m,
-                }
-            }
-            MaterialKind::Lambertian { .. } | MaterialKind::Leaf { .. } => {
-                let (r, t, t_dir) = m.kind.lambert_parts().expect("Lambertian kind");
-                PhotonOptics::Lambert { r, t, t_dir }
-            }
-            k @ (MaterialKind::Rpv(_) | MaterialKind::Hapke(_)) => {
-                let models = k.brdf_models(nb).expect("RPV/Hapke");
-                // The sampler follows band 0's BRDF; other bands are reweighted (unbiased:
-                // RPV and Hapke BRFs are positive wherever band 0's is).
-                match BrdfSampler::new(&models[0], Default::default()) {
-                    Ok(sampler) => PhotonOptics::Brdf { models, sampler },
-                    Err(e) => {
-                        return Err(format!("material `{}`: {e}", m.name));
-                    }
-                }
-            }
-            _ => PhotonOptics::Unused,
-        };
-        optics.push(o);
-    }
-    Ok(optics)
 }
 
 /// Turbid materials used by crowns, plots and turbid meshes.

@@ -1,12 +1,71 @@
-//! Layout rule (design.md §2): only `src/simulation.rs` (and the `#[path]` declaration in
-//! `lib.rs`) refer to the stage systems; everything else goes through the simulation, the
-//! resources and the pure modules, so stages can be rescheduled without touching callers.
+//! The floor plan's rules (docs/architecture.md), checked on the source text so that a change that
+//! breaks them fails here with the file and the line, not in a reviewer's head:
+//! - the top-level modules form layers, and a module imports only from the layers below it (so
+//!   there is no import circle);
+//! - each DART stage has its engine in `src/<stage>/` with no ECS machinery, and its glue in
+//!   `systems/<stage>.rs`, which exports the stage's system set; only `src/simulation.rs`
+//!   imports `systems`;
+//! - every source file opens with a `//!` doc; files stay under ~1 500 lines (the few larger ones
+//!   are listed below with the reason); only the command line reads environment variables.
 
-use std::path::Path;
+use std::collections::{BTreeMap, BTreeSet};
+use std::path::{Path, PathBuf};
 
-fn rust_files(dir: &Path, out: &mut Vec<std::path::PathBuf>) {
-    for e in std::fs::read_dir(dir).unwrap() {
-        let p = e.unwrap().path();
+/// The top-level modules of the crate, lowest layer first. A module may import (`crate::x`)
+/// only modules that come before it here.
+const LAYERS: &[&str] = &[
+    "random",     // seeded streams
+    "io",         // file formats (CSV text, meshes, EXR, LAS, atomic writes)
+    "physics",    // pure formulas: LAD/G/Γ, phase functions, BRDFs, PROSPECT, SRFs, sun
+    "geometry",   // shapes, crowns, terrain, triangles, polygons, quadrature
+    "direction",  // Direction engine: the discrete directions
+    "phase",      // Phase engine: phase tables over the directions
+    "scene",      // RON scene format: authoring types, validation, generators, raster input
+    "resources",  // data shared between stages (grid, facets, materials, settings)
+    "components", // plain data on entities
+    "maket",      // Maket engine: objects → cell grid
+    "radiative",  // Radiative engine: flux tracking
+    "photon",     // Photon engine: Monte Carlo
+    "lidar",      // LiDAR engine (on top of the photon walk)
+    "output",     // product writers
+    "systems",    // ECS glue, one file per stage
+    "simulation", // the World and the stage loop
+    "cli",        // the command line
+];
+
+/// Engine folders: plain functions over data, no ECS machinery.
+const ENGINES: &[&str] = &[
+    "random",
+    "io",
+    "physics",
+    "geometry",
+    "direction",
+    "phase",
+    "scene",
+    "maket",
+    "radiative",
+    "photon",
+    "lidar",
+    "output",
+];
+
+/// Files allowed above the size limit, with the reason. An entry that no longer exists or has
+/// come under the limit fails the test, so the list only shrinks.
+const LARGE_FILES: &[(&str, &str)] = &[];
+
+const MAX_LINES: usize = 1500;
+
+fn root() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+}
+
+fn rust_files(dir: &Path, out: &mut Vec<PathBuf>) {
+    let mut entries: Vec<_> = std::fs::read_dir(dir)
+        .unwrap_or_else(|e| panic!("{}: {e}", dir.display()))
+        .map(|e| e.unwrap().path())
+        .collect();
+    entries.sort();
+    for p in entries {
         if p.is_dir() {
             rust_files(&p, out);
         } else if p.extension().is_some_and(|x| x == "rs") {
@@ -15,26 +74,314 @@ fn rust_files(dir: &Path, out: &mut Vec<std::path::PathBuf>) {
     }
 }
 
-#[test]
-fn only_simulation_rs_imports_the_systems() {
-    let root = Path::new(env!("CARGO_MANIFEST_DIR"));
+/// Every source file of the crate with its top-level module (`systems` for `systems/`).
+fn sources() -> Vec<(String, PathBuf, String)> {
     let mut files = Vec::new();
-    for d in ["src", "tests", "benches"] {
-        rust_files(&root.join(d), &mut files);
+    rust_files(&root().join("src"), &mut files);
+    rust_files(&root().join("systems"), &mut files);
+    files
+        .into_iter()
+        .filter_map(|p| {
+            let rel = p.strip_prefix(root()).unwrap().to_path_buf();
+            let parts: Vec<String> = rel
+                .components()
+                .map(|c| c.as_os_str().to_string_lossy().into_owned())
+                .collect();
+            let module = if parts[0] == "systems" {
+                "systems".to_string()
+            } else if parts[1] == "lib.rs" || parts[1] == "bin" {
+                return None;
+            } else {
+                parts[1].trim_end_matches(".rs").to_string()
+            };
+            let text = std::fs::read_to_string(&p).unwrap();
+            Some((module, rel, text))
+        })
+        .collect()
+}
+
+/// The code lines of a file (1-based line numbers): comments stripped, unit-test modules left out.
+fn code_lines(text: &str) -> Vec<(usize, String)> {
+    let mut out = Vec::new();
+    for (i, line) in text.lines().enumerate() {
+        if line.trim_start().starts_with("#[cfg(test)]") {
+            break;
+        }
+        let code = line.split("//").next().unwrap_or("");
+        out.push((i + 1, code.to_string()));
     }
-    let mut offenders = Vec::new();
-    for f in files {
-        let rel = f.strip_prefix(root).unwrap().to_string_lossy().to_string();
-        if rel == "src/simulation.rs" || rel == "src/lib.rs" || rel == "tests/architecture.rs" {
+    out
+}
+
+/// `crate::m` references of each code line.
+fn crate_refs(line: &str) -> Vec<String> {
+    let mut refs = Vec::new();
+    let mut rest = line;
+    while let Some(k) = rest.find("crate::") {
+        let tail = &rest[k + "crate::".len()..];
+        let name: String = tail
+            .chars()
+            .take_while(|c| c.is_alphanumeric() || *c == '_')
+            .collect();
+        let before = rest[..k].chars().last();
+        if !before.is_some_and(|c| c.is_alphanumeric() || c == '_') && !name.is_empty() {
+            refs.push(name);
+        }
+        rest = tail;
+    }
+    refs
+}
+
+#[test]
+fn every_module_has_a_layer() {
+    let known: BTreeSet<&str> = LAYERS.iter().copied().collect();
+    let missing: BTreeSet<String> = sources()
+        .into_iter()
+        .map(|(m, _, _)| m)
+        .filter(|m| !known.contains(m.as_str()))
+        .collect();
+    assert!(
+        missing.is_empty(),
+        "modules without a place in tests/architecture.rs LAYERS: {missing:?}"
+    );
+}
+
+#[test]
+fn modules_import_only_from_lower_layers() {
+    let rank: BTreeMap<&str, usize> = LAYERS.iter().enumerate().map(|(i, m)| (*m, i)).collect();
+    let mut bad = Vec::new();
+    for (module, path, text) in sources() {
+        let Some(&own) = rank.get(module.as_str()) else {
+            continue;
+        };
+        for (line, code) in code_lines(&text) {
+            for target in crate_refs(&code) {
+                if target == module {
+                    continue;
+                }
+                if let Some(&t) = rank.get(target.as_str())
+                    && t > own
+                {
+                    bad.push(format!(
+                        "{}:{line}: `{module}` imports `{target}` (a higher layer)",
+                        path.display()
+                    ));
+                }
+            }
+        }
+    }
+    assert!(bad.is_empty(), "upward imports:\n{}", bad.join("\n"));
+}
+
+#[test]
+fn the_module_graph_has_no_cycle() {
+    let mut graph: BTreeMap<String, BTreeSet<String>> = BTreeMap::new();
+    let names: BTreeSet<String> = sources().into_iter().map(|(m, _, _)| m).collect();
+    for (module, _, text) in sources() {
+        for (_, code) in code_lines(&text) {
+            for t in crate_refs(&code) {
+                if t != module && names.contains(&t) {
+                    graph.entry(module.clone()).or_default().insert(t);
+                }
+            }
+        }
+    }
+    // Depth-first search with colours; report one cycle.
+    fn visit(
+        n: &str,
+        g: &BTreeMap<String, BTreeSet<String>>,
+        state: &mut BTreeMap<String, u8>,
+        stack: &mut Vec<String>,
+    ) -> Option<Vec<String>> {
+        state.insert(n.to_string(), 1);
+        stack.push(n.to_string());
+        for m in g.get(n).into_iter().flatten() {
+            match state.get(m.as_str()).copied().unwrap_or(0) {
+                1 => {
+                    let k = stack.iter().position(|s| s == m).unwrap();
+                    let mut c = stack[k..].to_vec();
+                    c.push(m.clone());
+                    return Some(c);
+                }
+                0 => {
+                    if let Some(c) = visit(m, g, state, stack) {
+                        return Some(c);
+                    }
+                }
+                _ => {}
+            }
+        }
+        stack.pop();
+        state.insert(n.to_string(), 2);
+        None
+    }
+    let mut state = BTreeMap::new();
+    for n in &names {
+        if state.get(n.as_str()).copied().unwrap_or(0) == 0 {
+            let cycle = visit(n, &graph, &mut state, &mut Vec::new());
+            assert!(
+                cycle.is_none(),
+                "import circle: {}",
+                cycle.unwrap().join(" → ")
+            );
+        }
+    }
+}
+
+#[test]
+fn engines_hold_no_ecs_machinery() {
+    // A `Resource`/`Component` derive on a data type is allowed; systems, queries, commands,
+    // worlds and schedules belong in systems/ and simulation.rs.
+    const FORBIDDEN: &[&str] = &[
+        "Query<",
+        "Res<",
+        "ResMut<",
+        "Commands",
+        "World",
+        "Schedule",
+        "SystemSet",
+        "bevy_ecs::system",
+        "bevy_ecs::world",
+        "run_if",
+    ];
+    let mut bad = Vec::new();
+    for (module, path, text) in sources() {
+        if !ENGINES.contains(&module.as_str()) {
             continue;
         }
-        let text = std::fs::read_to_string(&f).unwrap();
-        if text.contains("crate::systems") || text.contains("lumenscape::systems") {
-            offenders.push(rel);
+        for (line, code) in code_lines(&text) {
+            for f in FORBIDDEN {
+                if code.contains(f) {
+                    bad.push(format!("{}:{line}: `{f}`", path.display()));
+                }
+            }
         }
     }
     assert!(
-        offenders.is_empty(),
-        "these files import the stage systems directly: {offenders:?}"
+        bad.is_empty(),
+        "ECS machinery in engine code:\n{}",
+        bad.join("\n")
     );
+}
+
+#[test]
+fn each_stage_has_an_engine_folder_and_a_systems_file() {
+    for stage in [
+        "direction",
+        "phase",
+        "maket",
+        "radiative",
+        "photon",
+        "lidar",
+    ] {
+        let engine = root().join("src").join(stage).join("mod.rs");
+        assert!(engine.exists(), "missing engine {}", engine.display());
+        let glue = root().join("systems").join(format!("{stage}.rs"));
+        assert!(glue.exists(), "missing glue {}", glue.display());
+    }
+    // Every stage's glue exports its system set and the function the stage loop calls.
+    for stage in [
+        "direction",
+        "phase",
+        "maket",
+        "radiative",
+        "photon",
+        "output",
+    ] {
+        let path = root().join("systems").join(format!("{stage}.rs"));
+        let text = std::fs::read_to_string(&path).unwrap();
+        assert!(
+            text.contains("pub fn add_systems(s: &mut Schedule)"),
+            "{} exports no add_systems",
+            path.display()
+        );
+        assert!(
+            text.contains("#[derive(SystemSet"),
+            "{} exports no system set",
+            path.display()
+        );
+    }
+}
+
+#[test]
+fn only_the_simulation_imports_systems() {
+    let mut bad = Vec::new();
+    for (module, path, text) in sources() {
+        if module == "systems" || module == "simulation" {
+            continue;
+        }
+        for (line, code) in code_lines(&text) {
+            if crate_refs(&code).iter().any(|r| r == "systems") {
+                bad.push(format!("{}:{line}", path.display()));
+            }
+        }
+    }
+    // Tests, benches and users go through the simulation too.
+    let mut files = Vec::new();
+    rust_files(&root().join("tests"), &mut files);
+    rust_files(&root().join("benches"), &mut files);
+    for f in files {
+        if f.ends_with("tests/architecture.rs") {
+            continue;
+        }
+        let text = std::fs::read_to_string(&f).unwrap();
+        if text.contains("lumenscape::systems") {
+            bad.push(f.strip_prefix(root()).unwrap().display().to_string());
+        }
+    }
+    assert!(bad.is_empty(), "imports of systems:\n{}", bad.join("\n"));
+}
+
+#[test]
+fn every_source_file_opens_with_its_doc() {
+    let bad: Vec<String> = sources()
+        .into_iter()
+        .filter(|(_, _, text)| !text.trim_start().starts_with("//!"))
+        .map(|(_, p, _)| p.display().to_string())
+        .collect();
+    assert!(bad.is_empty(), "files without a `//!` opening doc: {bad:?}");
+}
+
+#[test]
+fn files_stay_under_the_size_limit() {
+    let mut bad = Vec::new();
+    let sizes: BTreeMap<String, usize> = sources()
+        .into_iter()
+        .map(|(_, p, t)| (p.display().to_string(), t.lines().count()))
+        .collect();
+    for (p, n) in &sizes {
+        if *n > MAX_LINES && !LARGE_FILES.iter().any(|(f, _)| f == p) {
+            bad.push(format!("{p}: {n} lines"));
+        }
+    }
+    for (f, _) in LARGE_FILES {
+        match sizes.get(*f) {
+            None => bad.push(format!("{f}: listed in LARGE_FILES but gone")),
+            Some(&n) if n <= MAX_LINES => {
+                bad.push(format!("{f}: {n} lines, take it off LARGE_FILES"))
+            }
+            _ => {}
+        }
+    }
+    assert!(
+        bad.is_empty(),
+        "over {MAX_LINES} lines:\n{}",
+        bad.join("\n")
+    );
+}
+
+#[test]
+fn only_the_command_line_reads_the_environment() {
+    let mut bad = Vec::new();
+    for (module, path, text) in sources() {
+        if module == "cli" {
+            continue;
+        }
+        for (line, code) in code_lines(&text) {
+            if code.contains("env::var") {
+                bad.push(format!("{}:{line}", path.display()));
+            }
+        }
+    }
+    assert!(bad.is_empty(), "environment reads:\n{}", bad.join("\n"));
 }
