@@ -1,0 +1,381 @@
+//! Passive-solver products (flux tracking or Monte Carlo): `summary.json` (per band albedo,
+//! fabs, ftran, energy closure, BRF/HDRF per upward direction, standard errors for Monte Carlo),
+//! `brf.csv`, the radiative budget (`budget/cells.csv`, `budget/layers.csv`,
+//! `budget/elements.csv`) and the orthographic images (`images/view_*.exr` with one channel per
+//! band, PNG quick-looks).
+
+use crate::io::atomic::write_atomic;
+use crate::io::exr_out::{ExrLayer, ExrMeta, write_exr_layers_with};
+use crate::resources::facets::FacetStore;
+use crate::resources::grid::{CellGrid, GridSpec};
+use crate::resources::materials::Materials;
+use std::fmt::Write as _;
+
+/// Writes `summary.json`, `brf.csv`, the radiative budget (`budget/`) and the orthographic
+/// images (`images/`) of a passive solver's products into `dir` (atomic writes).
+#[allow(clippy::too_many_arguments)]
+pub fn write_radiative(
+    dir: &std::path::Path,
+    p: &crate::radiative::products::RadiativeProducts,
+    info: &crate::resources::scene::SceneInfo,
+    settings: &crate::resources::tracking::RadiativeSettings,
+    dirs: &crate::resources::tracking::Directions,
+    spec: &GridSpec,
+    grid: &CellGrid,
+    facets: &FacetStore,
+    mats: &Materials,
+) -> Result<(), String> {
+    std::fs::create_dir_all(dir.join("budget"))
+        .map_err(|e| format!("{}: cannot create output folder: {e}", dir.display()))?;
+    let summary = serde_json::json!({
+        "schema_version": 1,
+        "lumenscape_version": env!("CARGO_PKG_VERSION"),
+        "scene": info.name,
+        "scene_file": info.source.display().to_string(),
+        "settings": {
+            "preset": format!("{:?}", settings.preset),
+            "tracking": settings.tracking,
+            "per_direction_stores": settings.per_direction_stores,
+            "image_oversampling": settings.image_oversampling,
+            // What the walks ran on (products of runs with the same batch lanes are the same
+            // bits; 8 and 4 lanes differ in the last bits, 16 (single-precision geometry) from
+            // those by ~3e-7, see `TrackingParams::kernel_isa` and `batch_f32`).
+            "instruction_set": crate::radiative::engine::instruction_set(settings.tracking.kernel_isa),
+            "batch_lanes": if settings.tracking.batch_walk {
+                crate::radiative::engine::batch_lanes(
+                    settings.tracking.kernel_isa,
+                    settings.tracking.batch_f32,
+                )
+            } else {
+                1
+            },
+            "directions": dirs.set.tiling().len(),
+            "sectors": dirs.n_sectors,
+            "sun_zenith_deg": info.illumination.sun_zenith_deg,
+            "sun_azimuth_deg": info.illumination.sun_azimuth_deg,
+        },
+        "solver": p.solver,
+        "monte_carlo": p.monte_carlo,
+        "launch": p.launch,
+        "images": (!p.raw.images.is_empty()).then_some(p.raw.image_grid),
+        "iterations": p.iterations,
+        "converged": p.converged,
+        "extrapolation_ratio": p.extrapolation_ratio,
+        "rays": p.rays,
+        "cell_crossings": p.crossings,
+        "tracking_seconds": p.tracking_seconds,
+        "bands": p.bands,
+    });
+    write_atomic(
+        &dir.join("summary.json"),
+        serde_json::to_string_pretty(&summary)
+            .map_err(|e| e.to_string())?
+            .as_bytes(),
+    )?;
+    // Monte Carlo runs add standard errors and the estimator of each value.
+    let mc = p.monte_carlo.is_some();
+    let mut csv = String::from("band,zenith_deg,azimuth_deg,solid_angle_sr,kind,brf,hdrf");
+    csv.push_str(if mc {
+        ",brf_se,hdrf_se,estimator\n"
+    } else {
+        "\n"
+    });
+    let opt = |x: Option<f64>| x.map_or(String::new(), |h| format!("{h:.8}"));
+    for b in &p.bands {
+        for e in &b.brf {
+            let _ = write!(
+                csv,
+                "{},{:.6},{:.6},{:.6e},{},{:.8},{}",
+                b.band,
+                e.zenith_deg,
+                e.azimuth_deg,
+                e.solid_angle_sr,
+                e.kind,
+                e.brf,
+                opt(e.hdrf)
+            );
+            if mc {
+                let _ = write!(
+                    csv,
+                    ",{},{},{}",
+                    opt(e.brf_se),
+                    opt(e.hdrf_se),
+                    e.estimator.unwrap_or("")
+                );
+            }
+            csv.push('\n');
+        }
+    }
+    write_atomic(&dir.join("brf.csv"), csv.as_bytes())?;
+    // Radiative budget per cell: absorbed and intercepted power per band, normalised by the
+    // incident power on the cell's horizontal area (physics.md §6.7 [rec]).
+    let raw = &p.raw;
+    let (w, nb) = (raw.n_channels, raw.n_bands);
+    let col_area = spec.cell.x * spec.cell.y;
+    let scene_area = col_area * (spec.n[0] * spec.n[1]) as f64;
+    let src_per_m2: Vec<f64> = (0..nb)
+        .map(|b| (raw.source[b] + if raw.has_sky { raw.source[nb + b] } else { 0.0 }) / scene_area)
+        .collect();
+    let band_sum = |v: &[f64], e: usize, b: usize| {
+        v[e * w + b] + if raw.has_sky { v[e * w + nb + b] } else { 0.0 }
+    };
+    let mut cells = String::from("i,j,k,band,fabs,fintercepted\n");
+    let mut layers = vec![vec![[0.0f64; 2]; nb]; spec.n[2]];
+    // A facet's budget is shared among the cells it crosses in proportion to its area inside
+    // each (exact clipping; normalised so a facet lying in a cell face is not counted twice).
+    let has_facets = !grid.facet_start.is_empty() && !facets.facets.is_empty();
+    let mut ref_share = vec![0.0; if has_facets { grid.facet_ids.len() } else { 0 }];
+    if has_facets {
+        let mut total = vec![0.0; facets.facets.len()];
+        for c in 0..spec.n_cells() {
+            let [i, j, k] = spec.ijk(c);
+            let (lo, hi) = spec.cell_box(i as i64, j as i64, k as i64);
+            for r in grid.facet_start[c] as usize..grid.facet_start[c + 1] as usize {
+                let f = grid.facet_ids[r] as usize;
+                let a = crate::geometry::triangle::polygon_area(
+                    &crate::geometry::triangle::clip_to_box(&facets.facets[f].v, lo, hi),
+                );
+                ref_share[r] = a;
+                total[f] += a;
+            }
+        }
+        for r in 0..grid.facet_ids.len() {
+            let t = total[grid.facet_ids[r] as usize];
+            ref_share[r] = if t > 0.0 { ref_share[r] / t } else { 0.0 };
+        }
+    }
+    for c in 0..spec.n_cells() {
+        let [i, j, k] = spec.ijk(c);
+        let mut a = vec![0.0; nb];
+        let mut x = vec![0.0; nb];
+        for e in grid.turbid_start[c] as usize..grid.turbid_start[c + 1] as usize {
+            for b in 0..nb {
+                a[b] += band_sum(&raw.absorbed_turbid, e, b);
+                x[b] += band_sum(&raw.intercepted_turbid, e, b);
+            }
+        }
+        if has_facets {
+            for r in grid.facet_start[c] as usize..grid.facet_start[c + 1] as usize {
+                let f = grid.facet_ids[r] as usize;
+                for b in 0..nb {
+                    a[b] += ref_share[r] * band_sum(&raw.absorbed_facet, f, b);
+                    x[b] += ref_share[r] * band_sum(&raw.intercepted_facet, f, b);
+                }
+            }
+        }
+        if k == 0 && !raw.absorbed_ground.is_empty() {
+            // The flat ground belongs to the bottom cell of its column.
+            let col = i + spec.n[0] * j;
+            for b in 0..nb {
+                a[b] += band_sum(&raw.absorbed_ground, col, b);
+                x[b] += band_sum(&raw.intercepted_ground, col, b);
+            }
+        }
+        for b in 0..nb {
+            if a[b] != 0.0 || x[b] != 0.0 {
+                let norm = src_per_m2[b] * col_area;
+                let _ = writeln!(
+                    cells,
+                    "{i},{j},{k},{},{:.8e},{:.8e}",
+                    info.bands[b].name,
+                    a[b] / norm,
+                    x[b] / norm
+                );
+                layers[k][b][0] += a[b] / (src_per_m2[b] * scene_area);
+                layers[k][b][1] += x[b] / (src_per_m2[b] * scene_area);
+            }
+        }
+    }
+    write_atomic(&dir.join("budget/cells.csv"), cells.as_bytes())?;
+    let mut lay = String::from("k,z_bottom_m,z_top_m,band,fabs,fintercepted\n");
+    for (k, l) in layers.iter().enumerate() {
+        for (b, v) in l.iter().enumerate() {
+            let z0 = spec.origin.z + k as f64 * spec.cell.z;
+            let _ = writeln!(
+                lay,
+                "{k},{z0:.4},{:.4},{},{:.8e},{:.8e}",
+                z0 + spec.cell.z,
+                info.bands[b].name,
+                v[0],
+                v[1]
+            );
+        }
+    }
+    write_atomic(&dir.join("budget/layers.csv"), lay.as_bytes())?;
+    // Per element type and material.
+    let mut el: std::collections::BTreeMap<(String, String), Vec<[f64; 2]>> = Default::default();
+    for (e, t) in grid.turbid.iter().enumerate() {
+        let v = el
+            .entry(("turbid".into(), mats.list[t.material as usize].name.clone()))
+            .or_insert_with(|| vec![[0.0; 2]; nb]);
+        for b in 0..nb {
+            v[b][0] += band_sum(&raw.absorbed_turbid, e, b);
+            v[b][1] += band_sum(&raw.intercepted_turbid, e, b);
+        }
+    }
+    for (fi, f) in facets.facets.iter().enumerate() {
+        let v = el
+            .entry((
+                format!("{:?}", f.kind).to_lowercase(),
+                mats.list[f.material as usize].name.clone(),
+            ))
+            .or_insert_with(|| vec![[0.0; 2]; nb]);
+        for b in 0..nb {
+            v[b][0] += band_sum(&raw.absorbed_facet, fi, b);
+            v[b][1] += band_sum(&raw.intercepted_facet, fi, b);
+        }
+    }
+    let n_cols = spec.n[0] * spec.n[1];
+    if raw.absorbed_ground.iter().any(|&v| v != 0.0) {
+        let v = el
+            .entry(("ground".into(), "flat ground".into()))
+            .or_insert_with(|| vec![[0.0; 2]; nb]);
+        for c in 0..n_cols {
+            for b in 0..nb {
+                v[b][0] += band_sum(&raw.absorbed_ground, c, b);
+                v[b][1] += band_sum(&raw.intercepted_ground, c, b);
+            }
+        }
+    }
+    let mut els = String::from("element,material,band,fabs,fintercepted\n");
+    for ((kind, m), v) in &el {
+        for (b, x) in v.iter().enumerate() {
+            let norm = src_per_m2[b] * scene_area;
+            let _ = writeln!(
+                els,
+                "{kind},{m},{},{:.8e},{:.8e}",
+                info.bands[b].name,
+                x[0] / norm,
+                x[1] / norm
+            );
+        }
+    }
+    write_atomic(&dir.join("budget/elements.csv"), els.as_bytes())?;
+    write_images(dir, p, info, dirs, spec)?;
+    Ok(())
+}
+
+/// Orthographic images (DART 5 paper §3.2, §5; physics.md §6.6, §8.1): one multi-channel EXR
+/// per exact view direction, `images/view_<zenith>_<azimuth>.exr`, channels `brf.<band>` (and
+/// `hdrf.<band>` with sky light), pixels of (Δx/η, Δy/η) (η = `radiative.image_oversampling`;
+/// [`crate::radiative::images`]); the BRF of pixel (i, j) is π W_ij / (A_pixel ∫_{ΔΩ}|μ|dΩ E_dir).
+/// The image mean equals the direction's BRF. The EXR header carries the pixel size
+/// (`pixel_size_x_m`, `pixel_size_y_m`, `pixelAspectRatio`), η (`image_oversampling`), the
+/// scene origin and the view direction. A PNG quick-look of the first band (linear grey scale
+/// from 0 to the image maximum) goes alongside.
+fn write_images(
+    dir: &std::path::Path,
+    p: &crate::radiative::products::RadiativeProducts,
+    info: &crate::resources::scene::SceneInfo,
+    dirs: &crate::resources::tracking::Directions,
+    spec: &GridSpec,
+) -> Result<(), String> {
+    let raw = &p.raw;
+    let (w, nb) = (raw.n_channels, raw.n_bands);
+    let ig = raw.image_grid;
+    let (nx, ny) = ig.n;
+    let npx = ig.pixels();
+    if raw.images.is_empty() {
+        return Ok(());
+    }
+    std::fs::create_dir_all(dir.join("images"))
+        .map_err(|e| format!("{}: cannot create images folder: {e}", dir.display()))?;
+    let a_px = ig.pixel_m.0 * ig.pixel_m.1;
+    let area = spec.n[0] as f64 * spec.cell.x * spec.n[1] as f64 * spec.cell.y;
+    let e_dir: Vec<f64> = (0..nb).map(|b| raw.source[b] / area).collect();
+    let e_diff: Vec<f64> = (0..nb)
+        .map(|b| {
+            if raw.has_sky {
+                raw.source[nb + b] / area
+            } else {
+                0.0
+            }
+        })
+        .collect();
+    let mut img = 0usize;
+    for d in dirs.set.tiling() {
+        if !(matches!(d.kind, crate::direction::DirectionKind::Exact { .. }) && d.omega.z > 0.0) {
+            continue;
+        }
+        let mut channels = Vec::new();
+        for b in 0..nb {
+            let mut brf = vec![0.0; npx];
+            let mut hdrf = vec![0.0; npx];
+            for px in 0..npx {
+                let base = (img * npx + px) * w;
+                let sun = raw.images[base + b];
+                let sky = if raw.has_sky {
+                    raw.images[base + nb + b]
+                } else {
+                    0.0
+                };
+                let denom = a_px * d.projected_sr;
+                brf[px] = if e_dir[b] > 0.0 {
+                    std::f64::consts::PI * sun / (denom * e_dir[b])
+                } else {
+                    0.0
+                };
+                hdrf[px] = std::f64::consts::PI * (sun + sky) / (denom * (e_dir[b] + e_diff[b]));
+            }
+            if b == 0 {
+                let name = format!("view_{:05.1}_{:05.1}", d.zenith_deg(), d.azimuth_deg());
+                write_png(
+                    &dir.join("images").join(format!("{name}.png")),
+                    nx,
+                    ny,
+                    &brf,
+                )?;
+            }
+            channels.push((format!("brf.{:02}_{}", b, info.bands[b].name), brf));
+            if raw.has_sky {
+                channels.push((format!("hdrf.{:02}_{}", b, info.bands[b].name), hdrf));
+            }
+        }
+        let name = format!("view_{:05.1}_{:05.1}", d.zenith_deg(), d.azimuth_deg());
+        write_exr_layers_with(
+            &dir.join("images").join(format!("{name}.exr")),
+            nx,
+            ny,
+            &[ExrLayer {
+                name: "reflectance".into(),
+                channels,
+            }],
+            &ExrMeta {
+                pixel_size_m: Some(ig.pixel_m),
+                values: vec![
+                    ("image_oversampling".into(), ig.oversampling as f64),
+                    ("origin_x_m".into(), spec.origin.x),
+                    ("origin_y_m".into(), spec.origin.y),
+                    ("view_zenith_deg".into(), d.zenith_deg()),
+                    ("view_azimuth_deg".into(), d.azimuth_deg()),
+                ],
+            },
+        )?;
+        img += 1;
+    }
+    Ok(())
+}
+
+/// 8-bit grey PNG of `v` (indexed `i + nx·j`, +y up), scaled linearly from 0 to its maximum.
+fn write_png(path: &std::path::Path, nx: usize, ny: usize, v: &[f64]) -> Result<(), String> {
+    let max = v.iter().cloned().fold(0.0, f64::max).max(1e-300);
+    let mut data = vec![0u8; nx * ny];
+    for j in 0..ny {
+        for i in 0..nx {
+            data[i + nx * (ny - 1 - j)] =
+                (255.0 * (v[i + nx * j] / max).clamp(0.0, 1.0)).round() as u8;
+        }
+    }
+    let mut buf = Vec::new();
+    {
+        let mut enc = png::Encoder::new(&mut buf, nx as u32, ny as u32);
+        enc.set_color(png::ColorType::Grayscale);
+        enc.set_depth(png::BitDepth::Eight);
+        let mut wr = enc
+            .write_header()
+            .map_err(|e| format!("{}: {e}", path.display()))?;
+        wr.write_image_data(&data)
+            .map_err(|e| format!("{}: {e}", path.display()))?;
+    }
+    write_atomic(path, &buf)
+}
