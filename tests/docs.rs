@@ -327,10 +327,7 @@ fn cited_sections(text: &str) -> Vec<String> {
     let mut out = Vec::new();
     for (pos, _) in text.match_indices("physics.md") {
         let mut rest = text[pos + "physics.md".len()..].trim_start();
-        loop {
-            let Some(r) = rest.strip_prefix('§') else {
-                break;
-            };
+        while let Some(r) = rest.strip_prefix('§') {
             let num: String = r
                 .chars()
                 .take_while(|c| c.is_ascii_digit() || *c == '.')
@@ -341,7 +338,7 @@ fn cited_sections(text: &str) -> Vec<String> {
             }
             rest = &r[num.len()..];
             out.push(num);
-            // Continue over `, §x`, ` and §x`, `–§x` and a trailing ` [rec]` tag.
+            // Continue over `, §x`, ` and §x` and `–§x`.
             let t = rest
                 .trim_start_matches(['.', ','])
                 .trim_start()

@@ -526,6 +526,11 @@ pub fn product_list(paths: &[String]) -> String {
     parts.join(", ")
 }
 
+/// Resolves a path relative to the current folder (for messages).
+pub fn display(p: &Path) -> String {
+    p.display().to_string()
+}
+
 #[cfg(test)]
 mod tests {
     use super::product_list;
@@ -553,9 +558,4 @@ mod tests {
         );
         assert_eq!(product_list(&[]), "no files");
     }
-}
-
-/// Resolves a path relative to the current folder (for messages).
-pub fn display(p: &Path) -> String {
-    p.display().to_string()
 }
