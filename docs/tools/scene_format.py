@@ -217,8 +217,11 @@ A scene is one [RON](https://github.com/ron-rs/ron) file read into `SceneDesc`
 * **Validation** (`src/scene/validate.rs`, run by `lumenscape check` and before every run): one
   value per band in every per-band list; reflectance + transmittance ≤ 1; optics names refer to
   entries of `optics` of the right kind (a crown or plot needs a `Turbid` entry, a facet a
-  surface entry, a `Turbid` entry a `BiLambertian` or `ProspectLeaf` leaf); positive sizes and
-  cell sizes; objects inside the scene for `Isolated` boundaries; sun given either by both
+  surface entry, a `Turbid` entry a `BiLambertian` or `ProspectLeaf` leaf); band names unique
+  and non-empty; positive sizes; the scene size a whole number of cells; `subcells` in 1..=16;
+  RPV and Hapke parameters in their ranges (e.g. `k` in [0, 10], Hapke `roughness_deg` in
+  [0, 60]); simple (non-self-crossing) polygons; objects inside the scene for `Isolated`
+  boundaries; sun given either by both
   angles or by `sun_position`; `image_oversampling` in 1..=64 with at most 2²⁶ pixels per image;
   the reserved sections `atmosphere` and `sensors` are refused (not implemented yet). Each error
   names the file, line, column and field.
