@@ -766,7 +766,7 @@ fn error_study(f: &SceneDesc, size_m: f64, opt: &mut Options) {
         "error study: 64 forest pulses × {reps} realizations; mean over pulses of the relative L2 error of the convolved (raw) waveform: total, first order, multiple scattering; mean |energy error|"
     );
     println!(
-        "pulses/s/core at 1 %: the speed scaled to a total error of 1 % by error ∝ 1/√cost, (1 %/error)² × pulses/s/core (wall time: noisy on a loaded host; callgrind instruction counts in the README)"
+        "pulses/s/core at 1 %: the speed scaled to a total error of 1 % by error ∝ 1/√cost, (1 %/error)² × pulses/s/core (wall time: noisy on a loaded host; callgrind instruction counts in docs/performance.md)"
     );
     println!(
         "{:>13} {:>7} {:>7} {:>8} {:>13} {:>16} {:>16} {:>16} {:>8} {:>10}",

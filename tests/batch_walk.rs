@@ -210,7 +210,8 @@ fn batched_walk_matches_the_one_ray_walk_with_1_2_and_4_channels() {
     // Sun and sky channels (W = 2 × 2 bands), without the ground: with it, the later orders of
     // this scene move by up to ~1e-6 per entry under any reordering of the sums (the batched
     // walk with a queue of one ray is bit-identical to the one-ray walk there too, so it is a
-    // sensitivity of the engine to the summation order, not of the walk; see the README).
+    // sensitivity of the engine to the summation order, not of the walk; see the README of
+    // 4df2100).
     let mut sky = layer(3.0, two(), 0.2, 20.0, 0.0);
     sky.illumination.skyl = vec![0.3, 0.2];
     sky.objects.remove(0);

@@ -233,8 +233,9 @@ fn face_stores_bring_the_coarse_layer_closer_to_disort() {
     // LAI 3, sun 20°, red + NIR, 0.5 m cells (optical depth ~0.4 per cell), default preset,
     // 100 directions: the worst principal-plane BRF error against DISORT (48 streams,
     // assets/reference) is 5.0 % with the knob off, 4.3 % with Faces and 3.4 % with Subfaces
-    // (D = 2; README "Turbid sub-faces"): per-face interception points are a finer
-    // quadrature of where the light is intercepted, so the error must shrink.
+    // (D = 2; docs/performance.md, "The turbid sub-face option"): per-face interception
+    // points are a finer quadrature of where the light is intercepted, so the error must
+    // shrink.
     let rows: Vec<Vec<String>> = disort_rows()
         .into_iter()
         .filter(|r: &Vec<String>| r[0] == "3" && r[2] == "20")

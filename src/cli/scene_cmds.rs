@@ -412,7 +412,9 @@ pub struct RunArgs {
 pub fn run(args: &RunArgs, out: &mut dyn Write) -> Result<(), CliError> {
     let t0 = std::time::Instant::now();
     let mut sim = args.opts.load()?;
+    let before = product_files(&args.out);
     let ran = sim.run(Some(&args.out))?;
+    let after = product_files(&args.out);
     print_report(sim.resource::<MaketReport>(), out)?;
     let skipped: Vec<String> = Stage::ALL
         .iter()
@@ -435,16 +437,122 @@ pub fn run(args: &RunArgs, out: &mut dyn Write) -> Result<(), CliError> {
              `photon_counting`; set `passive: Some(true)` for the passive products)"
         )?;
     }
+    let written: Vec<String> = after
+        .iter()
+        .filter(|(p, t)| before.get(*p) != Some(*t))
+        .map(|(p, _)| p.clone())
+        .collect();
     writeln!(
         out,
-        "products written to {} in {:.2} s",
+        "products written to {} in {:.2} s: {}",
         args.out.display(),
-        t0.elapsed().as_secs_f64()
+        t0.elapsed().as_secs_f64(),
+        product_list(&written)
     )?;
     Ok(())
+}
+
+/// Every file under `dir` (relative paths with `/`, sorted) and its modification time; the
+/// hidden temporary files of atomic writes are left out. An absent folder has none.
+fn product_files(dir: &Path) -> std::collections::BTreeMap<String, std::time::SystemTime> {
+    fn walk(
+        root: &Path,
+        d: &Path,
+        acc: &mut std::collections::BTreeMap<String, std::time::SystemTime>,
+    ) {
+        let Ok(entries) = std::fs::read_dir(d) else {
+            return;
+        };
+        for e in entries.flatten() {
+            let p = e.path();
+            if e.file_name().to_string_lossy().starts_with('.') {
+                continue;
+            }
+            let Ok(meta) = e.metadata() else { continue };
+            if meta.is_dir() {
+                walk(root, &p, acc);
+            } else if let (Ok(rel), Ok(t)) = (p.strip_prefix(root), meta.modified()) {
+                let rel: Vec<String> = rel
+                    .components()
+                    .map(|c| c.as_os_str().to_string_lossy().into_owned())
+                    .collect();
+                acc.insert(rel.join("/"), t);
+            }
+        }
+    }
+    let mut acc = Default::default();
+    walk(dir, dir, &mut acc);
+    acc
+}
+
+/// A short list of written products (relative paths): the files of the output folder itself by
+/// name, each sub-folder as `folder/ (N files: …)` with its file names when there are at most
+/// four, else its count per extension (`images/ (6 files: 3 .exr, 3 .png)`).
+pub fn product_list(paths: &[String]) -> String {
+    use std::collections::BTreeMap;
+    if paths.is_empty() {
+        return "no files".into();
+    }
+    let mut top = Vec::new();
+    let mut dirs: BTreeMap<&str, Vec<&str>> = BTreeMap::new();
+    for p in paths {
+        match p.rsplit_once('/') {
+            Some((d, f)) => dirs.entry(d).or_default().push(f),
+            None => top.push(p.as_str()),
+        }
+    }
+    let mut parts: Vec<String> = top.iter().map(|s| s.to_string()).collect();
+    for (d, files) in dirs {
+        let what = if files.len() <= 4 {
+            files.join(", ")
+        } else {
+            let mut ext: BTreeMap<&str, usize> = BTreeMap::new();
+            for f in &files {
+                *ext.entry(f.rsplit_once('.').map_or("", |(_, e)| e))
+                    .or_default() += 1;
+            }
+            ext.iter()
+                .map(|(e, n)| format!("{n} .{e}"))
+                .collect::<Vec<_>>()
+                .join(", ")
+        };
+        let n = files.len();
+        let s = if n == 1 { "" } else { "s" };
+        parts.push(format!("{d}/ ({n} file{s}: {what})"));
+    }
+    parts.join(", ")
 }
 
 /// Resolves a path relative to the current folder (for messages).
 pub fn display(p: &Path) -> String {
     p.display().to_string()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::product_list;
+
+    #[test]
+    fn product_list_names_files_and_counts_folders() {
+        let paths: Vec<String> = [
+            "brf.csv",
+            "budget/cells.csv",
+            "budget/layers.csv",
+            "images/view_000.0_000.0.exr",
+            "images/view_000.0_000.0.png",
+            "images/view_030.0_000.0.exr",
+            "images/view_030.0_000.0.png",
+            "images/view_030.0_090.0.exr",
+            "summary.json",
+        ]
+        .iter()
+        .map(|s| s.to_string())
+        .collect();
+        assert_eq!(
+            product_list(&paths),
+            "brf.csv, summary.json, budget/ (2 files: cells.csv, layers.csv), \
+             images/ (5 files: 3 .exr, 2 .png)"
+        );
+        assert_eq!(product_list(&[]), "no files");
+    }
 }

@@ -3971,8 +3971,8 @@ fn brdf_event(
 /// gave 0.82, 0.79, 0.73, 0.74, 0.76 and 0.75 % total error, and c = 2 was chosen. Re-measured
 /// with session 15's default (72 rays, far-photon roulette; 768 realizations, standard error
 /// 0.002 %): c = 1 0.996 % at 711.1k instructions per pulse, c = 2 1.003 % at 752.0k (384: c =
-/// 1.25 1.001 % at 729.2k, 1.5 0.999 % at 738.3k): c = 1 has the lowest error and cost (README,
-/// LiDAR speed against error).
+/// 1.25 1.001 % at 729.2k, 1.5 0.999 % at 738.3k): c = 1 has the lowest error and cost (README of
+/// 4df2100, LiDAR speed against error).
 const MS_STOP_FACTOR: f64 = 1.0;
 
 /// Smallest distance scale ρ₀ of the far-photon roulette (`far_roulette_survival`), in
@@ -3999,8 +3999,8 @@ const FAR_ROULETTE_MIN_SURVIVAL: f64 = 1.0 / 64.0;
 /// waveform error of the error study 0.997 → 1.002 % (384 realizations, standard error
 /// 0.003 %, with the stop factor c = 2 of the time) for 7.9 % fewer instructions per pulse; ρ₀ = 2 m saves 13 % (1.001 %), 1 m 16 % but
 /// with rare large errors (1.024 ± 0.010 %); on a denser layer (mean free path 1 m) ρ₀ = 0.5 m
-/// raises the noise of the multiple-scattering energy 1.6-fold (README, LiDAR speed against
-/// error). `(ρ₀, tan θ_FOV)` as stored in [`Ctx::far_roulette`].
+/// raises the noise of the multiple-scattering energy 1.6-fold (README of 4df2100,
+/// LiDAR speed against error). `(ρ₀, tan θ_FOV)` as stored in [`Ctx::far_roulette`].
 #[inline]
 fn far_roulette_survival(rx: &Receiver, m: DVec3, (rho0, tan_fov): (f64, f64)) -> f64 {
     let v = m - rx.position;

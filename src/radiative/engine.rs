@@ -35,10 +35,10 @@
 //!   from the barycentre of per-slot points weighted by the power each slot sends into the
 //!   direction. Entry rules ([`entry_store`]): a segment starting on a face the ray points into
 //!   entered through it; edges and vertices go to the face of the largest |d_a| (ties: z, then
-//!   y, then x); sun and sky rays enter through the top face of the top cells. Measured (README
-//!   "Turbid sub-faces"): on the DISORT layer none of these beats a finer grid at equal wall
-//!   time; in dense cells (u_f = 50) `Faces` at 0.25 m gets the albedo of a ~0.1 m grid for 2×
-//!   the time of the 0.25 m grid.
+//!   y, then x); sun and sky rays enter through the top face of the top cells. Measured
+//!   (docs/performance.md, "The turbid sub-face option"): on the DISORT layer none of these
+//!   beats a finer grid at equal wall time; in dense cells (u_f = 50) `Faces` at 0.25 m gets
+//!   the albedo of a ~0.1 m grid for 2× the time of the 0.25 m grid.
 //! * **Facets** (Lambertian reflectance R, diffuse transmittance T_d, direct transmittance T_dir):
 //!   intercepted `W(1 − T_dir^{1/|μ|})`, reflected `R` to the incidence side and transmitted `T_d`
 //!   to the other side with the exact projected-solid-angle fractions (physics.md §5.1, §2.5);
@@ -159,7 +159,7 @@ pub struct TrackingParams {
     /// (default on; `batch` module, `wide32`: each lane's traversal in its cell's frame, path
     /// lengths, fractions and interception points in `f32`; powers, bookings and energy
     /// closure in `f64`): products within ~3e-7 relative of the f64 walks' on cells of 0.1–1 m
-    /// (3.4e-6 with 20 m cells), 1.4× faster (README, Kernel). Off, or on CPUs without
+    /// (3.4e-6 with 20 m cells), 1.4× faster (README of 4df2100, Kernel). Off, or on CPUs without
     /// AVX-512: the f64 batched walk (8 or 4 lanes).
     #[serde(skip)]
     pub batch_f32: bool,

@@ -914,7 +914,7 @@ pub struct LidarDesc {
     #[serde(default = "default_bin_ns")]
     pub bin_ns: f64,
     /// Photons (beam rays) per pulse, for every pulse. Default (absent): chosen per pulse for
-    /// the same waveform error, ~1.0 % on the forest ALS bench (README, LiDAR speed) — 48
+    /// the same waveform error, ~1.0 % on the forest ALS bench (docs/performance.md, LiDAR) — 48
     /// ([`DEFAULT_LIDAR_PHOTONS`]) for a pulse whose first-order return the column quadrature
     /// of the `ExpectedValue` estimator scores (exactly vertical from above the grid, see
     /// `FirstOrderColumns`), 72 ([`DEFAULT_LIDAR_PHOTONS_PER_RAY`]) for a pulse that scores it
@@ -991,7 +991,7 @@ pub enum LidarEstimator {
     /// cell, the walk going on past the collision to twice its optical depth, a Lambertian
     /// ground reached scored the same way), instead of the collision estimator. On the forest
     /// ALS bench: first-order error ÷ 3.5, multiple-scattering variance ÷ ~4 at ~1.3× the
-    /// instructions per continued ray (README, LiDAR speed against error).
+    /// instructions per continued ray (README of 4df2100, LiDAR speed against error).
     #[default]
     ExpectedValue,
     /// Beam rays on a randomly shifted low-discrepancy (R2) lattice over the footprint; the

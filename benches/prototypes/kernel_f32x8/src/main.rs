@@ -87,7 +87,7 @@
 //! (session 20, `src/radiative/engine/batch/wide32.rs`, the default on AVX-512) the pass first
 //! measured 1.18× the product's f64 × 8 walk, not 1.6×: the product's per-lane scalar work
 //! (cell records, events, refills, side wraps) that this prototype does not have took the
-//! rest; with that work cut (README, Kernel, session 20) it runs 1.42× (102–103 against 70–72
+//! rest; with that work cut (README of 4df2100, Kernel) it runs 1.42× (102–103 against 70–72
 //! Mcross/s/core on one thread).
 //!
 //! Not product code: `unsafe` intrinsics, simplified events (no empty-space skip, no sky/ground

@@ -20,8 +20,8 @@
 //! Same physics as the f64 walks (DART 5 flux tracking, Gastellu-Etchegorry et al. 2015,
 //! Remote Sens. 7, 1667–1701, §3); the products differ from theirs by ≤ 2.5e-7 relative on
 //! 0.1–1 m cells and 3.4e-6 on 20 m cells (the f32 exponential), the DISORT errors are
-//! unchanged to the printed digits (tests `f32_walk_*` in `tests/batch_walk.rs`; README,
-//! Kernel, session 20).
+//! unchanged to the printed digits (tests `f32_walk_*` in `tests/batch_walk.rs`; README of
+//! 4df2100, Kernel).
 
 use super::{ChunkOut, Ctx, Queued};
 use crate::radiative::dda::{Dda, Exit, exit_of};
