@@ -27,6 +27,23 @@ pub fn write_radiative(
 ) -> Result<(), String> {
     std::fs::create_dir_all(dir.join("budget"))
         .map_err(|e| format!("{}: cannot create output folder: {e}", dir.display()))?;
+    write_summary(dir, p, info, settings, dirs)?;
+    write_brf_csv(dir, p)?;
+    write_budget(dir, p, info, spec, grid, facets, mats)?;
+    write_images(dir, p, info, dirs, spec)?;
+    Ok(())
+}
+
+/// `summary.json`: scene, settings (preset, tracking knobs, the walk that ran), solver, launch
+/// grid, images, iterations and convergence, and per band albedo, fabs, ftran, energy closure
+/// and the BRF/HDRF list (docs/guide/products.md).
+fn write_summary(
+    dir: &std::path::Path,
+    p: &crate::radiative::products::RadiativeProducts,
+    info: &crate::resources::scene::SceneInfo,
+    settings: &crate::resources::tracking::RadiativeSettings,
+    dirs: &crate::resources::tracking::Directions,
+) -> Result<(), String> {
     let summary = serde_json::json!({
         "schema_version": 1,
         "lumenscape_version": env!("CARGO_PKG_VERSION"),
@@ -72,6 +89,15 @@ pub fn write_radiative(
             .map_err(|e| e.to_string())?
             .as_bytes(),
     )?;
+    Ok(())
+}
+
+/// `brf.csv`: one row per band and upward direction (zenith, azimuth, solid angle, kind, BRF,
+/// HDRF; Monte Carlo adds the standard errors and the estimator).
+fn write_brf_csv(
+    dir: &std::path::Path,
+    p: &crate::radiative::products::RadiativeProducts,
+) -> Result<(), String> {
     // Monte Carlo runs add standard errors and the estimator of each value.
     let mc = p.monte_carlo.is_some();
     let mut csv = String::from("band,zenith_deg,azimuth_deg,solid_angle_sr,kind,brf,hdrf");
@@ -107,6 +133,22 @@ pub fn write_radiative(
         }
     }
     write_atomic(&dir.join("brf.csv"), csv.as_bytes())?;
+    Ok(())
+}
+
+/// The radiative budget: `budget/cells.csv` (absorbed and intercepted power per cell and band,
+/// per unit incident power on the cell's horizontal area, physics.md §6.7), `budget/layers.csv`
+/// (per horizontal layer) and `budget/elements.csv` (per element type and material), both per
+/// unit incident power on the scene.
+fn write_budget(
+    dir: &std::path::Path,
+    p: &crate::radiative::products::RadiativeProducts,
+    info: &crate::resources::scene::SceneInfo,
+    spec: &GridSpec,
+    grid: &CellGrid,
+    facets: &FacetStore,
+    mats: &Materials,
+) -> Result<(), String> {
     // Radiative budget per cell: absorbed and intercepted power per band, normalised by the
     // incident power on the cell's horizontal area (physics.md §6.7 [rec]).
     let raw = &p.raw;
@@ -251,7 +293,6 @@ pub fn write_radiative(
         }
     }
     write_atomic(&dir.join("budget/elements.csv"), els.as_bytes())?;
-    write_images(dir, p, info, dirs, spec)?;
     Ok(())
 }
 
