@@ -255,6 +255,14 @@ pub fn spawn_scene(
         }
     }
     let periodic = (desc.grid.boundary != BoundaryMode::Isolated).then_some(size);
+    let ctx = SpawnCtx {
+        desc,
+        src,
+        base_dir,
+        size,
+        terrain: &terrain,
+        periodic,
+    };
     for (i, o) in desc.objects.iter().enumerate() {
         let idx = i as u32;
         match o {
@@ -269,311 +277,15 @@ pub fn spawn_scene(
                 &terrain,
                 &mats,
             ),
-            ObjectDesc::TreeStand(s) => {
-                let list = match &s.placement {
-                    PlacementDesc::Explicit(l) => l.clone(),
-                    PlacementDesc::Random {
-                        counts,
-                        min_spacing_m,
-                        region_m,
-                    } => {
-                        let region = region_m.unwrap_or((0.0, 0.0, size.0, size.1));
-                        let per = if region_m.is_none() { periodic } else { None };
-                        place_random(counts, *min_spacing_m, region, per, desc.seed, idx)
-                            .map_err(|m| src.invalid(format!("objects[{i}].placement"), m))?
-                    }
-                };
-                for (sp, x, y) in list {
-                    let spd = &s.species[sp];
-                    spawn_tree(
-                        world,
-                        idx,
-                        spd.trunk.as_ref(),
-                        &spd.crown,
-                        x,
-                        y,
-                        &terrain,
-                        &mats,
-                    );
-                }
-            }
-            ObjectDesc::TurbidPlot(p) => {
-                let poly = footprint_polygon(&p.footprint);
-                let area = signed_area(&poly);
-                let thickness = p.top_m - p.bottom_m;
-                let density = match p.foliage {
-                    FoliageDesc::LeafAreaDensity(u) => u,
-                    FoliageDesc::Lai(l) => l / thickness,
-                    FoliageDesc::LeafArea(a) => a / (area * thickness),
-                };
-                world.spawn((
-                    SourceObject(idx),
-                    TurbidPlot {
-                        footprint: poly,
-                        bottom: p.bottom_m,
-                        top: p.top_m,
-                        density,
-                        material: mats.id(&p.optics).expect("validated"),
-                    },
-                ));
-            }
-            ObjectDesc::Building(b) => {
-                let poly = footprint_polygon(&b.footprint);
-                let base_z = poly
-                    .iter()
-                    .map(|v| terrain.height(v.x, v.y))
-                    .fold(f64::INFINITY, f64::min);
-                world.spawn((
-                    SourceObject(idx),
-                    Building {
-                        footprint: poly,
-                        base_z,
-                        wall_height: b.wall_height_m,
-                        roof: match b.roof {
-                            RoofDesc::Flat => Roof::Flat,
-                            RoofDesc::Gable { ridge_height_m } => Roof::Gable(ridge_height_m),
-                        },
-                        wall_material: mats.id(&b.wall_optics).expect("validated"),
-                        roof_material: mats.id(&b.roof_optics).expect("validated"),
-                    },
-                ));
-            }
-            ObjectDesc::Water(w) => {
-                let poly = footprint_polygon(&w.footprint);
-                let altitude = w.altitude_m.unwrap_or_else(|| {
-                    poly.iter()
-                        .map(|v| terrain.height(v.x, v.y))
-                        .fold(f64::NEG_INFINITY, f64::max)
-                        + 0.01
-                });
-                world.spawn((
-                    SourceObject(idx),
-                    WaterBody {
-                        footprint: poly,
-                        altitude,
-                        material: mats.id(&w.optics).expect("validated"),
-                    },
-                ));
-            }
-            ObjectDesc::Leaves(l) => {
-                let material = mats.id(&l.optics).expect("validated");
-                let mut tris = Vec::with_capacity(l.disks.len() * l.sides as usize);
-                for d in &l.disks {
-                    let c = DVec3::new(d.0, d.1, d.2 + terrain.height(d.0, d.1));
-                    tris.extend(crate::geometry::shapes::disk_polygon(
-                        c,
-                        DVec3::new(d.3, d.4, d.5),
-                        l.radius_m,
-                        l.sides,
-                    ));
-                }
-                world.spawn((
-                    SourceObject(idx),
-                    ImportedMesh {
-                        path: "<inline leaves>".into(),
-                        parts: vec![MeshPart {
-                            name: "leaves".into(),
-                            triangles: tris,
-                            material,
-                            two_sided: l.two_sided,
-                            as_turbid: false,
-                        }],
-                    },
-                ));
-            }
+            ObjectDesc::TreeStand(s) => spawn_stand(world, &ctx, i, s, &mats)?,
+            ObjectDesc::TurbidPlot(p) => spawn_plot(world, idx, p, &mats),
+            ObjectDesc::Building(b) => spawn_building(world, &ctx, idx, b, &mats),
+            ObjectDesc::Water(w) => spawn_water(world, &ctx, idx, w, &mats),
+            ObjectDesc::Leaves(l) => spawn_leaves(world, &ctx, idx, l, &mats),
             ObjectDesc::LeafList(l) => {
-                let path = base_dir.join(&l.path);
-                let text = std::fs::read_to_string(&path).map_err(|e| {
-                    src.invalid(
-                        format!("objects[{i}].path"),
-                        format!("{}: cannot read file: {e}", path.display()),
-                    )
-                })?;
-                let list = crate::io::leaf_list::parse_leaf_list(&text, &path)
-                    .map_err(|m| src.invalid(format!("objects[{i}].path"), m))?;
-                if list.renormalised > 0 {
-                    warnings.push(format!(
-                        "{}: normalised {} leaf normals that were not of unit length",
-                        path.display(),
-                        list.renormalised
-                    ));
-                }
-                let t = DVec3::new(l.translation_m.0, l.translation_m.1, l.translation_m.2);
-                let mut tris = Vec::with_capacity(list.leaves.len() * l.sides as usize);
-                for leaf in &list.leaves {
-                    let mut c = leaf.center + t;
-                    if l.wrap {
-                        c.x = c.x.rem_euclid(size.0);
-                        c.y = c.y.rem_euclid(size.1);
-                    } else if desc.grid.boundary == BoundaryMode::Isolated
-                        && (c.x - leaf.radius < 0.0
-                            || c.y - leaf.radius < 0.0
-                            || c.x + leaf.radius > size.0
-                            || c.y + leaf.radius > size.1)
-                    {
-                        return Err(src.invalid(
-                            format!("objects[{i}].path"),
-                            format!(
-                                "{}: a leaf at ({:.3}, {:.3}) lies outside the isolated scene",
-                                path.display(),
-                                c.x,
-                                c.y
-                            ),
-                        ));
-                    }
-                    c.z += terrain.height(c.x, c.y);
-                    tris.extend(crate::geometry::shapes::disk_polygon(
-                        c,
-                        leaf.normal,
-                        leaf.radius,
-                        l.sides,
-                    ));
-                }
-                let material = if l.as_turbid {
-                    let (r, tt) =
-                        match &mats.list[mats.id(&l.optics).expect("validated") as usize].kind {
-                            MaterialKind::Leaf {
-                                reflectance,
-                                transmittance,
-                            } => (reflectance.clone(), transmittance.clone()),
-                            _ => unreachable!("validated as a leaf"),
-                        };
-                    mats.push(Material {
-                        name: format!("{}@objects[{i}]", l.optics),
-                        kind: MaterialKind::Turbid {
-                            reflectance: r,
-                            transmittance: tt,
-                            lad: LadDesc::Histogram {
-                                bins: inclination_histogram(&tris),
-                            },
-                            leaf_size_m: leaf_dimension(&tris, list.leaves.len()),
-                            specular: None,
-                        },
-                    })
-                } else {
-                    mats.id(&l.optics).expect("validated")
-                };
-                world.spawn((
-                    SourceObject(idx),
-                    ImportedMesh {
-                        path,
-                        parts: vec![MeshPart {
-                            name: "leaves".into(),
-                            triangles: tris,
-                            material,
-                            two_sided: true,
-                            as_turbid: l.as_turbid,
-                        }],
-                    },
-                ));
+                spawn_leaf_list(world, &ctx, i, l, &mut mats, &mut warnings)?
             }
-            ObjectDesc::Mesh(m) => {
-                let path = base_dir.join(&m.path);
-                let mut mesh = crate::io::mesh::load_mesh(&path)
-                    .map_err(|e| src.invalid(format!("objects[{i}].path"), e.to_string()))?;
-                for w in &mesh.warnings {
-                    warnings.push(format!("{}: {w}", path.display()));
-                }
-                if mesh.skipped_non_triangle > 0 {
-                    warnings.push(format!(
-                        "{}: skipped {} non-triangle primitives",
-                        path.display(),
-                        mesh.skipped_non_triangle
-                    ));
-                }
-                let rep = mesh.clean_triangles();
-                if rep.removed_degenerate + rep.removed_non_finite > 0 {
-                    warnings.push(format!(
-                        "{}: skipped {} degenerate and {} non-finite triangles",
-                        path.display(),
-                        rep.removed_degenerate,
-                        rep.removed_non_finite
-                    ));
-                }
-                let is_gltf = path.extension().is_some_and(|e| {
-                    e.eq_ignore_ascii_case("gltf") || e.eq_ignore_ascii_case("glb")
-                });
-                let gz = terrain.height(m.translation_m.0, m.translation_m.1);
-                mesh.transform(mesh_transform(m, is_gltf, gz));
-                let mut parts = Vec::new();
-                for g in &mesh.groups {
-                    let Some(k) = m.groups.iter().position(|o| o.group == g.name) else {
-                        let names: Vec<&str> =
-                            mesh.groups.iter().map(|g| g.name.as_str()).collect();
-                        return Err(src.invalid(
-                            format!("objects[{i}].groups"),
-                            format!(
-                                "mesh group `{}` of {} has no optics (groups in the file: {})",
-                                g.name,
-                                path.display(),
-                                names.join(", ")
-                            ),
-                        ));
-                    };
-                    let go = &m.groups[k];
-                    if g.triangles.is_empty() {
-                        continue;
-                    }
-                    let material = if go.as_turbid {
-                        let (r, t) =
-                            match &mats.list[mats.id(&go.optics).expect("validated") as usize].kind
-                            {
-                                MaterialKind::Leaf {
-                                    reflectance,
-                                    transmittance,
-                                } => (reflectance.clone(), transmittance.clone()),
-                                _ => unreachable!("validated as a leaf"),
-                            };
-                        mats.push(Material {
-                            name: format!("{}@objects[{i}]/{}", go.optics, g.name),
-                            kind: MaterialKind::Turbid {
-                                reflectance: r,
-                                transmittance: t,
-                                lad: LadDesc::Histogram {
-                                    bins: inclination_histogram(&g.triangles),
-                                },
-                                leaf_size_m: leaf_dimension(&g.triangles, g.triangles.len()),
-                                specular: None,
-                            },
-                        })
-                    } else {
-                        mats.id(&go.optics).expect("validated")
-                    };
-                    parts.push(MeshPart {
-                        name: g.name.clone(),
-                        triangles: g.triangles.clone(),
-                        material,
-                        two_sided: go.two_sided,
-                        as_turbid: go.as_turbid,
-                    });
-                }
-                for (k, go) in m.groups.iter().enumerate() {
-                    if !mesh.groups.iter().any(|g| g.name == go.group) {
-                        return Err(src.invalid(
-                            format!("objects[{i}].groups[{k}].group"),
-                            format!("{} has no group `{}`", path.display(), go.group),
-                        ));
-                    }
-                }
-                if parts.is_empty() {
-                    return Err(src.invalid(
-                        format!("objects[{i}].path"),
-                        format!("{}: the mesh has no triangles", path.display()),
-                    ));
-                }
-                if desc.grid.boundary == BoundaryMode::Isolated {
-                    let (lo, hi) = parts
-                        .iter()
-                        .flat_map(|p| p.triangles.iter().flatten())
-                        .fold((DVec3::INFINITY, DVec3::NEG_INFINITY), |(lo, hi), v| {
-                            (lo.min(*v), hi.max(*v))
-                        });
-                    if lo.x < 0.0 || lo.y < 0.0 || hi.x > size.0 || hi.y > size.1 {
-                        return Err(src.invalid(format!("objects[{i}].translation_m"), format!("the transformed mesh spans x [{:.3}, {:.3}], y [{:.3}, {:.3}] m, outside the isolated scene", lo.x, hi.x, lo.y, hi.y)));
-                    }
-                }
-                world.spawn((SourceObject(idx), ImportedMesh { path, parts }));
-            }
+            ObjectDesc::Mesh(m) => spawn_mesh(world, &ctx, i, m, &mut mats, &mut warnings)?,
         }
     }
     let g = &desc.grid;
@@ -628,5 +340,368 @@ pub fn spawn_scene(
         world.insert_resource(crate::resources::lidar::LidarInstruments(l.clone()));
     }
     world.insert_resource(Warnings(warnings));
+    Ok(())
+}
+
+/// What every object's spawn reads: the scene, its source (for errors with file and line), the
+/// folder its file paths are relative to, the extent, the ground and the periodic extent.
+struct SpawnCtx<'a> {
+    desc: &'a SceneDesc,
+    src: &'a SceneSource,
+    base_dir: std::path::PathBuf,
+    size: (f64, f64),
+    terrain: &'a Terrain,
+    periodic: Option<(f64, f64)>,
+}
+
+/// A turbid material made from the leaf optics `optics` for leaves converted to turbid (a leaf
+/// list or mesh group with `as_turbid`): the LAD is the triangles' inclination histogram and the
+/// leaf size their mean dimension (hotspot).
+fn turbid_from_leaf(
+    mats: &mut Materials,
+    optics: &str,
+    name: String,
+    tris: &[[DVec3; 3]],
+    leaves: usize,
+) -> u32 {
+    let (r, t) = match &mats.list[mats.id(optics).expect("validated") as usize].kind {
+        MaterialKind::Leaf {
+            reflectance,
+            transmittance,
+        } => (reflectance.clone(), transmittance.clone()),
+        _ => unreachable!("validated as a leaf"),
+    };
+    mats.push(Material {
+        name,
+        kind: MaterialKind::Turbid {
+            reflectance: r,
+            transmittance: t,
+            lad: LadDesc::Histogram {
+                bins: inclination_histogram(tris),
+            },
+            leaf_size_m: leaf_dimension(tris, leaves),
+            specular: None,
+        },
+    })
+}
+
+/// A tree stand: explicit positions or seeded random placement, one tree entity per position.
+fn spawn_stand(
+    world: &mut World,
+    ctx: &SpawnCtx,
+    i: usize,
+    s: &TreeStandDesc,
+    mats: &Materials,
+) -> Result<(), SceneError> {
+    let idx = i as u32;
+    let list = match &s.placement {
+        PlacementDesc::Explicit(l) => l.clone(),
+        PlacementDesc::Random {
+            counts,
+            min_spacing_m,
+            region_m,
+        } => {
+            let region = region_m.unwrap_or((0.0, 0.0, ctx.size.0, ctx.size.1));
+            let per = if region_m.is_none() {
+                ctx.periodic
+            } else {
+                None
+            };
+            place_random(counts, *min_spacing_m, region, per, ctx.desc.seed, idx)
+                .map_err(|m| ctx.src.invalid(format!("objects[{i}].placement"), m))?
+        }
+    };
+    for (sp, x, y) in list {
+        let spd = &s.species[sp];
+        spawn_tree(
+            world,
+            idx,
+            spd.trunk.as_ref(),
+            &spd.crown,
+            x,
+            y,
+            ctx.terrain,
+            mats,
+        );
+    }
+    Ok(())
+}
+
+/// A turbid plot: its footprint polygon and leaf area density.
+fn spawn_plot(world: &mut World, idx: u32, p: &TurbidPlotDesc, mats: &Materials) {
+    let poly = footprint_polygon(&p.footprint);
+    let area = signed_area(&poly);
+    let thickness = p.top_m - p.bottom_m;
+    let density = match p.foliage {
+        FoliageDesc::LeafAreaDensity(u) => u,
+        FoliageDesc::Lai(l) => l / thickness,
+        FoliageDesc::LeafArea(a) => a / (area * thickness),
+    };
+    world.spawn((
+        SourceObject(idx),
+        TurbidPlot {
+            footprint: poly,
+            bottom: p.bottom_m,
+            top: p.top_m,
+            density,
+            material: mats.id(&p.optics).expect("validated"),
+        },
+    ));
+}
+
+/// A building standing on the lowest ground point under its footprint.
+fn spawn_building(world: &mut World, ctx: &SpawnCtx, idx: u32, b: &BuildingDesc, mats: &Materials) {
+    let poly = footprint_polygon(&b.footprint);
+    let base_z = poly
+        .iter()
+        .map(|v| ctx.terrain.height(v.x, v.y))
+        .fold(f64::INFINITY, f64::min);
+    world.spawn((
+        SourceObject(idx),
+        Building {
+            footprint: poly,
+            base_z,
+            wall_height: b.wall_height_m,
+            roof: match b.roof {
+                RoofDesc::Flat => Roof::Flat,
+                RoofDesc::Gable { ridge_height_m } => Roof::Gable(ridge_height_m),
+            },
+            wall_material: mats.id(&b.wall_optics).expect("validated"),
+            roof_material: mats.id(&b.roof_optics).expect("validated"),
+        },
+    ));
+}
+
+/// A water surface, by default 1 cm above the highest ground point under its footprint.
+fn spawn_water(world: &mut World, ctx: &SpawnCtx, idx: u32, w: &WaterDesc, mats: &Materials) {
+    let poly = footprint_polygon(&w.footprint);
+    let altitude = w.altitude_m.unwrap_or_else(|| {
+        poly.iter()
+            .map(|v| ctx.terrain.height(v.x, v.y))
+            .fold(f64::NEG_INFINITY, f64::max)
+            + 0.01
+    });
+    world.spawn((
+        SourceObject(idx),
+        WaterBody {
+            footprint: poly,
+            altitude,
+            material: mats.id(&w.optics).expect("validated"),
+        },
+    ));
+}
+
+/// Inline disk leaves, as facets on the ground.
+fn spawn_leaves(world: &mut World, ctx: &SpawnCtx, idx: u32, l: &LeavesDesc, mats: &Materials) {
+    let material = mats.id(&l.optics).expect("validated");
+    let mut tris = Vec::with_capacity(l.disks.len() * l.sides as usize);
+    for d in &l.disks {
+        let c = DVec3::new(d.0, d.1, d.2 + ctx.terrain.height(d.0, d.1));
+        tris.extend(crate::geometry::shapes::disk_polygon(
+            c,
+            DVec3::new(d.3, d.4, d.5),
+            l.radius_m,
+            l.sides,
+        ));
+    }
+    world.spawn((
+        SourceObject(idx),
+        ImportedMesh {
+            path: "<inline leaves>".into(),
+            parts: vec![MeshPart {
+                name: "leaves".into(),
+                triangles: tris,
+                material,
+                two_sided: l.two_sided,
+                as_turbid: false,
+            }],
+        },
+    ));
+}
+
+/// A RAMI leaf-list file: disk leaves as facets, or converted to a turbid material.
+fn spawn_leaf_list(
+    world: &mut World,
+    ctx: &SpawnCtx,
+    i: usize,
+    l: &LeafListDesc,
+    mats: &mut Materials,
+    warnings: &mut Vec<String>,
+) -> Result<(), SceneError> {
+    let idx = i as u32;
+    let path = ctx.base_dir.join(&l.path);
+    let text = std::fs::read_to_string(&path).map_err(|e| {
+        ctx.src.invalid(
+            format!("objects[{i}].path"),
+            format!("{}: cannot read file: {e}", path.display()),
+        )
+    })?;
+    let list = crate::io::leaf_list::parse_leaf_list(&text, &path)
+        .map_err(|m| ctx.src.invalid(format!("objects[{i}].path"), m))?;
+    if list.renormalised > 0 {
+        warnings.push(format!(
+            "{}: normalised {} leaf normals that were not of unit length",
+            path.display(),
+            list.renormalised
+        ));
+    }
+    let t = DVec3::new(l.translation_m.0, l.translation_m.1, l.translation_m.2);
+    let mut tris = Vec::with_capacity(list.leaves.len() * l.sides as usize);
+    for leaf in &list.leaves {
+        let mut c = leaf.center + t;
+        if l.wrap {
+            c.x = c.x.rem_euclid(ctx.size.0);
+            c.y = c.y.rem_euclid(ctx.size.1);
+        } else if ctx.desc.grid.boundary == BoundaryMode::Isolated
+            && (c.x - leaf.radius < 0.0
+                || c.y - leaf.radius < 0.0
+                || c.x + leaf.radius > ctx.size.0
+                || c.y + leaf.radius > ctx.size.1)
+        {
+            return Err(ctx.src.invalid(
+                format!("objects[{i}].path"),
+                format!(
+                    "{}: a leaf at ({:.3}, {:.3}) lies outside the isolated scene",
+                    path.display(),
+                    c.x,
+                    c.y
+                ),
+            ));
+        }
+        c.z += ctx.terrain.height(c.x, c.y);
+        tris.extend(crate::geometry::shapes::disk_polygon(
+            c,
+            leaf.normal,
+            leaf.radius,
+            l.sides,
+        ));
+    }
+    let material = if l.as_turbid {
+        turbid_from_leaf(
+            mats,
+            &l.optics,
+            format!("{}@objects[{i}]", l.optics),
+            &tris,
+            list.leaves.len(),
+        )
+    } else {
+        mats.id(&l.optics).expect("validated")
+    };
+    world.spawn((
+        SourceObject(idx),
+        ImportedMesh {
+            path,
+            parts: vec![MeshPart {
+                name: "leaves".into(),
+                triangles: tris,
+                material,
+                two_sided: true,
+                as_turbid: l.as_turbid,
+            }],
+        },
+    ));
+    Ok(())
+}
+
+/// An imported glTF/GLB/OBJ mesh: each group with its optics, as facets or turbid.
+fn spawn_mesh(
+    world: &mut World,
+    ctx: &SpawnCtx,
+    i: usize,
+    m: &MeshDesc,
+    mats: &mut Materials,
+    warnings: &mut Vec<String>,
+) -> Result<(), SceneError> {
+    let idx = i as u32;
+    let path = ctx.base_dir.join(&m.path);
+    let mut mesh = crate::io::mesh::load_mesh(&path)
+        .map_err(|e| ctx.src.invalid(format!("objects[{i}].path"), e.to_string()))?;
+    for w in &mesh.warnings {
+        warnings.push(format!("{}: {w}", path.display()));
+    }
+    if mesh.skipped_non_triangle > 0 {
+        warnings.push(format!(
+            "{}: skipped {} non-triangle primitives",
+            path.display(),
+            mesh.skipped_non_triangle
+        ));
+    }
+    let rep = mesh.clean_triangles();
+    if rep.removed_degenerate + rep.removed_non_finite > 0 {
+        warnings.push(format!(
+            "{}: skipped {} degenerate and {} non-finite triangles",
+            path.display(),
+            rep.removed_degenerate,
+            rep.removed_non_finite
+        ));
+    }
+    let is_gltf = path
+        .extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("gltf") || e.eq_ignore_ascii_case("glb"));
+    let gz = ctx.terrain.height(m.translation_m.0, m.translation_m.1);
+    mesh.transform(mesh_transform(m, is_gltf, gz));
+    let mut parts = Vec::new();
+    for g in &mesh.groups {
+        let Some(k) = m.groups.iter().position(|o| o.group == g.name) else {
+            let names: Vec<&str> = mesh.groups.iter().map(|g| g.name.as_str()).collect();
+            return Err(ctx.src.invalid(
+                format!("objects[{i}].groups"),
+                format!(
+                    "mesh group `{}` of {} has no optics (groups in the file: {})",
+                    g.name,
+                    path.display(),
+                    names.join(", ")
+                ),
+            ));
+        };
+        let go = &m.groups[k];
+        if g.triangles.is_empty() {
+            continue;
+        }
+        let material = if go.as_turbid {
+            turbid_from_leaf(
+                mats,
+                &go.optics,
+                format!("{}@objects[{i}]/{}", go.optics, g.name),
+                &g.triangles,
+                g.triangles.len(),
+            )
+        } else {
+            mats.id(&go.optics).expect("validated")
+        };
+        parts.push(MeshPart {
+            name: g.name.clone(),
+            triangles: g.triangles.clone(),
+            material,
+            two_sided: go.two_sided,
+            as_turbid: go.as_turbid,
+        });
+    }
+    for (k, go) in m.groups.iter().enumerate() {
+        if !mesh.groups.iter().any(|g| g.name == go.group) {
+            return Err(ctx.src.invalid(
+                format!("objects[{i}].groups[{k}].group"),
+                format!("{} has no group `{}`", path.display(), go.group),
+            ));
+        }
+    }
+    if parts.is_empty() {
+        return Err(ctx.src.invalid(
+            format!("objects[{i}].path"),
+            format!("{}: the mesh has no triangles", path.display()),
+        ));
+    }
+    if ctx.desc.grid.boundary == BoundaryMode::Isolated {
+        let (lo, hi) = parts
+            .iter()
+            .flat_map(|p| p.triangles.iter().flatten())
+            .fold((DVec3::INFINITY, DVec3::NEG_INFINITY), |(lo, hi), v| {
+                (lo.min(*v), hi.max(*v))
+            });
+        if lo.x < 0.0 || lo.y < 0.0 || hi.x > ctx.size.0 || hi.y > ctx.size.1 {
+            return Err(ctx.src.invalid(format!("objects[{i}].translation_m"), format!("the transformed mesh spans x [{:.3}, {:.3}], y [{:.3}, {:.3}] m, outside the isolated scene", lo.x, hi.x, lo.y, hi.y)));
+        }
+    }
+    world.spawn((SourceObject(idx), ImportedMesh { path, parts }));
     Ok(())
 }
