@@ -618,3 +618,91 @@ fn run_refused(scene: &Path, extra: &[&str], out_name: &str) -> (Option<i32>, St
         String::from_utf8_lossy(&out.stderr).into_owned(),
     )
 }
+
+/// Products of an earlier run are never mixed with new ones: `run` refuses a folder that holds
+/// files (naming `--force`), leaves it untouched, and with `--force` replaces its whole content
+/// (a stale file of the earlier run is gone).
+#[test]
+fn a_folder_with_earlier_products_is_refused_unless_forced() {
+    let scene = common::asset("assets/scenes/turbid_layer.ron");
+    let out_dir = dir().join("staged-out");
+    let _ = std::fs::remove_dir_all(&out_dir);
+    let args = |force: bool| {
+        let mut a = vec![
+            "run",
+            scene.to_str().unwrap(),
+            "--quiet",
+            "--preset",
+            "preview",
+            "--out",
+            out_dir.to_str().unwrap(),
+        ];
+        if force {
+            a.push("--force");
+        }
+        a
+    };
+    let first = cli(&args(false));
+    assert!(
+        first.status.success(),
+        "{}",
+        String::from_utf8_lossy(&first.stderr)
+    );
+    let summary = out_dir.join("summary.json");
+    let before = std::fs::read(&summary).unwrap();
+    let stale = out_dir.join("images").join("stale_view.exr");
+    std::fs::create_dir_all(stale.parent().unwrap()).unwrap();
+    std::fs::write(&stale, b"earlier run").unwrap();
+    let again = cli(&args(false));
+    let err = String::from_utf8_lossy(&again.stderr);
+    assert!(!again.status.success(), "a non-empty folder was accepted");
+    assert!(
+        err.contains("not empty") && err.contains("--force"),
+        "{err}"
+    );
+    assert_eq!(
+        std::fs::read(&summary).unwrap(),
+        before,
+        "the refused run touched the folder"
+    );
+    assert!(stale.exists());
+    let forced = cli(&args(true));
+    assert!(
+        forced.status.success(),
+        "{}",
+        String::from_utf8_lossy(&forced.stderr)
+    );
+    assert!(summary.exists());
+    assert!(
+        !stale.exists(),
+        "a product of the earlier run was left beside the new ones"
+    );
+    // No staging folder is left beside the products.
+    let leftovers: Vec<_> = std::fs::read_dir(dir())
+        .unwrap()
+        .flatten()
+        .filter(|e| e.file_name().to_string_lossy().starts_with(".staged-out."))
+        .collect();
+    assert!(leftovers.is_empty(), "{leftovers:?}");
+}
+
+/// An output folder that cannot be created is reported before any simulation work, with its
+/// path, a non-zero exit and nothing written.
+#[test]
+fn an_output_folder_that_cannot_be_created_is_reported_first() {
+    let scene = common::asset("assets/scenes/turbid_layer.ron");
+    let blocker = dir().join("out-blocker-file");
+    std::fs::write(&blocker, b"a file, not a folder").unwrap();
+    let out_dir = blocker.join("products");
+    let out = cli(&[
+        "run",
+        scene.to_str().unwrap(),
+        "--quiet",
+        "--out",
+        out_dir.to_str().unwrap(),
+    ]);
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(!out.status.success());
+    assert!(err.contains("out-blocker-file"), "{err}");
+    assert!(!String::from_utf8_lossy(&out.stdout).contains("products written"));
+}

@@ -1,5 +1,6 @@
 //! `lumenscape check | maket | run SCENE`.
 
+use crate::io::atomic::StagedDir;
 use crate::resources::maket_report::MaketReport;
 use crate::resources::scene::{RunSettings, default_max_memory};
 use crate::simulation::{Simulation, Stage};
@@ -380,18 +381,25 @@ pub struct MaketArgs {
     #[command(flatten)]
     /// Scene and settings.
     pub opts: SceneOpts,
-    /// Output folder (created if needed).
+    /// Output folder (created; refused if it holds files, unless `--force`).
     #[arg(long)]
     pub out: PathBuf,
+    /// Replace the contents of a non-empty output folder.
+    #[arg(long)]
+    pub force: bool,
 }
 
 /// Runs `maket`.
 pub fn maket(args: &MaketArgs, out: &mut dyn Write) -> Result<(), CliError> {
     let mut sim = args.opts.load()?;
+    let staged = StagedDir::begin(&args.out, args.force, "--force")?;
     sim.world
-        .insert_resource(crate::resources::scene::OutputDir(args.out.clone()));
+        .insert_resource(crate::resources::scene::OutputDir(
+            staged.path().to_path_buf(),
+        ));
     sim.run_stage(Stage::Maket)?;
     sim.run_stage(Stage::Output)?;
+    staged.commit()?;
     print_report(sim.resource::<MaketReport>(), out)?;
     writeln!(out, "products written to {}", args.out.display())?;
     Ok(())
@@ -403,18 +411,24 @@ pub struct RunArgs {
     #[command(flatten)]
     /// Scene and settings.
     pub opts: SceneOpts,
-    /// Output folder (created if needed).
+    /// Output folder (created; refused if it holds files, unless `--force`). The products
+    /// are written into a hidden staging folder beside it and moved into place when the run
+    /// has finished, so a failed or killed run never leaves a complete-looking folder.
     #[arg(long)]
     pub out: PathBuf,
+    /// Replace the contents of a non-empty output folder.
+    #[arg(long)]
+    pub force: bool,
 }
 
 /// Runs `run`.
 pub fn run(args: &RunArgs, out: &mut dyn Write) -> Result<(), CliError> {
     let t0 = std::time::Instant::now();
     let mut sim = args.opts.load()?;
-    let before = product_files(&args.out);
-    let ran = sim.run(Some(&args.out))?;
-    let after = product_files(&args.out);
+    let staged = StagedDir::begin(&args.out, args.force, "--force")?;
+    let ran = sim.run(Some(staged.path()))?;
+    let written: Vec<String> = product_files(staged.path()).into_keys().collect();
+    staged.commit()?;
     print_report(sim.resource::<MaketReport>(), out)?;
     let skipped: Vec<String> = Stage::ALL
         .iter()
@@ -437,11 +451,6 @@ pub fn run(args: &RunArgs, out: &mut dyn Write) -> Result<(), CliError> {
              `photon_counting`; set `passive: Some(true)` for the passive products)"
         )?;
     }
-    let written: Vec<String> = after
-        .iter()
-        .filter(|(p, t)| before.get(*p) != Some(*t))
-        .map(|(p, _)| p.clone())
-        .collect();
     writeln!(
         out,
         "products written to {} in {:.2} s: {}",

@@ -47,3 +47,115 @@ pub fn tmp_path(path: &Path) -> std::path::PathBuf {
         .unwrap_or_default();
     path.with_file_name(format!(".{name}.tmp-{}", std::process::id()))
 }
+
+/// An output folder written as a whole: the products go into a hidden staging folder beside
+/// the target (`.NAME.partial-PID`, same parent, so the final rename is atomic), which
+/// [`StagedDir::commit`] renames into place. A run that fails removes its staging folder (on
+/// drop); a killed run leaves only the hidden `.partial` folder, never a complete-looking
+/// product folder. A folder that already holds files is refused unless `replace` is set, so
+/// products of an earlier run are never mixed with new ones.
+#[derive(Debug)]
+pub struct StagedDir {
+    target: std::path::PathBuf,
+    staging: std::path::PathBuf,
+    committed: bool,
+}
+
+impl StagedDir {
+    /// Checks the target and creates the staging folder (before any simulation work, so an
+    /// unwritable or occupied `--out` is reported at once). `flag` names the option that
+    /// allows replacing a non-empty folder (for the message).
+    pub fn begin(target: &Path, replace: bool, flag: &str) -> Result<Self, String> {
+        if target.exists() {
+            if !target.is_dir() {
+                return Err(format!(
+                    "{}: exists and is not a folder (choose another --out)",
+                    target.display()
+                ));
+            }
+            let occupied = std::fs::read_dir(target)
+                .map_err(|e| format!("{}: cannot read the folder: {e}", target.display()))?
+                .next()
+                .is_some();
+            if occupied && !replace {
+                return Err(format!(
+                    "{}: the folder is not empty (products of an earlier run?); choose a new \
+                     folder, or pass {flag} to replace its contents",
+                    target.display()
+                ));
+            }
+        }
+        let name = target
+            .file_name()
+            .map(|n| n.to_string_lossy().into_owned())
+            .filter(|n| !n.is_empty() && n != "." && n != "..")
+            .ok_or_else(|| {
+                format!(
+                    "{}: name a folder to write into (not `.`, `..` or a root)",
+                    target.display()
+                )
+            })?;
+        let parent = match target.parent() {
+            Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
+            _ => std::path::PathBuf::from("."),
+        };
+        std::fs::create_dir_all(&parent)
+            .map_err(|e| format!("{}: cannot create the folder: {e}", parent.display()))?;
+        let staging = parent.join(format!(".{name}.partial-{}", std::process::id()));
+        if staging.exists() {
+            std::fs::remove_dir_all(&staging)
+                .map_err(|e| format!("{}: cannot remove: {e}", staging.display()))?;
+        }
+        std::fs::create_dir(&staging).map_err(|e| {
+            format!(
+                "{}: cannot write into {}: {e}",
+                target.display(),
+                parent.display()
+            )
+        })?;
+        Ok(Self {
+            target: target.to_path_buf(),
+            staging,
+            committed: false,
+        })
+    }
+
+    /// The folder the stages write into.
+    pub fn path(&self) -> &Path {
+        &self.staging
+    }
+
+    /// Moves the finished products into place (replacing the target's earlier contents).
+    pub fn commit(mut self) -> Result<(), String> {
+        let fail = |e: std::io::Error| {
+            format!(
+                "{}: cannot move the products into place: {e}",
+                self.target.display()
+            )
+        };
+        if self.target.exists() {
+            let old = self.staging.with_file_name(
+                self.staging
+                    .file_name()
+                    .unwrap()
+                    .to_string_lossy()
+                    .replace(".partial-", ".old-"),
+            );
+            std::fs::rename(&self.target, &old).map_err(fail)?;
+            std::fs::rename(&self.staging, &self.target).map_err(fail)?;
+            let _ = std::fs::remove_dir_all(&old);
+        } else {
+            std::fs::rename(&self.staging, &self.target).map_err(fail)?;
+        }
+        self.committed = true;
+        Ok(())
+    }
+}
+
+impl Drop for StagedDir {
+    fn drop(&mut self) {
+        if !self.committed {
+            let _ = std::fs::remove_dir_all(&self.staging);
+        }
+    }
+}
