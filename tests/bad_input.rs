@@ -619,15 +619,13 @@ fn run_refused(scene: &Path, extra: &[&str], out_name: &str) -> (Option<i32>, St
     )
 }
 
-/// Products of an earlier run are never mixed with new ones: `run` refuses a folder that holds
-/// files (naming `--force`), leaves it untouched, and with `--force` replaces its whole content
-/// (a stale file of the earlier run is gone).
+/// Products of an earlier run are never mixed with new ones: a second run into the same folder
+/// replaces the whole folder (a stale file of the earlier run is gone), and a folder holding
+/// other files is refused (naming `--force`) and left untouched unless `--force` is given.
 #[test]
-fn a_folder_with_earlier_products_is_refused_unless_forced() {
+fn output_folders_are_replaced_whole_and_foreign_files_are_protected() {
     let scene = common::asset("assets/scenes/turbid_layer.ron");
-    let out_dir = dir().join("staged-out");
-    let _ = std::fs::remove_dir_all(&out_dir);
-    let args = |force: bool| {
+    let run_into = |out_dir: &Path, force: bool| {
         let mut a = vec![
             "run",
             scene.to_str().unwrap(),
@@ -640,48 +638,60 @@ fn a_folder_with_earlier_products_is_refused_unless_forced() {
         if force {
             a.push("--force");
         }
-        a
+        cli(&a)
     };
-    let first = cli(&args(false));
+    // An earlier run's folder is replaced as a whole.
+    let out_dir = dir().join("staged-out");
+    let _ = std::fs::remove_dir_all(&out_dir);
+    let first = run_into(&out_dir, false);
     assert!(
         first.status.success(),
         "{}",
         String::from_utf8_lossy(&first.stderr)
     );
-    let summary = out_dir.join("summary.json");
-    let before = std::fs::read(&summary).unwrap();
     let stale = out_dir.join("images").join("stale_view.exr");
     std::fs::create_dir_all(stale.parent().unwrap()).unwrap();
     std::fs::write(&stale, b"earlier run").unwrap();
-    let again = cli(&args(false));
-    let err = String::from_utf8_lossy(&again.stderr);
-    assert!(!again.status.success(), "a non-empty folder was accepted");
+    let again = run_into(&out_dir, false);
+    assert!(
+        again.status.success(),
+        "{}",
+        String::from_utf8_lossy(&again.stderr)
+    );
+    assert!(out_dir.join("summary.json").exists());
+    assert!(
+        !stale.exists(),
+        "a product of the earlier run was left beside the new ones"
+    );
+    // A folder with other files is protected.
+    let mine = dir().join("my-notes");
+    let _ = std::fs::remove_dir_all(&mine);
+    std::fs::create_dir_all(&mine).unwrap();
+    std::fs::write(mine.join("notes.txt"), b"mine").unwrap();
+    let refused = run_into(&mine, false);
+    let err = String::from_utf8_lossy(&refused.stderr);
+    assert!(
+        !refused.status.success(),
+        "a folder of other files was overwritten"
+    );
     assert!(
         err.contains("not empty") && err.contains("--force"),
         "{err}"
     );
-    assert_eq!(
-        std::fs::read(&summary).unwrap(),
-        before,
-        "the refused run touched the folder"
-    );
-    assert!(stale.exists());
-    let forced = cli(&args(true));
+    assert!(mine.join("notes.txt").exists());
+    assert!(!mine.join("summary.json").exists());
+    let forced = run_into(&mine, true);
     assert!(
         forced.status.success(),
         "{}",
         String::from_utf8_lossy(&forced.stderr)
     );
-    assert!(summary.exists());
-    assert!(
-        !stale.exists(),
-        "a product of the earlier run was left beside the new ones"
-    );
+    assert!(mine.join("summary.json").exists() && !mine.join("notes.txt").exists());
     // No staging folder is left beside the products.
     let leftovers: Vec<_> = std::fs::read_dir(dir())
         .unwrap()
         .flatten()
-        .filter(|e| e.file_name().to_string_lossy().starts_with(".staged-out."))
+        .filter(|e| e.file_name().to_string_lossy().contains(".partial-"))
         .collect();
     assert!(leftovers.is_empty(), "{leftovers:?}");
 }

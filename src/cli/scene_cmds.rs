@@ -381,10 +381,11 @@ pub struct MaketArgs {
     #[command(flatten)]
     /// Scene and settings.
     pub opts: SceneOpts,
-    /// Output folder (created; refused if it holds files, unless `--force`).
+    /// Output folder (created; an earlier run's products there are replaced as a whole; a
+    /// folder holding other files is refused unless `--force`).
     #[arg(long)]
     pub out: PathBuf,
-    /// Replace the contents of a non-empty output folder.
+    /// Replace the contents of a non-empty output folder that holds other files.
     #[arg(long)]
     pub force: bool,
 }
@@ -411,12 +412,13 @@ pub struct RunArgs {
     #[command(flatten)]
     /// Scene and settings.
     pub opts: SceneOpts,
-    /// Output folder (created; refused if it holds files, unless `--force`). The products
-    /// are written into a hidden staging folder beside it and moved into place when the run
-    /// has finished, so a failed or killed run never leaves a complete-looking folder.
+    /// Output folder (created; an earlier run's products there are replaced as a whole; a
+    /// folder holding other files is refused unless `--force`). The products are written into
+    /// a hidden staging folder beside it and moved into place when the run has finished, so a
+    /// failed or killed run never leaves a complete-looking folder.
     #[arg(long)]
     pub out: PathBuf,
-    /// Replace the contents of a non-empty output folder.
+    /// Replace the contents of a non-empty output folder that holds other files.
     #[arg(long)]
     pub force: bool,
 }

@@ -52,8 +52,10 @@ pub fn tmp_path(path: &Path) -> std::path::PathBuf {
 /// the target (`.NAME.partial-PID`, same parent, so the final rename is atomic), which
 /// [`StagedDir::commit`] renames into place. A run that fails removes its staging folder (on
 /// drop); a killed run leaves only the hidden `.partial` folder, never a complete-looking
-/// product folder. A folder that already holds files is refused unless `replace` is set, so
-/// products of an earlier run are never mixed with new ones.
+/// product folder. The whole folder is replaced, so products of an earlier run are never mixed
+/// with new ones: a folder holding an earlier run's products (`maket.json`, `summary.json` or
+/// `lidar/` at its top) is replaced; any other non-empty folder is refused unless `replace` is
+/// set (it may hold the user's own files).
 #[derive(Debug)]
 pub struct StagedDir {
     target: std::path::PathBuf,
@@ -77,10 +79,13 @@ impl StagedDir {
                 .map_err(|e| format!("{}: cannot read the folder: {e}", target.display()))?
                 .next()
                 .is_some();
-            if occupied && !replace {
+            let earlier_run = ["maket.json", "summary.json", "lidar"]
+                .iter()
+                .any(|m| target.join(m).exists());
+            if occupied && !earlier_run && !replace {
                 return Err(format!(
-                    "{}: the folder is not empty (products of an earlier run?); choose a new \
-                     folder, or pass {flag} to replace its contents",
+                    "{}: the folder is not empty and holds no products of an earlier run; \
+                     choose a new folder, or pass {flag} to replace its contents",
                     target.display()
                 ));
             }

@@ -4,6 +4,7 @@
 //! components. Every struct denies unknown fields; units are in field names (`_m`, `_deg`, `_nm`).
 //! `spawn` turns a validated [`SceneDesc`] into entities.
 
+use crate::direction::DirectionParams;
 use crate::physics::prospect::{ProspectModel, ProspectParams};
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
@@ -47,7 +48,7 @@ pub struct SceneDesc {
     /// Discrete directions (Direction stage): count, exact view directions, oversampled
     /// regions, fictive directions, angular sectors. Default: 100 directions (DART default).
     #[serde(default, skip_serializing_if = "Option::is_none")]
-    pub directions: Option<crate::direction::DirectionParams>,
+    pub directions: Option<DirectionParams>,
     /// Radiative-stage settings (preset and individual knobs).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub radiative: Option<RadiativeDesc>,
