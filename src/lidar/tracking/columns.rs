@@ -36,12 +36,12 @@ pub(crate) const MAX_FIRST_ORDER_COLUMNS: usize = 64;
 /// (zero where it is uniform, e.g. bare ground or a flat roof). Columns outside an isolated
 /// grid get none (their rays miss the scene, as the beam rays there do). The beam rays then only sample
 /// their collision for multiple scattering (their first order is not scored again,
-/// [`Photon::first_order_done`]). DART 5 paper §4 computes the first order by forced peel-off
+/// [`Photon::first_order_done`](crate::photon::engine::context::Photon::first_order_done)). DART 5 paper §4 computes the first order by forced peel-off
 /// along each ray; this is that integral over the footprint done by quadrature and stratified
 /// sampling instead of by the beam rays.
 ///
 /// Used when the estimator is `ExpectedValue`, one band, no fluid, the flat ground (if any)
-/// is Lambertian, no continuous-topography offset, the column sums exist ([`ColumnDepth`]),
+/// is Lambertian, no continuous-topography offset, the column sums exist ([`ColumnDepth`](crate::photon::engine::context::ColumnDepth)),
 /// every beam ray lies inside the receiver's FOV (relative slack 1e-12 on the cosine), and,
 /// per pulse, the axis is exactly vertical (downward), the emitter above the grid and the
 /// footprint's window at the bottom plane spans at most [`MAX_FIRST_ORDER_COLUMNS`] columns

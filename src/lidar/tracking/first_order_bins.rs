@@ -81,7 +81,7 @@ pub(crate) fn stratum_point(
 }
 
 /// Bins the forced first-order return of a vegetation segment of a LiDAR first flight
-/// ([`Ctx::first_flight`]; DART 5 paper §4, physics.md §9.2, §9.6): energy density
+/// ([`Ctx::first_flight`](crate::photon::engine::context::Ctx::first_flight); DART 5 paper §4, physics.md §9.2, §9.6): energy density
 /// `base · e^{−αu}/(l0 + u)²` J m⁻¹ over the distance `u ∈ [0, ell]` m from the segment start,
 /// `l0` m the distance from the receiver at `u = 0` (recorded at path `2(l0 + u)`), `α > 0`
 /// m⁻¹. Strata: the digitiser bins (before the gate, after it, and groups of `kb` bins beyond

@@ -64,7 +64,7 @@ pub(crate) struct Ctx<'a> {
     /// Per cell: 0 when it has something to interact with (a facet, a turbid entry with a
     /// density, a fluid), else its chessboard distance in cells to the nearest such cell
     /// ([`skip_field`]: 1 for a cell crossed one by one, and for every empty cell when
-    /// [`PhotonParams::skip_empty`] is off). Walks cross an empty cell without looking at its
+    /// [`PhotonParams::skip_empty`](crate::photon::engine::PhotonParams::skip_empty) is off). Walks cross an empty cell without looking at its
     /// contents, and flights from a cell at distance r ≥ 2 jump over the box of cells within
     /// r − 1
     /// (same results bit for bit: an empty cell adds nothing to optical depths and draws no
@@ -82,14 +82,14 @@ pub(crate) struct Ctx<'a> {
     /// Receiver mode: per-column vertical optical-depth sums for the return transmittance of
     /// peel-offs whose ray to the receiver stays in one grid column ([`ColumnDepth`]).
     pub(crate) columns: Option<std::sync::Arc<ColumnDepth>>,
-    /// Receiver mode ([`LidarEstimator::ExpectedValue`]): expected-value multiple-scattering
+    /// Receiver mode ([`LidarEstimator::ExpectedValue`](crate::scene::desc::LidarEstimator::ExpectedValue)): expected-value multiple-scattering
     /// return along every flight past the first ([`Ctx::scatter_flight`]) with the stop factor
     /// `c` ≥ 1, and expected-value first-order ground return in [`Ctx::first_flight`] (0: off,
     /// the collision estimator).
     pub(crate) ms_stop: f64,
-    /// Receiver mode ([`LidarEstimator::ExpectedValue`]): the far-photon roulette's distance
+    /// Receiver mode ([`LidarEstimator::ExpectedValue`](crate::scene::desc::LidarEstimator::ExpectedValue)): the far-photon roulette's distance
     /// scale ρ₀ (m) and the tangent of the receiver's FOV half-angle (see
-    /// [`far_roulette_survival`]); ρ₀ = 0: off.
+    /// [`far_roulette_survival`](crate::photon::engine::events::far_roulette_survival)); ρ₀ = 0: off.
     pub(crate) far_roulette: (f64, f64),
     /// Per cell (empty: the scene has no facets): a box `[lo, hi]` (x, y, z lo then hi) that
     /// holds every point of the cell's facets near the cell ([`facet_boxes`]); a ray segment
@@ -283,7 +283,7 @@ pub(crate) struct Photon {
     pub(crate) ret: Option<Bands>,
     /// Receiver mode: the walk of the current flight reached the Lambertian flat ground (or,
     /// first flight, a Lambertian facet) and scored its return with the expected value
-    /// ([`Ctx::first_flight`] and [`Ctx::scatter_flight`] of [`LidarEstimator::ExpectedValue`]),
+    /// ([`Ctx::first_flight`] and [`Ctx::scatter_flight`] of [`LidarEstimator::ExpectedValue`](crate::scene::desc::LidarEstimator::ExpectedValue)),
     /// so the surface collision of this flight is not peeled off.
     pub(crate) surface_scored: bool,
     /// Receiver mode: the uniform of the first flight's free path (`τ* = −ln(1 − u)`), from

@@ -127,7 +127,7 @@ pub(crate) fn brdf_event(
     }
 }
 
-/// Stop factor `c` of [`LidarEstimator::ExpectedValue`] ([`Ctx::scatter_flight`]): the walk of
+/// Stop factor `c` of [`LidarEstimator::ExpectedValue`](crate::scene::desc::LidarEstimator::ExpectedValue) ([`Ctx::scatter_flight`]): the walk of
 /// a multiple-scattering flight goes on to `c` times its collision's optical depth; c = 1: the
 /// track-length estimator (the return integrated along the flight up to its collision). On the
 /// forest ALS error study of session 10 (600 photons, 8 realizations) c = 1, 1.5, 2, 3, 4 and ∞
@@ -149,7 +149,7 @@ pub const FAR_ROULETTE_CELLS: f64 = 2.0;
 pub(crate) const FAR_ROULETTE_MIN_SURVIVAL: f64 = 1.0 / 64.0;
 
 /// Survival probability of a LiDAR photon about to fly on from the unwrapped point `m` (m)
-/// after a scattering event (receiver mode, [`LidarEstimator::ExpectedValue`]): with `e` the
+/// after a scattering event (receiver mode, [`LidarEstimator::ExpectedValue`](crate::scene::desc::LidarEstimator::ExpectedValue)): with `e` the
 /// distance of `m` outside the receiver's field-of-view cone (lateral distance from the axis
 /// minus the cone's radius `tan θ_FOV · s` at the point's range `s` along the axis; m),
 /// `q = min(1, (ρ₀/e)²)`, at least [`FAR_ROULETTE_MIN_SURVIVAL`]. Russian roulette (survivors

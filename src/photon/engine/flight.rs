@@ -20,8 +20,8 @@ use std::f64::consts::PI;
 
 impl Ctx<'_> {
     /// The LiDAR first flight from the emitter in one walk (receiver mode, `ph.order == 0`,
-    /// `ph.direct`, one band, no fluid; [`LidarEstimator::Stratified`] and
-    /// [`LidarEstimator::ExpectedValue`]): the collision is
+    /// `ph.direct`, one band, no fluid; [`LidarEstimator::Stratified`](crate::scene::desc::LidarEstimator::Stratified) and
+    /// [`LidarEstimator::ExpectedValue`](crate::scene::desc::LidarEstimator::ExpectedValue)): the collision is
     /// sampled as [`Ctx::fly`] does (same free path, cells, facet and exit rules, so the same
     /// hit distribution: [`Ctx::walk_flight`]), and along the same walk the expected-value
     /// (forced) first-order return of the whole flight is binned ([`FirstOrderScore`]; DART 5
@@ -43,7 +43,7 @@ impl Ctx<'_> {
     /// A cell where the flight crosses a one-sided facet from behind (a hit for the return)
     /// switches the rest of the walk to one forced point per segment with a shadow ray.
     ///
-    /// [`LidarEstimator::ExpectedValue`]: when the walk reaches a Lambertian flat ground (no
+    /// [`LidarEstimator::ExpectedValue`](crate::scene::desc::LidarEstimator::ExpectedValue): when the walk reaches a Lambertian flat ground (no
     /// facet crossed from behind), the ground's first-order return is scored there with the
     /// probability `e^{−τ_g}` of reaching it: `w e^{−τ_g} (ρ_g μ_r/π) T_ret A (Ω·axis)/r²` J
     /// (μ_r the cosine of the return direction, T_ret from the walk), and the ground collision

@@ -363,7 +363,7 @@ impl Ctx<'_> {
     }
 
     /// Return transmittance from the wrapped point `p` along the unit vector `u` to a receiver
-    /// at distance `r` (m), from the column sums ([`ColumnDepth`]), when they are exact: the ray
+    /// at distance `r` (m), from the column sums ([`ColumnDepth`](crate::photon::engine::context::ColumnDepth)), when they are exact: the ray
     /// leaves through the top of the grid before reaching the receiver, stays strictly inside
     /// the point's column (both ends of the in-grid part inside it: the column is convex) and
     /// the cells it crosses hold no facet and no fluid. `g` holds G(u) per tracked turbid

@@ -14,7 +14,7 @@ use glam::DVec3;
 use std::f64::consts::PI;
 
 /// The first flight's scoring ([`Ctx::first_flight`]): the first-order return of the
-/// vegetation binned by digitiser bin, and with [`LidarEstimator::ExpectedValue`] the
+/// vegetation binned by digitiser bin, and with [`LidarEstimator::ExpectedValue`](crate::scene::desc::LidarEstimator::ExpectedValue) the
 /// Lambertian ground or facet that ends the walk, with the return transmittance from the
 /// optical depth walked.
 pub(crate) struct FirstOrderScore<'g> {

@@ -544,7 +544,7 @@ pub(crate) fn return_transmittance(tau: f64) -> f64 {
 /// Marks a fluid collision in `Hit::Volume::c`.
 pub(crate) const FLUID_BIT: usize = 1 << 63;
 
-/// Smallest empty-space distance from which the Photon flights jump ([`skip_field`]): an empty
+/// Smallest empty-space distance from which the Photon flights jump ([`skip_field`](crate::radiative::dda::skip_field)): an empty
 /// cell costs them only ~20 instructions, so short jumps do not pay (measured, callgrind,
 /// LiDAR forest discrete-peak: jumping from distance 4 cost 27 M more instructions than it
 /// saved over 64 pulses; the urban scan +7 %). From 8 only long runs of empty air jump.
@@ -565,7 +565,7 @@ pub(crate) fn fly_skip(dda: &mut Dda, r: u8, skipped: &mut u64) -> Exit {
     e
 }
 
-/// Crosses the run of empty cells crossed one by one (field value 1, see [`skip_field`]) that
+/// Crosses the run of empty cells crossed one by one (field value 1, see [`skip_field`](crate::radiative::dda::skip_field)) that
 /// starts at the current cell of `dda`: steps until the ray enters a cell with another value
 /// (returns [`Exit::Inside`] there) or leaves the grid (returns the exit [`Dda::advance`] would
 /// report), adding the empty cells entered on the way to `crossings` (the caller counts the
