@@ -34,6 +34,7 @@ pub mod returns;
 pub mod simulate;
 pub mod special;
 pub mod spool;
+pub mod tracking;
 pub mod waveform;
 pub mod waveform_io;
 

@@ -1,6 +1,6 @@
 //! A LiDAR instrument run (DART 5 paper §4, Figs. 11–14; physics.md §9): pulse geometry from the
 //! scene description, forward photon tracking of every pulse with peel-off to the monostatic
-//! receiver ([`crate::photon::engine::run_lidar`]), convolution with the emitted pulse, discrete
+//! receiver ([`crate::lidar::tracking::run_lidar`]), convolution with the emitted pulse, discrete
 //! returns, photon counting with solar background from the passive radiance, fusion with the
 //! passive image.
 //!
@@ -18,9 +18,10 @@ use crate::lidar::photon_counting::{
 };
 use crate::lidar::pulse::{BeamProfile, FootprintSampler, PulseShape};
 use crate::lidar::spool::{PulseEntry, Spool, spool_counted};
+use crate::lidar::tracking::{Beam, Pulse, run_lidar_chunks};
 use crate::lidar::waveform::{Waveform, WaveformBinner};
 use crate::lidar::waveform_io::WaveformStream;
-use crate::photon::engine::{Beam, PhotonInput, Pulse, run_lidar_chunks};
+use crate::photon::engine::PhotonInput;
 use crate::resources::directions::direction_from_deg;
 use crate::resources::lidar::{CountedPhoton, LidarRun, PulseRecord, StreamedRun};
 use crate::scene::desc::{
@@ -271,15 +272,15 @@ pub struct LidarChunks {
     /// A progress bar of the pulses on stderr (advanced per chunk).
     pub progress: bool,
     /// The far-photon roulette of the expected-value estimator
-    /// ([`crate::photon::engine::Beam::far_roulette_m`]).
+    /// ([`crate::lidar::tracking::Beam::far_roulette_m`]).
     pub far_roulette: FarRoulette,
     /// The expected-value estimator's column quadrature of the first-order return where it
-    /// applies ([`crate::photon::engine::Beam::first_order_columns`]; default true).
+    /// applies ([`crate::lidar::tracking::Beam::first_order_columns`]; default true).
     pub first_order_columns: bool,
 }
 
 /// The expected-value estimator's far-photon roulette of multiple scattering
-/// ([`crate::photon::engine::Beam::far_roulette_m`]); every setting has the same expectation.
+/// ([`crate::lidar::tracking::Beam::far_roulette_m`]); every setting has the same expectation.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub enum FarRoulette {
     /// Distance scale ρ₀ from the scene (`far_roulette_scale_m`; the default).
@@ -304,7 +305,7 @@ impl Default for LidarChunks {
 }
 
 /// Distance scale ρ₀ (m) of the expected-value estimator's far-photon roulette
-/// ([`crate::photon::engine::Beam::far_roulette_m`]): the larger of
+/// ([`crate::lidar::tracking::Beam::far_roulette_m`]): the larger of
 /// [`crate::photon::engine::FAR_ROULETTE_CELLS`] horizontal cell sizes and the mean free path
 /// `1/k̄` in the vegetation, `k̄ = ½ ū_f` with `ū_f` the mean leaf-area density (m²/m³) of the
 /// cells that hold turbid vegetation (½: the mean of G(Ω) over all directions, for every leaf
@@ -614,7 +615,7 @@ pub fn simulate_lidar(
                 let bg_bin = rate * dt * 1e-9;
                 let mut rng = crate::scene::spawn::stream(
                     input.params.seed,
-                    crate::photon::engine::LIDAR_STREAM ^ 0x5043,
+                    crate::lidar::tracking::LIDAR_STREAM ^ 0x5043,
                     pl.id,
                 );
                 for shot in 0..pc.shots {

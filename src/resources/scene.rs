@@ -91,7 +91,7 @@ pub struct RunSettings {
     pub lidar_far_roulette: crate::lidar::simulate::FarRoulette,
     /// The LiDAR expected-value estimator's column quadrature of the first-order return
     /// (default on; off: every beam ray scores its own first order, the same expectation,
-    /// [`crate::photon::engine::Beam::first_order_columns`]).
+    /// [`crate::lidar::tracking::Beam::first_order_columns`]).
     pub lidar_first_order_columns: bool,
 }
 

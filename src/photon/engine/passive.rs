@@ -1,0 +1,244 @@
+//! The passive Monte Carlo run (DART 5 paper §4; Gastellu-Etchegorry et al. 2016, eqs. 1–3):
+//! sun and sky photons in seeded batches (one `Xoshiro256PlusPlus` stream per batch), merged in
+//! batch order into a [`PhotonResult`] with standard errors.
+
+use super::context::{Bands, Ctx, Photon};
+use super::input::PhotonInput;
+use super::result::PhotonResult;
+use super::tally::{Acc, BatchOut};
+use super::trace::trace_photon;
+use crate::photon::sampling::{Uniform01, sample_cosine_hemisphere};
+use glam::DVec3;
+use rayon::prelude::*;
+use std::collections::HashMap;
+
+/// Runs the Monte Carlo simulation.
+pub fn run(inp: &PhotonInput) -> PhotonResult {
+    let spec = inp.spec;
+    let nb = inp.e_dir.len();
+    let has_sky = inp.e_diff.iter().any(|&e| e > 0.0);
+    let w = nb * if has_sky { 2 } else { 1 };
+    let n_dirs = inp.dirs.tiling().len();
+    let ctx = Ctx::new(inp, nb, w);
+    let area = ctx.size.0 * ctx.size.1;
+    let mut source = vec![0.0; w];
+    for b in 0..nb {
+        source[b] = inp.e_dir[b] * area;
+        if has_sky {
+            source[nb + b] = inp.e_diff[b] * area;
+        }
+    }
+    let n_batches = inp.params.batches.max(1) as u64;
+    let per_batch = inp.params.photons.div_ceil(n_batches).max(1);
+    let n_entries = inp.grid.turbid.len();
+    let n_facets = inp.facets.len();
+    let n_cols = spec.n[0] * spec.n[1];
+    let mut res = PhotonResult {
+        n_channels: w,
+        n_bands: nb,
+        has_sky,
+        source: source.clone(),
+        escaped: vec![0.0; n_dirs * w],
+        peel: vec![0.0; inp.views.len() * w],
+        absorbed_turbid: vec![0.0; n_entries * w],
+        intercepted_turbid: vec![0.0; n_entries * w],
+        absorbed_facet: vec![0.0; n_facets * w],
+        intercepted_facet: vec![0.0; n_facets * w],
+        absorbed_ground: vec![0.0; n_cols * w],
+        intercepted_ground: vec![0.0; n_cols * w],
+        lost: vec![0.0; w],
+        roulette: vec![0.0; w],
+        summary: ctx.sum.clone(),
+        photons: per_batch * n_batches,
+        ..Default::default()
+    };
+    let mut fluid_abs: std::collections::BTreeMap<u32, Vec<f64>> = Default::default();
+    // Batches run in waves (bounded memory); merged in batch order.
+    let wave = 16u64;
+    let mut b0 = 0u64;
+    while b0 < n_batches {
+        let b1 = (b0 + wave).min(n_batches);
+        let outs: Vec<BatchOut> = (b0..b1)
+            .into_par_iter()
+            .map(|b| run_batch(&ctx, b, per_batch, &source))
+            .collect();
+        for o in outs {
+            let s = &o.summary;
+            for j in 0..n_dirs {
+                for ch in 0..w {
+                    res.escaped[j * w + ch] += s[ctx.sum.dir(j, ch)];
+                }
+            }
+            for v in 0..inp.views.len() {
+                for ch in 0..w {
+                    res.peel[v * w + ch] += s[ctx.sum.view(v, ch)];
+                }
+            }
+            o.abs_tur.add_into(&mut res.absorbed_turbid);
+            o.int_tur.add_into(&mut res.intercepted_turbid);
+            o.abs_fac.add_into(&mut res.absorbed_facet);
+            o.int_fac.add_into(&mut res.intercepted_facet);
+            o.abs_gnd.add_into(&mut res.absorbed_ground);
+            o.int_gnd.add_into(&mut res.intercepted_ground);
+            let mut keys: Vec<_> = o.abs_fluid.keys().copied().collect();
+            keys.sort_unstable();
+            for k in keys {
+                let e = fluid_abs.entry(k).or_insert_with(|| vec![0.0; w]);
+                e.iter_mut()
+                    .zip(&o.abs_fluid[&k])
+                    .for_each(|(a, b)| *a += b);
+            }
+            res.lost.iter_mut().zip(&o.lost).for_each(|(a, b)| *a += b);
+            res.roulette
+                .iter_mut()
+                .zip(&o.roulette)
+                .for_each(|(a, b)| *a += b);
+            res.events += o.events;
+            res.crossings += o.crossings;
+            res.skipped += o.skipped;
+            res.batch_summaries.push(o.summary);
+        }
+        b0 = b1;
+    }
+    for (k, v) in fluid_abs {
+        res.fluid_cells.push(k);
+        res.absorbed_fluid.extend(v);
+    }
+    res
+}
+
+/// Photon stream purpose tag (see `scene::spawn::stream`).
+pub const PHOTON_STREAM: u64 = 0x5048_4f54_4f4e; // "PHOTON"
+
+pub(crate) fn run_batch(ctx: &Ctx, batch: u64, n: u64, source: &[f64]) -> BatchOut {
+    let inp = ctx.inp;
+    let spec = inp.spec;
+    let (nb, w) = (ctx.nb, ctx.w);
+    let n_entries = inp.grid.turbid.len();
+    let n_cols = spec.n[0] * spec.n[1];
+    let mut out = BatchOut {
+        summary: vec![0.0; ctx.sum.len()],
+        abs_tur: Acc::new(n_entries, w),
+        int_tur: Acc::new(n_entries, w),
+        abs_fac: Acc::new(inp.facets.len(), w),
+        int_fac: Acc::new(inp.facets.len(), w),
+        abs_gnd: Acc::new(n_cols, w),
+        int_gnd: Acc::new(n_cols, w),
+        abs_fluid: HashMap::new(),
+        lost: vec![0.0; w],
+        roulette: vec![0.0; w],
+        events: 0,
+        crossings: 0,
+        skipped: 0,
+        wave: None,
+    };
+    let mut rng = crate::scene::spawn::stream(inp.params.seed, PHOTON_STREAM, batch);
+    let has_sky = w > nb;
+    let n_total = n * inp.params.batches.max(1) as u64;
+    // Sun and sky photons alternate inside the batch.
+    let (n_sun, n_sky) = if has_sky {
+        (n.div_ceil(2), n / 2)
+    } else {
+        (n, 0)
+    };
+    let tot_sun = n_total as f64 * n_sun as f64 / n as f64;
+    let tot_sky = n_total as f64 * n_sky as f64 / n as f64;
+    let n_tur = ctx.tur_ids.len();
+    let mut g_cur = vec![0.0; n_tur];
+    let mut scratch = vec![0.0; nb];
+    let mut tr = vec![0.0; nb];
+    let mut ph = Photon {
+        p: DVec3::ZERO,
+        d: DVec3::ZERO,
+        path: 0.0,
+        shift: DVec3::ZERO,
+        di: 0,
+        w: Bands::from_elem(0.0, nb),
+        w0: 0.0,
+        off: 0,
+        order: 0,
+        skip_facet: None,
+        direct: false,
+        ret: None,
+        surface_scored: false,
+        first_u: None,
+        first_order_done: false,
+    };
+    let n_dirs = ctx.omega.len();
+    let discrete = inp.params.sampler.is_discrete();
+    for i in 0..n_sun + n_sky {
+        let sky = i >= n_sun;
+        let x = spec.origin.x + rng.next_f64() * ctx.size.0;
+        let y = spec.origin.y + rng.next_f64() * ctx.size.1;
+        ph.p = DVec3::new(x, y, spec.top());
+        ph.off = if sky { nb } else { 0 };
+        for b in 0..nb {
+            ph.w[b] = if sky {
+                source[nb + b] / tot_sky
+            } else {
+                source[b] / tot_sun
+            };
+        }
+        ph.w0 = ph.w.iter().cloned().fold(0.0, f64::max);
+        if ph.w0 <= 0.0 {
+            continue;
+        }
+        if sky {
+            // Isotropic sky: cosine-weighted downward directions.
+            ph.d = sample_cosine_hemisphere(DVec3::NEG_Z, &mut rng);
+            if discrete {
+                ph.di = inp.dirs.find_sector(ph.d);
+                ph.d = ctx.omega[ph.di];
+            }
+        } else {
+            ph.d = inp.sun;
+            ph.di = n_dirs;
+        }
+        ph.order = 0;
+        ph.skip_facet = None;
+        trace_photon(
+            ctx,
+            &mut ph,
+            &mut rng,
+            &mut out,
+            &mut g_cur,
+            &mut scratch,
+            &mut tr,
+        );
+    }
+    // Per-batch absorption summaries (non-ground: turbid, non-ground facets, fluids; ground:
+    // flat ground (booked per event) and DEM facets).
+    let gf = inp.ground_facet;
+    let mut absorbed = vec![0.0; w];
+    let mut abs_dem = vec![0.0; w];
+    let mut int_dem = vec![0.0; w];
+    out.abs_tur
+        .for_each(|_, v| absorbed.iter_mut().zip(v).for_each(|(a, x)| *a += x));
+    out.abs_fac.for_each(|k, v| {
+        let t = if gf.get(k as usize).copied().unwrap_or(false) {
+            &mut abs_dem
+        } else {
+            &mut absorbed
+        };
+        t.iter_mut().zip(v).for_each(|(a, x)| *a += x)
+    });
+    out.int_fac.for_each(|k, v| {
+        if gf.get(k as usize).copied().unwrap_or(false) {
+            int_dem.iter_mut().zip(v).for_each(|(a, x)| *a += x)
+        }
+    });
+    let mut keys: Vec<_> = out.abs_fluid.keys().copied().collect();
+    keys.sort_unstable();
+    for k in keys {
+        absorbed
+            .iter_mut()
+            .zip(&out.abs_fluid[&k])
+            .for_each(|(a, x)| *a += x);
+    }
+    for ch in 0..w {
+        out.summary[ctx.sum.absorbed(ch)] += absorbed[ch];
+        out.summary[ctx.sum.absorbed_ground(ch)] += abs_dem[ch];
+        out.summary[ctx.sum.ground(ch)] += int_dem[ch];
+    }
+    out
+}
