@@ -342,7 +342,7 @@ fn walks_agree_on_every_instruction_set() {
 /// cell's optical depth in the 20 m cells below; 0.1 % of the DISORT tolerance), per-entry and per-pixel raw products within 1e-4 relative (a single cell or pixel
 /// sums fewer rays, and a ray whose power is at the stopping threshold may stop one crossing
 /// earlier or later), the visited crossings within 1e-2 (see below); energy closing to 1e-12 as in the f64
-/// walk; no NaN. Measured (session 20, `f32_walk_agrees_*` printouts): band products 0.9–2.5e-7
+/// walk; no NaN. Measured (the `f32_walk_agrees_*` printouts, 2026-11-27): band products 0.9–2.5e-7
 /// on the 0.2–0.25 m layers and the dense cells, 3.4e-6 with 20 m cells; raw ≤ 9.3e-5 (one
 /// pixel of the cell-edge case).
 fn f32_walk_agrees(d: &SceneDesc, what: &str) {

@@ -912,7 +912,7 @@ fn first_order_column_quadrature_keeps_the_expected_waveform() {
 /// unchanged) equals that of s = 1 within 4.5 combined standard errors (512 pulses each; the
 /// standard error is ~1e-5 of the mean with the quadrature, so scale-dependent rounding or
 /// thresholds would show), at a grid vertex and a generic centre. Sensitivity: with the gate
-/// taken along the beam axis only (before session 16), the ground returns of the footprint's
+/// taken along the beam axis only (the earlier gate), the ground returns of the footprint's
 /// edge at s = 1e3 (900 m footprint at 30 km: 13.5 m of path longer than the axis, more than
 /// the margin) fell past the gate: −1.1e-4, 9.9 σ. At s = 1e3 the quadrature's waveform also
 /// agrees with the beam rays' in every bin above 5 % of the peak (4.5 combined SE): one column

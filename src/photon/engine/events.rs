@@ -130,10 +130,9 @@ pub(crate) fn brdf_event(
 /// Stop factor `c` of [`LidarEstimator::ExpectedValue`](crate::scene::desc::LidarEstimator::ExpectedValue) ([`Ctx::scatter_flight`]): the walk of
 /// a multiple-scattering flight goes on to `c` times its collision's optical depth; c = 1: the
 /// track-length estimator (the return integrated along the flight up to its collision). On the
-/// forest ALS error study of session 10 (600 photons, 8 realizations) c = 1, 1.5, 2, 3, 4 and ∞
-/// gave 0.82, 0.79, 0.73, 0.74, 0.76 and 0.75 % total error, and c = 2 was chosen. Re-measured
-/// with session 15's default (72 rays, far-photon roulette; 768 realizations, standard error
-/// 0.002 %): c = 1 0.996 % at 711.1k instructions per pulse, c = 2 1.003 % at 752.0k (384: c =
+/// forest ALS error study (600 photons, 8 realizations) c = 1, 1.5, 2, 3, 4 and ∞ gave 0.82,
+/// 0.79, 0.73, 0.74, 0.76 and 0.75 % total error with the estimator's first settings; with the
+/// current defaults (72 rays, far-photon roulette; 768 realizations, standard error 0.002 %): c = 1 0.996 % at 711.1k instructions per pulse, c = 2 1.003 % at 752.0k (384: c =
 /// 1.25 1.001 % at 729.2k, 1.5 0.999 % at 738.3k): c = 1 has the lowest error and cost (README of
 /// 4df2100, LiDAR speed against error).
 pub(crate) const MS_STOP_FACTOR: f64 = 1.0;
