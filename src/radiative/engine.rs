@@ -166,7 +166,7 @@ pub struct TrackingParams {
     pub turbid_exit_grouping: bool,
     /// The lean tracker's rays queued per chunk and walked sixteen (AVX-512, single-precision
     /// geometry: [`TrackingParams::batch_f32`]), eight (AVX-512, double precision) or four
-    /// (AVX2) at a time (see the `batch` module of the engine). In double precision: the same
+    /// (AVX2) at a time (see the `walk` module of `radiative`). In double precision: the same
     /// rays, each with the same operations as the one-ray walk, so the products agree to
     /// rounding (only the summation order of the rays' contributions changes). Off: one ray
     /// at a time (kept for the equality tests and for measuring).
@@ -180,7 +180,7 @@ pub struct TrackingParams {
     #[serde(skip)]
     pub kernel_isa: KernelIsa,
     /// The batched walk in single-precision geometry on 16 lanes where the CPU has AVX-512
-    /// (default on; `batch` module, `wide32`: each lane's traversal in its cell's frame, path
+    /// (default on; `walk::batch::wide32`: each lane's traversal in its cell's frame, path
     /// lengths, fractions and interception points in `f32`; powers, bookings and energy
     /// closure in `f64`): products within ~3e-7 relative of the f64 walks' on cells of 0.1–1 m
     /// (3.4e-6 with 20 m cells), 1.4× faster (README, Kernel). Off, or on CPUs without

@@ -7,6 +7,113 @@ use super::*;
 
 /// Runs the flux tracking.
 pub fn run(inp: &RadiativeInput) -> RadiativeResult {
+    let (ctx, plan, source) = context(inp);
+    let (w, n_dirs) = (ctx.w, ctx.n_dirs);
+    let tiling = inp.dirs.tiling();
+    let mut res = new_result(&ctx, plan, &source);
+    let outs = launch(&ctx, &plan);
+    let mut stores = new_stores(&ctx);
+    let mut last = vec![0.0; w]; // escaped in the last iteration
+    let mut pool: Vec<ChunkOut> = Vec::new();
+    merge(&ctx, outs, &mut stores, &mut res, &mut last, &mut pool);
+    res.escaped_per_iteration.push(last.clone());
+    res.iterations = 1;
+    // Facet fractions fallback (renormalised cosine) computed once if not provided.
+    let approx_fractions: Vec<(Vec<f32>, Vec<f32>)> =
+        if inp.facet_fractions.len() == inp.facets.len() {
+            Vec::new()
+        } else {
+            inp.facets
+                .par_iter()
+                .map(|f| cosine_fractions(&ctx, f))
+                .collect()
+        };
+    let fractions: &[(Vec<f32>, Vec<f32>)] = if approx_fractions.is_empty() {
+        inp.facet_fractions
+    } else {
+        &approx_fractions
+    };
+    let ground_fr: Vec<f64> = (0..n_dirs)
+        .map(|j| {
+            if ctx.omega[j].z > 0.0 {
+                tiling[j].projected_sr / std::f64::consts::PI
+            } else {
+                0.0
+            }
+        })
+        .collect();
+    // --- Scattering iterations.
+    let mut prev_pending = pending(&stores, w);
+    let mut prev_estimate = f64::NAN;
+    res.q = vec![0.0; w];
+    let mut last_inc = Increments::new(&res);
+    let bar = crate::io::progress::progress_bar(
+        inp.params.progress,
+        inp.params.max_iterations as u64,
+        "flux tracking: iterations",
+    );
+    while res.iterations < inp.params.max_iterations {
+        bar.set_position(res.iterations as u64);
+        let pend = prev_pending.clone();
+        if pend.iter().sum::<f64>() <= 1e-15 * source.iter().sum::<f64>() {
+            res.converged = true;
+            break;
+        }
+        let before = Increments::new(&res);
+        let outs = emit(
+            &ctx,
+            &stores,
+            res.iterations == 1,
+            fractions,
+            &ground_fr,
+            &mut pool,
+        );
+        let mut new_stores = new_stores(&ctx);
+        let mut esc = vec![0.0; w];
+        merge(&ctx, outs, &mut new_stores, &mut res, &mut esc, &mut pool);
+        // Absorption at emission: intercepted − emitted, booked in `emit` via res? (see below)
+        stores = new_stores;
+        res.iterations += 1;
+        res.escaped_per_iteration.push(esc.clone());
+        let now = pending(&stores, w);
+        for ch in 0..w {
+            res.q[ch] = if pend[ch] > 0.0 {
+                now[ch] / pend[ch]
+            } else {
+                0.0
+            };
+        }
+        last_inc = Increments::diff(&before, &res);
+        // Extrapolated albedo estimate (all channels).
+        let esc_total: f64 = res.escaped.iter().sum();
+        let extra: f64 = (0..w)
+            .map(|ch| {
+                if res.q[ch] < 1.0 {
+                    esc[ch] * res.q[ch] / (1.0 - res.q[ch])
+                } else {
+                    0.0
+                }
+            })
+            .sum();
+        let estimate = (esc_total + extra) / source.iter().sum::<f64>();
+        prev_pending = now;
+        if res.iterations >= 3
+            && (estimate - prev_estimate).abs()
+                <= inp.params.albedo_threshold * estimate.abs().max(1e-300)
+        {
+            res.converged = true;
+            break;
+        }
+        prev_estimate = estimate;
+    }
+    bar.finish_and_clear();
+    extrapolate(&ctx, &stores, &last_inc, &mut res);
+    res
+}
+
+/// The tracker's context of one run (cell records, G and slot rows, thresholds, walk
+/// settings), the launch plan and the source power per channel (W).
+fn context<'a>(inp: &'a RadiativeInput<'a>) -> (Ctx<'a>, LaunchPlan, Vec<f64>) {
     let spec = inp.spec;
     let grid = inp.grid;
     let nb = inp.e_dir.len();
@@ -144,6 +251,105 @@ pub fn run(inp: &RadiativeInput) -> RadiativeResult {
             ));
         }
     }
+    let ground_rows = ground_rows(inp, n_sec);
+    let (brdf_ref, n_brdf_refs, facet_rows) = facet_rows(inp, n_sec);
+    // Hotspot terms (physics.md §3.5): sun–view gap correlation of first-order sun rays.
+    let mut hs = vec![[0.0; 2]; n_dirs * n_tm];
+    for (tm, &m) in tur_ids.iter().enumerate() {
+        let TrackOptics::Turbid { leaf_size_m, .. } = &inp.optics[m] else {
+            unreachable!("tur_ids holds turbid materials only");
+        };
+        if *leaf_size_m > 0.0 && inp.sun.z < 0.0 {
+            let g_sun = g_dir[n_dirs * n_tm + tm];
+            for j in 0..n_dirs {
+                hs[j * n_tm + tm] =
+                    hotspot_terms(inp.sun, omega[j], g_sun, g_dir[j * n_tm + tm], *leaf_size_m);
+            }
+        }
+    }
+    let hs_dir: Vec<bool> = (0..n_dirs)
+        .map(|j| (0..n_tm).any(|tm| hs[j * n_tm + tm][0] > 0.0))
+        .collect();
+    // The lean tracker's cells, when the scene fits it.
+    let simple = cells
+        .iter()
+        .all(|c| c.fac_lo == c.fac_hi && c.ent_hi - c.ent_lo <= 1)
+        && spec.topography_offset == (0.0, 0.0);
+    // Empty-space distance per cell: a cell is occupied when a walk does anything in it (a
+    // tracked turbid entry or a facet; the ground and the box's faces are exits of the DDA).
+    let skip = skip_field(spec.n, inp.params.skip_empty, MIN_SKIP_DISTANCE, |c| {
+        cells[c].fac_lo != cells[c].fac_hi || cells[c].ent_lo != cells[c].ent_hi
+    });
+    let scells = if simple {
+        simple_cells(&cells, &ents, &skip)
+    } else {
+        Vec::new()
+    };
+    // Where the walks dispatch (the batched walk only where it has AVX2 + FMA).
+    let arch = inp.params.kernel_isa.arch();
+    let mut ctx = Ctx {
+        inp,
+        w,
+        nb,
+        n_dirs,
+        n_slots,
+        omega,
+        tur_mat,
+        n_tm,
+        g_dir,
+        cells,
+        ents,
+        entry_cell,
+        size,
+        min_ray,
+        ray_factor,
+        slot_rows,
+        ground_rows,
+        sub: plan.subcells.max(1),
+        brdf_ref,
+        n_brdf_refs,
+        facet_rows,
+        hs,
+        hs_dir,
+        image_grid: ImageGrid::new(spec, inp.image_oversampling),
+        simple,
+        batch: crate::radiative::walk::batched(simple, &inp.params, w, &arch),
+        scells,
+        skip,
+        subfaces: inp.params.turbid_subfaces,
+        tstores: match inp.params.turbid_subfaces {
+            TurbidSubfaces::Off | TurbidSubfaces::Blend => 1,
+            TurbidSubfaces::Faces => 7,
+            TurbidSubfaces::Subfaces => {
+                6 * (plan.subcells.clamp(1, MAX_FACE_D) as usize).pow(2) + 1
+            }
+        },
+        face_d: if inp.params.turbid_subfaces == TurbidSubfaces::Subfaces {
+            plan.subcells.clamp(1, MAX_FACE_D)
+        } else {
+            1
+        },
+        pts_per: if inp.params.turbid_subfaces == TurbidSubfaces::Blend {
+            n_slots
+        } else {
+            1
+        },
+        lane_dirs: Vec::new(),
+        lane_dirs32: Vec::new(),
+        scells32: Vec::new(),
+        arch,
+    };
+    if ctx.batch {
+        batch_tables(&mut ctx);
+    }
+    (ctx, plan, source)
+}
+
+/// The ground BRDF's rows per band (physics.md §5.2): the slot-averaged rows, then the sun row
+/// last, `[band][slot 0..=n_sec][dir]` (empty for a Lambertian ground).
+fn ground_rows(inp: &RadiativeInput, n_sec: usize) -> Vec<f64> {
+    let tiling = inp.dirs.tiling();
+    let (nb, n_dirs) = (inp.e_dir.len(), tiling.len());
     let mut ground_rows = Vec::new();
     if let Some(tables) = &inp.ground_brdf {
         let weights: Vec<f64> = tiling.iter().map(|d| d.projected_sr).collect();
@@ -165,6 +371,16 @@ pub fn run(inp: &RadiativeInput) -> RadiativeResult {
             );
         }
     }
+    ground_rows
+}
+
+/// RPV/Hapke facets (physics.md §5.1): per facet ref of the grid, its compact BRDF ref index
+/// (`u32::MAX`: Lambertian), the number of such refs, and the slot-averaged rows per table set
+/// (`[set][band][slot 0..=n_sec][dir]`, the sun row last), with the wrong-side power remapped.
+fn facet_rows(inp: &RadiativeInput, n_sec: usize) -> (Vec<u32>, usize, Vec<f64>) {
+    let grid = inp.grid;
+    let tiling = inp.dirs.tiling();
+    let (nb, n_dirs) = (inp.e_dir.len(), tiling.len());
     // RPV/Hapke facets: compact ref index and slot-averaged rows per table set (weights: the
     // projected solid angle |n·Ω_i| ΔΩ_i of each member incidence on the set's facets).
     let mut brdf_ref = Vec::new();
@@ -221,136 +437,64 @@ pub fn run(inp: &RadiativeInput) -> RadiativeResult {
             }
         }
     }
-    // Hotspot terms (physics.md §3.5): sun–view gap correlation of first-order sun rays.
-    let mut hs = vec![[0.0; 2]; n_dirs * n_tm];
-    for (tm, &m) in tur_ids.iter().enumerate() {
-        let TrackOptics::Turbid { leaf_size_m, .. } = &inp.optics[m] else {
-            unreachable!("tur_ids holds turbid materials only");
-        };
-        if *leaf_size_m > 0.0 && inp.sun.z < 0.0 {
-            let g_sun = g_dir[n_dirs * n_tm + tm];
-            for j in 0..n_dirs {
-                hs[j * n_tm + tm] =
-                    hotspot_terms(inp.sun, omega[j], g_sun, g_dir[j * n_tm + tm], *leaf_size_m);
-            }
-        }
-    }
-    let hs_dir: Vec<bool> = (0..n_dirs)
-        .map(|j| (0..n_tm).any(|tm| hs[j * n_tm + tm][0] > 0.0))
-        .collect();
-    // The lean tracker's cells, when the scene fits it.
-    let simple = cells
+    (brdf_ref, n_brdf_refs, facet_rows)
+}
+
+/// The walks' cells of a simple scene ([`SimpleCell`]): the cell's tracked turbid entry, or
+/// its empty-space distance from `skip`.
+fn simple_cells(cells: &[CellRec], ents: &[Ent], skip: &[u8]) -> Vec<SimpleCell> {
+    cells
         .iter()
-        .all(|c| c.fac_lo == c.fac_hi && c.ent_hi - c.ent_lo <= 1)
-        && spec.topography_offset == (0.0, 0.0);
-    // Empty-space distance per cell: a cell is occupied when a walk does anything in it (a
-    // tracked turbid entry or a facet; the ground and the box's faces are exits of the DDA).
-    let skip = skip_field(spec.n, inp.params.skip_empty, MIN_SKIP_DISTANCE, |c| {
-        cells[c].fac_lo != cells[c].fac_hi || cells[c].ent_lo != cells[c].ent_hi
-    });
-    let scells: Vec<SimpleCell> = if simple {
-        cells
+        .zip(skip)
+        .map(|(c, &r)| match ents.get(c.ent_lo as usize) {
+            Some(e) if c.ent_hi > c.ent_lo && e.density > 0.0 => SimpleCell {
+                density: e.density,
+                tm: e.tm,
+                idx: e.idx,
+            },
+            // An entry of zero density: nothing happens in the cell, but it is not
+            // counted as empty (r = 0, visited).
+            _ => SimpleCell {
+                tm: r as u32,
+                ..SimpleCell::default()
+            },
+        })
+        .collect()
+}
+
+/// The batched walk's per-direction lane constants, and the single-precision walk's packed
+/// cells when that walk runs (see [`crate::radiative::walk`]).
+fn batch_tables(ctx: &mut Ctx) {
+    ctx.lane_dirs = batch::lane_dirs(ctx);
+    ctx.lane_dirs32 = batch::lane_dirs32(ctx);
+    if !ctx.lane_dirs32.is_empty() {
+        ctx.scells32 = ctx
+            .scells
             .iter()
-            .zip(&skip)
-            .map(|(c, &r)| match ents.get(c.ent_lo as usize) {
-                Some(e) if c.ent_hi > c.ent_lo && e.density > 0.0 => SimpleCell {
-                    density: e.density,
-                    tm: e.tm,
-                    idx: e.idx,
-                },
-                // An entry of zero density: nothing happens in the cell, but it is not
-                // counted as empty (r = 0, visited).
-                _ => SimpleCell {
-                    tm: r as u32,
-                    ..SimpleCell::default()
-                },
+            .map(|c| {
+                let d = if c.density > 0.0 {
+                    (c.density as f32).max(f32::MIN_POSITIVE)
+                } else {
+                    0.0
+                };
+                let hi = if c.density > 0.0 { c.idx } else { c.tm };
+                d.to_bits() as u64 | (hi as u64) << 32
             })
-            .collect()
-    } else {
-        Vec::new()
-    };
-    // Where the walks dispatch (the batched walk only where it has AVX2 + FMA).
-    let arch = inp.params.kernel_isa.arch();
-    let mut ctx = Ctx {
-        inp,
-        w,
-        nb,
-        n_dirs,
-        n_slots,
-        omega,
-        tur_mat,
-        n_tm,
-        g_dir,
-        cells,
-        ents,
-        entry_cell,
-        size,
-        min_ray,
-        ray_factor,
-        slot_rows,
-        ground_rows,
-        sub: plan.subcells.max(1),
-        brdf_ref,
-        n_brdf_refs,
-        facet_rows,
-        hs,
-        hs_dir,
-        image_grid: ImageGrid::new(spec, inp.image_oversampling),
-        simple,
-        batch: simple
-            && inp.params.batch_walk
-            && inp.params.turbid_subfaces == TurbidSubfaces::Off
-            && matches!(w, 1 | 2 | 4)
-            && batch::available(&arch),
-        scells,
-        skip,
-        subfaces: inp.params.turbid_subfaces,
-        tstores: match inp.params.turbid_subfaces {
-            TurbidSubfaces::Off | TurbidSubfaces::Blend => 1,
-            TurbidSubfaces::Faces => 7,
-            TurbidSubfaces::Subfaces => {
-                6 * (plan.subcells.clamp(1, MAX_FACE_D) as usize).pow(2) + 1
-            }
-        },
-        face_d: if inp.params.turbid_subfaces == TurbidSubfaces::Subfaces {
-            plan.subcells.clamp(1, MAX_FACE_D)
-        } else {
-            1
-        },
-        pts_per: if inp.params.turbid_subfaces == TurbidSubfaces::Blend {
-            n_slots
-        } else {
-            1
-        },
-        lane_dirs: Vec::new(),
-        lane_dirs32: Vec::new(),
-        scells32: Vec::new(),
-        arch,
-    };
-    if ctx.batch {
-        ctx.lane_dirs = batch::lane_dirs(&ctx);
-        ctx.lane_dirs32 = batch::lane_dirs32(&ctx);
-        if !ctx.lane_dirs32.is_empty() {
-            ctx.scells32 = ctx
-                .scells
-                .iter()
-                .map(|c| {
-                    let d = if c.density > 0.0 {
-                        (c.density as f32).max(f32::MIN_POSITIVE)
-                    } else {
-                        0.0
-                    };
-                    let hi = if c.density > 0.0 { c.idx } else { c.tm };
-                    d.to_bits() as u64 | (hi as u64) << 32
-                })
-                .collect();
-        }
+            .collect();
     }
-    let mut res = RadiativeResult {
+}
+
+/// The result before the first iteration: every product zero, sized for the run of `ctx`.
+fn new_result(ctx: &Ctx, plan: LaunchPlan, source: &[f64]) -> RadiativeResult {
+    let inp = ctx.inp;
+    let (spec, grid) = (inp.spec, inp.grid);
+    let (w, nb, n_dirs) = (ctx.w, ctx.nb, ctx.n_dirs);
+    let has_sky = inp.e_diff.iter().any(|&e| e > 0.0);
+    RadiativeResult {
         n_channels: w,
         n_bands: nb,
         has_sky,
-        source: source.clone(),
+        source: source.to_vec(),
         escaped: vec![0.0; n_dirs * w],
         images: vec![
             0.0;
@@ -369,7 +513,18 @@ pub fn run(inp: &RadiativeInput) -> RadiativeResult {
         remaining: vec![0.0; w],
         launch: plan,
         ..Default::default()
-    };
+    }
+}
+
+/// Iteration 1: the sun and sky launch points on the top plane in fixed chunks of rows, then
+/// the other sources (emitters) in fixed chunks after them (physics.md §6.1, §6.2).
+fn launch(ctx: &Ctx, plan: &LaunchPlan) -> Vec<ChunkOut> {
+    let inp = ctx.inp;
+    let spec = inp.spec;
+    let (w, nb, n_dirs, size) = (ctx.w, ctx.nb, ctx.n_dirs, ctx.size);
+    let tiling = inp.dirs.tiling();
+    let has_sky = inp.e_diff.iter().any(|&e| e > 0.0);
+    let area = size.0 * size.1;
     // --- Iteration 1: sources. Launch points in fixed chunks of rows.
     let top = spec.top();
     let sky_dirs: Vec<usize> = if has_sky {
@@ -390,7 +545,7 @@ pub fn run(inp: &RadiativeInput) -> RadiativeResult {
     let outs: Vec<ChunkOut> = rows
         .par_chunks(chunk_len(rows.len()))
         .map(|chunk| {
-            let mut out = new_out(&ctx);
+            let mut out = new_out(ctx);
             let mut pw = vec![0.0; w];
             let t_kernel = std::time::Instant::now();
             for &(sky, jy) in chunk {
@@ -432,7 +587,7 @@ pub fn run(inp: &RadiativeInput) -> RadiativeResult {
         inp.emitters
             .par_chunks(chunk_len(inp.emitters.len()))
             .map(|chunk| {
-                let mut out = new_out(&ctx);
+                let mut out = new_out(ctx);
                 let mut pw = vec![0.0; w];
                 for e in chunk {
                     pw.iter_mut().for_each(|v| *v = 0.0);
@@ -450,103 +605,16 @@ pub fn run(inp: &RadiativeInput) -> RadiativeResult {
             })
             .collect::<Vec<_>>(),
     );
-    let mut stores = new_stores(&ctx);
-    let mut last = vec![0.0; w]; // escaped in the last iteration
-    let mut pool: Vec<ChunkOut> = Vec::new();
-    merge(&ctx, outs, &mut stores, &mut res, &mut last, &mut pool);
-    res.escaped_per_iteration.push(last.clone());
-    res.iterations = 1;
-    // Facet fractions fallback (renormalised cosine) computed once if not provided.
-    let approx_fractions: Vec<(Vec<f32>, Vec<f32>)> =
-        if inp.facet_fractions.len() == inp.facets.len() {
-            Vec::new()
-        } else {
-            inp.facets
-                .par_iter()
-                .map(|f| cosine_fractions(&ctx, f))
-                .collect()
-        };
-    let fractions: &[(Vec<f32>, Vec<f32>)] = if approx_fractions.is_empty() {
-        inp.facet_fractions
-    } else {
-        &approx_fractions
-    };
-    let ground_fr: Vec<f64> = (0..n_dirs)
-        .map(|j| {
-            if ctx.omega[j].z > 0.0 {
-                tiling[j].projected_sr / std::f64::consts::PI
-            } else {
-                0.0
-            }
-        })
-        .collect();
-    // --- Scattering iterations.
-    let mut prev_pending = pending(&stores, w);
-    let mut prev_estimate = f64::NAN;
-    res.q = vec![0.0; w];
-    let mut last_inc = Increments::new(&res);
-    let bar = crate::io::progress::progress_bar(
-        inp.params.progress,
-        inp.params.max_iterations as u64,
-        "flux tracking: iterations",
-    );
-    while res.iterations < inp.params.max_iterations {
-        bar.set_position(res.iterations as u64);
-        let pend = prev_pending.clone();
-        if pend.iter().sum::<f64>() <= 1e-15 * source.iter().sum::<f64>() {
-            res.converged = true;
-            break;
-        }
-        let before = Increments::new(&res);
-        let outs = emit(
-            &ctx,
-            &stores,
-            res.iterations == 1,
-            fractions,
-            &ground_fr,
-            &mut pool,
-        );
-        let mut new_stores = new_stores(&ctx);
-        let mut esc = vec![0.0; w];
-        merge(&ctx, outs, &mut new_stores, &mut res, &mut esc, &mut pool);
-        // Absorption at emission: intercepted − emitted, booked in `emit` via res? (see below)
-        stores = new_stores;
-        res.iterations += 1;
-        res.escaped_per_iteration.push(esc.clone());
-        let now = pending(&stores, w);
-        for ch in 0..w {
-            res.q[ch] = if pend[ch] > 0.0 {
-                now[ch] / pend[ch]
-            } else {
-                0.0
-            };
-        }
-        last_inc = Increments::diff(&before, &res);
-        // Extrapolated albedo estimate (all channels).
-        let esc_total: f64 = res.escaped.iter().sum();
-        let extra: f64 = (0..w)
-            .map(|ch| {
-                if res.q[ch] < 1.0 {
-                    esc[ch] * res.q[ch] / (1.0 - res.q[ch])
-                } else {
-                    0.0
-                }
-            })
-            .sum();
-        let estimate = (esc_total + extra) / source.iter().sum::<f64>();
-        prev_pending = now;
-        if res.iterations >= 3
-            && (estimate - prev_estimate).abs()
-                <= inp.params.albedo_threshold * estimate.abs().max(1e-300)
-        {
-            res.converged = true;
-            break;
-        }
-        prev_estimate = estimate;
-    }
+    outs
+}
+
+/// The orders after the last iteration (physics.md §6.4): extrapolated geometrically from the
+/// last iteration's increments and ratio `q` when `extrapolate` is on (at least two
+/// iterations), else the pending power booked as remaining.
+fn extrapolate(ctx: &Ctx, stores: &Stores, last_inc: &Increments, res: &mut RadiativeResult) {
+    let (inp, w) = (ctx.inp, ctx.w);
     // --- Remaining stores: extrapolate (or book as remaining).
-    bar.finish_and_clear();
-    let pend = pending(&stores, w);
+    let pend = pending(stores, w);
     if inp.params.extrapolate && res.iterations >= 2 {
         let mut fac = vec![0.0; w];
         for ch in 0..w {
@@ -557,7 +625,7 @@ pub fn run(inp: &RadiativeInput) -> RadiativeResult {
                 0.0
             };
         }
-        last_inc.apply(&mut res, &fac);
+        last_inc.apply(res, &fac);
         for ch in 0..w {
             // Geometric tail: exactly the pending power when q comes from the same iteration.
             let tail = last_inc.total(ch) * fac[ch];
@@ -566,7 +634,6 @@ pub fn run(inp: &RadiativeInput) -> RadiativeResult {
     } else {
         res.remaining = pend;
     }
-    res
 }
 
 pub(in crate::radiative) fn new_out(ctx: &Ctx) -> ChunkOut {

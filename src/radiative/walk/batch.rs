@@ -46,6 +46,8 @@ use pulp::x86::V3;
 mod wide32;
 #[cfg(target_arch = "x86_64")]
 pub(in crate::radiative) use wide32::LaneDir32;
+#[cfg(target_arch = "x86_64")]
+pub(in crate::radiative) use wide32::fits as fits32;
 /// Placeholder off x86-64 (no single-precision walk there).
 #[cfg(not(target_arch = "x86_64"))]
 #[derive(Debug, Clone, Copy, Default)]
@@ -56,17 +58,13 @@ pub(in crate::radiative) struct LaneDir32;
 /// indices); empty otherwise.
 pub(in crate::radiative) fn lane_dirs32(ctx: &Ctx) -> Vec<LaneDir32> {
     #[cfg(target_arch = "x86_64")]
-    if ctx.inp.params.batch_f32
-        && matches!(ctx.arch, pulp::Arch::V4(_))
-        && wide32::fits(ctx.inp.spec)
-    {
+    if super::batched_f32(ctx) {
         return ctx
             .omega
             .iter()
             .map(|&d| LaneDir32::new(ctx.inp.spec, d))
             .collect();
     }
-    let _ = ctx;
     Vec::new()
 }
 
@@ -226,7 +224,7 @@ impl Ctx<'_> {
         let queue = std::mem::take(&mut out.queue);
         let mut tur = out.tur.take().expect("accumulator");
         #[cfg(target_arch = "x86_64")]
-        if !self.lane_dirs32.is_empty() {
+        if super::select(self, false, true) == super::WalkKind::BatchF32 {
             match self.w {
                 1 => self.walk_wide::<1>(&queue, &mut tur, out),
                 2 => self.walk_wide::<2>(&queue, &mut tur, out),
@@ -309,7 +307,7 @@ impl Ctx<'_> {
         for q in queue {
             let mut pw = q.pw;
             (out.foot, out.ray_scale) = (q.foot, q.ray_scale);
-            self.trace_simple::<W>(q.p, q.dir as usize, &mut pw, tur, out);
+            self.trace_lean(q.p, q.dir as usize, &mut pw, tur, out);
         }
         (out.foot, out.ray_scale) = (foot, scale);
     }

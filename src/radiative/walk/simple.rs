@@ -36,13 +36,7 @@ impl Ctx<'_> {
                 // The channel count as the walk knows it (a constant when W > 0).
                 view.w = w;
                 if self.subfaces == TurbidSubfaces::Off {
-                    // The channel counts with a specialised lean walk (the others: below).
-                    match W {
-                        1 => return self.walk_lean::<1>(p, dir, pw, &mut view, out),
-                        2 => return self.walk_lean::<2>(p, dir, pw, &mut view, out),
-                        4 => return self.walk_lean::<4>(p, dir, pw, &mut view, out),
-                        _ => {}
-                    }
+                    // 1, 2 and 4 channels go to the lean walk ([`super::select`]).
                     self.walk_simple::<W>(p, dir, pw, out, |e, pw, frac, p1, p2, wt, _| {
                         view.add_entry(e, slot, pw, frac, 1.0, p1, p2, wt)
                     });
@@ -57,6 +51,28 @@ impl Ctx<'_> {
                 let eq = self.acc_index(e, q0, d, slot);
                 tur.add(eq, slot, pw, frac, 1.0, p1, p2, wt)
             }),
+        }
+    }
+
+    /// [`Ctx::walk_lean`] for the channel count `self.w` (1, 2 or 4) with the dense
+    /// accumulator's arrays borrowed for the ray.
+    pub(in crate::radiative) fn trace_lean(
+        &self,
+        p: DVec3,
+        dir: usize,
+        pw: &mut [f64],
+        tur: &mut TurAcc,
+        out: &mut ChunkOut,
+    ) {
+        let mut view = tur
+            .view()
+            .expect("the lean walk takes the dense accumulator");
+        // The channel count as the walk knows it (a constant).
+        view.w = self.w;
+        match self.w {
+            1 => self.walk_lean::<1>(p, dir, pw, &mut view, out),
+            2 => self.walk_lean::<2>(p, dir, pw, &mut view, out),
+            _ => self.walk_lean::<4>(p, dir, pw, &mut view, out),
         }
     }
 

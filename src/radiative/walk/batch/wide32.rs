@@ -1,6 +1,6 @@
 //! The batched walk in single-precision geometry on 16 lanes (AVX-512; the default there,
 //! [`crate::radiative::engine::TrackingParams::batch_f32`]): the rays of [`Ctx::walk_batch`], each lane's
-//! traversal kept in the frame of its current cell (issue #4, session 20).
+//! traversal kept in the frame of its current cell (issue #4).
 //!
 //! Per lane: the entry point in the current cell's frame (m, in [0, size] per axis, `f32`),
 //! the distance from it to the next boundary of each axis (`f32`), the cell indices (`i32`).
@@ -21,7 +21,7 @@
 //! Remote Sens. 7, 1667–1701, §3); the products differ from theirs by ≤ 2.5e-7 relative on
 //! 0.1–1 m cells and 3.4e-6 on 20 m cells (the f32 exponential), the DISORT errors are
 //! unchanged to the printed digits (tests `f32_walk_*` in `tests/batch_walk.rs`; README,
-//! Kernel, session 20).
+//! Kernel).
 
 use super::{ChunkOut, Ctx, Queued};
 use crate::radiative::dda::{Dda, Exit, exit_of};
