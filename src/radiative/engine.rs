@@ -156,7 +156,7 @@ pub struct TrackingParams {
     /// Empty-space skipping: rays jump over boxes of empty cells (no tracked turbid entry, no
     /// facet) found from a chessboard distance field ([`super::dda::skip_field`]) instead
     /// of visiting them one by one; the same cells, segment ends and products bit for bit
-    /// ([`Dda::skip_to`]). Off: every cell is visited (kept for the equality tests).
+    /// ([`super::dda::Dda::skip_to`]). Off: every cell is visited (kept for the equality tests).
     pub skip_empty: bool,
     /// Turbid interception stores per incident face / sub-face (DART 5 paper §3.2, Figure 7;
     /// see [`TurbidSubfaces`]).

@@ -4,6 +4,7 @@
 //! grouping.
 
 use super::*;
+use crate::radiative::walk;
 
 /// Renormalised-cosine Lambertian fractions (used when exact fractions were not provided).
 pub(in crate::radiative) fn cosine_fractions(ctx: &Ctx, f: &Facet) -> (Vec<f32>, Vec<f32>) {
@@ -77,12 +78,10 @@ pub(in crate::radiative) fn emit(
     pool: &mut Vec<ChunkOut>,
 ) -> Vec<ChunkOut> {
     let w = ctx.w;
-    let nb = ctx.nb;
     let ns = ctx.n_slots;
     let n_dirs = ctx.n_dirs;
     let grid = ctx.inp.grid;
     let spec = ctx.inp.spec;
-    let tiling = ctx.inp.dirs.tiling();
     // Emitters in a fixed order: turbid entries (or, with incident-face stores, the groups of
     // records of one entry, entries ascending), facet refs, ground columns.
     let off = ctx.subfaces == TurbidSubfaces::Off;
@@ -157,208 +156,17 @@ pub(in crate::radiative) fn emit(
                 }
                 outgoing.iter_mut().for_each(|v| *v = 0.0);
                 intercepted.iter_mut().for_each(|v| *v = 0.0);
-                let (origin_up, origin_dn, skip, normal);
-                // Facets and ground: scattering points per sub-cell (barycentre, share).
-                let mut points: &[(DVec3, f64)] = &[];
-                let mut ground = false;
-                if k < n_t {
-                    let e = &grid.turbid[k];
-                    let TrackOptics::Turbid { tables, .. } = &ctx.inp.optics[e.material as usize]
-                    else {
-                        continue;
-                    };
-                    for slot in 0..ns {
-                        let base = (k * ns + slot) * w;
-                        let wv = &st.tur[base..base + w];
-                        if wv.iter().all(|&v| v == 0.0) {
-                            continue;
-                        }
-                        let tm = ctx.tur_mat[e.material as usize] as usize;
-                        for ch in 0..w {
-                            let val = wv[ch];
-                            if val == 0.0 {
-                                continue;
-                            }
-                            intercepted[ch] += val;
-                            // `outgoing[j · w + ch] += val · trow[j]` for every direction j, by
-                            // rows of w (no bounds check per direction).
-                            let rows = outgoing.chunks_exact_mut(w);
-                            if slot == ns - 1 {
-                                let trow = tables[ch % nb].row(tables[0].sun_row().unwrap_or(0));
-                                for (o, &t) in rows.zip(&trow[..n_dirs]) {
-                                    o[ch] += val * t as f64;
-                                }
-                            } else {
-                                let trow = ctx.slot_row(tm, ch % nb, slot);
-                                for (o, &t) in rows.zip(&trow[..n_dirs]) {
-                                    o[ch] += val * t;
-                                }
-                            }
-                        }
-                    }
-                    let p = &st.tur_pts[k];
-                    let cell = ctx.entry_cell[k] as usize;
-                    let centre = cell_centre(spec, cell);
-                    origin_up = if p[3] > 0.0 {
-                        DVec3::new(p[0], p[1], p[2]) / p[3]
-                    } else {
-                        centre
-                    };
-                    origin_dn = if p[7] > 0.0 {
-                        DVec3::new(p[4], p[5], p[6]) / p[7]
-                    } else {
-                        centre
-                    };
-                    skip = None;
-                    normal = None;
-                    for ch in 0..w {
-                        let emitted: f64 = (0..n_dirs).map(|j| outgoing[j * w + ch]).sum();
-                        let a = intercepted[ch] - emitted;
-                        if a != 0.0 {
-                            out.absorbed_turbid.push((k as u32, ch));
-                            out.absorbed_val.push(a);
-                        }
+                let src = if k < n_t {
+                    match turbid_emitter(ctx, st, k, &mut outgoing, &mut intercepted, &mut out) {
+                        Some(src) => src,
+                        None => continue,
                     }
                 } else if k < n_t + n_f {
-                    let r = k - n_t;
-                    let f = grid.facet_ids[r];
-                    let (fr, bk) = &fractions[f as usize];
-                    let bi = ctx.brdf_ref.get(r).copied().unwrap_or(u32::MAX);
-                    if bi != u32::MAX {
-                        // RPV/Hapke: rows of each incidence slot (the sun's last).
-                        let set = ctx.inp.facet_brdf[f as usize] as usize;
-                        let bi = bi as usize;
-                        scatter_slots(
-                            &st.fac_slot[bi * ns * w..(bi + 1) * ns * w],
-                            (w, nb, n_dirs),
-                            |b, slot| ctx.facet_row(set, b, slot),
-                            &mut outgoing,
-                            |ch, a| {
-                                out.absorbed_facet.push((f, ch));
-                                out.absorbed_val.push(a);
-                            },
-                        );
-                    }
-                    for ch in (0..w).filter(|_| bi == u32::MAX) {
-                        let (a, b) = (st.fac_front[r * w + ch], st.fac_back[r * w + ch]);
-                        for j in 0..n_dirs {
-                            outgoing[j * w + ch] += a * fr[j] as f64 + b * bk[j] as f64;
-                        }
-                        let emitted: f64 = (0..n_dirs).map(|j| outgoing[j * w + ch]).sum();
-                        let lossy = a + b - emitted;
-                        if lossy != 0.0 {
-                            out.absorbed_facet.push((f, ch));
-                            out.absorbed_val.push(lossy);
-                        }
-                    }
-                    let fa = &ctx.inp.facets[f as usize];
-                    let centroid = (fa.v[0] + fa.v[1] + fa.v[2]) / 3.0;
-                    points = st.fac_pts.of(r);
-                    origin_up = centroid;
-                    origin_dn = centroid;
-                    skip = Some(f);
-                    normal = Some((fa.v[1] - fa.v[0]).cross(fa.v[2] - fa.v[0]).normalize());
+                    facet_emitter(ctx, st, k - n_t, fractions, &mut outgoing, &mut out)
                 } else {
-                    let c = k - n_t - n_f;
-                    if ctx.inp.ground_brdf.is_some() {
-                        scatter_slots(
-                            &st.gnd[c * ns * w..(c + 1) * ns * w],
-                            (w, nb, n_dirs),
-                            |b, slot| ctx.ground_row(b, slot),
-                            &mut outgoing,
-                            |ch, a| {
-                                out.absorbed_ground.push((c as u32, ch));
-                                out.absorbed_val.push(a);
-                            },
-                        );
-                    } else {
-                        for ch in 0..w {
-                            let a = st.gnd[c * w + ch];
-                            for j in 0..n_dirs {
-                                outgoing[j * w + ch] += a * ground_fr[j];
-                            }
-                            let emitted: f64 = (0..n_dirs).map(|j| outgoing[j * w + ch]).sum();
-                            if a - emitted != 0.0 {
-                                out.absorbed_ground.push((c as u32, ch));
-                                out.absorbed_val.push(a - emitted);
-                            }
-                        }
-                    }
-                    let o = cell_centre(spec, c);
-                    points = st.gnd_pts.of(c);
-                    ground = true;
-                    origin_up = DVec3::new(o.x, o.y, spec.origin.z);
-                    origin_dn = origin_up;
-                    skip = None;
-                    normal = None;
-                }
-                let split = k < n_t;
-                // First-order sun rays (what turbid cells, facets and the ground scatter of the
-                // direct beam) get the hotspot correlation through turbid cells on their way up.
-                let hs = first && ctx.inp.emitters.is_empty();
-                // Horizontal size of the emitting element, for the image footprints: a turbid
-                // cell, a facet or ground sub-cell, or (no scattering point) a column / a point.
-                out.foot = if split || (ground && points.is_empty()) {
-                    (spec.cell.x, spec.cell.y)
-                } else if points.is_empty() {
-                    (0.0, 0.0)
-                } else {
-                    let d = ctx.sub as f64;
-                    (spec.cell.x / d, spec.cell.y / d)
+                    ground_emitter(ctx, st, k - n_t - n_f, ground_fr, &mut outgoing, &mut out)
                 };
-                let t_kernel = std::time::Instant::now();
-                // Rays without the hotspot go to the batched walk's queue (see
-                // `Ctx::trace_any`).
-                let queued = ctx.batch && matches!(out.tur.as_deref(), Some(TurAcc::Dense { .. }));
-                for j in 0..n_dirs {
-                    let v = &outgoing[j * w..(j + 1) * w];
-                    if v.iter().all(|&x| x == 0.0) {
-                        continue;
-                    }
-                    if split {
-                        // Two-point quadrature of the interception distribution: half the power
-                        // from the barycentre of each half of the intercepted energy.
-                        let hs_j = hs && ctx.hs_dir[j];
-                        for o in [origin_up, origin_dn] {
-                            if !hs_j && queued {
-                                // What `send` does for this ray (powers v · 0.5, then
-                                // `Ctx::queue`).
-                                ctx.queue_scaled(o, j, v, 0.5, &mut out);
-                            } else {
-                                send(ctx, o, j, None, v, 0.5, hs_j, &mut pw, &mut out);
-                            }
-                        }
-                        continue;
-                    }
-                    let fallback = [(
-                        if tiling[j].omega.z > 0.0 {
-                            origin_up
-                        } else {
-                            origin_dn
-                        },
-                        1.0,
-                    )];
-                    let pts = if points.is_empty() {
-                        &fallback[..]
-                    } else {
-                        points
-                    };
-                    for &(pt, share) in pts {
-                        let mut origin = if ground {
-                            DVec3::new(pt.x, pt.y, spec.origin.z)
-                        } else {
-                            pt
-                        };
-                        if let Some(n) = normal {
-                            // Start just off the facet on the side the ray leaves through.
-                            let side = n.dot(tiling[j].omega).signum();
-                            origin += n * side * 1e-9 * spec.cell.min_element();
-                        }
-                        let hs_j = hs && ctx.hs_dir[j];
-                        send(ctx, origin, j, skip, v, share, hs_j, &mut pw, &mut out);
-                    }
-                }
-                out.kernel_seconds += t_kernel.elapsed().as_secs_f64();
+                send_emitter(ctx, &src, k < n_t, first, &outgoing, &mut pw, &mut out);
             }
             // The rays still queued.
             let t_kernel = std::time::Instant::now();
@@ -367,6 +175,304 @@ pub(in crate::radiative) fn emit(
             out
         })
         .collect()
+}
+
+/// Where one emitter's rays start: the barycentres of the upper and lower halves of the
+/// intercepted energy (turbid) or the facet's centroid / the column's centre (`up`, `dn`), the
+/// facet the rays ignore, the facet's normal, the scattering points per sub-cell (barycentre,
+/// share; facets and ground) and whether it is a ground column.
+pub(in crate::radiative) struct Emitter<'s> {
+    origin_up: DVec3,
+    origin_dn: DVec3,
+    skip: Option<u32>,
+    normal: Option<DVec3>,
+    points: &'s [(DVec3, f64)],
+    ground: bool,
+}
+
+/// Turbid entry `k` (`turbid_subfaces: Off`): its stored power per slot scattered with the
+/// slot rows into `outgoing[dir · w + ch]` (physics.md §3.6), the absorbed rest booked; `None`
+/// for an entry whose material is not turbid.
+fn turbid_emitter<'s>(
+    ctx: &Ctx,
+    st: &'s Stores,
+    k: usize,
+    outgoing: &mut [f64],
+    intercepted: &mut [f64],
+    out: &mut ChunkOut,
+) -> Option<Emitter<'s>> {
+    let (w, nb, ns, n_dirs) = (ctx.w, ctx.nb, ctx.n_slots, ctx.n_dirs);
+    let (grid, spec) = (ctx.inp.grid, ctx.inp.spec);
+    let (origin_up, origin_dn, skip, normal);
+    let e = &grid.turbid[k];
+    let TrackOptics::Turbid { tables, .. } = &ctx.inp.optics[e.material as usize] else {
+        return None;
+    };
+    for slot in 0..ns {
+        let base = (k * ns + slot) * w;
+        let wv = &st.tur[base..base + w];
+        if wv.iter().all(|&v| v == 0.0) {
+            continue;
+        }
+        let tm = ctx.tur_mat[e.material as usize] as usize;
+        for ch in 0..w {
+            let val = wv[ch];
+            if val == 0.0 {
+                continue;
+            }
+            intercepted[ch] += val;
+            // `outgoing[j · w + ch] += val · trow[j]` for every direction j, by
+            // rows of w (no bounds check per direction).
+            let rows = outgoing.chunks_exact_mut(w);
+            if slot == ns - 1 {
+                let trow = tables[ch % nb].row(tables[0].sun_row().unwrap_or(0));
+                for (o, &t) in rows.zip(&trow[..n_dirs]) {
+                    o[ch] += val * t as f64;
+                }
+            } else {
+                let trow = ctx.slot_row(tm, ch % nb, slot);
+                for (o, &t) in rows.zip(&trow[..n_dirs]) {
+                    o[ch] += val * t;
+                }
+            }
+        }
+    }
+    let p = &st.tur_pts[k];
+    let cell = ctx.entry_cell[k] as usize;
+    let centre = cell_centre(spec, cell);
+    origin_up = if p[3] > 0.0 {
+        DVec3::new(p[0], p[1], p[2]) / p[3]
+    } else {
+        centre
+    };
+    origin_dn = if p[7] > 0.0 {
+        DVec3::new(p[4], p[5], p[6]) / p[7]
+    } else {
+        centre
+    };
+    skip = None;
+    normal = None;
+    for ch in 0..w {
+        let emitted: f64 = (0..n_dirs).map(|j| outgoing[j * w + ch]).sum();
+        let a = intercepted[ch] - emitted;
+        if a != 0.0 {
+            out.absorbed_turbid.push((k as u32, ch));
+            out.absorbed_val.push(a);
+        }
+    }
+    Some(Emitter {
+        origin_up,
+        origin_dn,
+        skip,
+        normal,
+        points: &[],
+        ground: false,
+    })
+}
+
+/// Facet ref `r`: its front and back power scattered Lambertian (exact or cosine fractions) or
+/// with its RPV/Hapke slot rows into `outgoing` (physics.md §5.1), the absorbed rest booked.
+fn facet_emitter<'s>(
+    ctx: &Ctx,
+    st: &'s Stores,
+    r: usize,
+    fractions: &[(Vec<f32>, Vec<f32>)],
+    outgoing: &mut [f64],
+    out: &mut ChunkOut,
+) -> Emitter<'s> {
+    let (w, nb, ns, n_dirs) = (ctx.w, ctx.nb, ctx.n_slots, ctx.n_dirs);
+    let grid = ctx.inp.grid;
+    let (origin_up, origin_dn, skip, normal, points);
+    let f = grid.facet_ids[r];
+    let (fr, bk) = &fractions[f as usize];
+    let bi = ctx.brdf_ref.get(r).copied().unwrap_or(u32::MAX);
+    if bi != u32::MAX {
+        // RPV/Hapke: rows of each incidence slot (the sun's last).
+        let set = ctx.inp.facet_brdf[f as usize] as usize;
+        let bi = bi as usize;
+        scatter_slots(
+            &st.fac_slot[bi * ns * w..(bi + 1) * ns * w],
+            (w, nb, n_dirs),
+            |b, slot| ctx.facet_row(set, b, slot),
+            outgoing,
+            |ch, a| {
+                out.absorbed_facet.push((f, ch));
+                out.absorbed_val.push(a);
+            },
+        );
+    }
+    for ch in (0..w).filter(|_| bi == u32::MAX) {
+        let (a, b) = (st.fac_front[r * w + ch], st.fac_back[r * w + ch]);
+        for j in 0..n_dirs {
+            outgoing[j * w + ch] += a * fr[j] as f64 + b * bk[j] as f64;
+        }
+        let emitted: f64 = (0..n_dirs).map(|j| outgoing[j * w + ch]).sum();
+        let lossy = a + b - emitted;
+        if lossy != 0.0 {
+            out.absorbed_facet.push((f, ch));
+            out.absorbed_val.push(lossy);
+        }
+    }
+    let fa = &ctx.inp.facets[f as usize];
+    let centroid = (fa.v[0] + fa.v[1] + fa.v[2]) / 3.0;
+    points = st.fac_pts.of(r);
+    origin_up = centroid;
+    origin_dn = centroid;
+    skip = Some(f);
+    normal = Some((fa.v[1] - fa.v[0]).cross(fa.v[2] - fa.v[0]).normalize());
+    Emitter {
+        origin_up,
+        origin_dn,
+        skip,
+        normal,
+        points,
+        ground: false,
+    }
+}
+
+/// Ground column `c`: its power scattered Lambertian or with the ground BRDF's slot rows into
+/// `outgoing` (physics.md §5.2), the absorbed rest booked.
+fn ground_emitter<'s>(
+    ctx: &Ctx,
+    st: &'s Stores,
+    c: usize,
+    ground_fr: &[f64],
+    outgoing: &mut [f64],
+    out: &mut ChunkOut,
+) -> Emitter<'s> {
+    let (w, nb, ns, n_dirs) = (ctx.w, ctx.nb, ctx.n_slots, ctx.n_dirs);
+    let spec = ctx.inp.spec;
+    let (origin_up, origin_dn, skip, normal, points, ground);
+    if ctx.inp.ground_brdf.is_some() {
+        scatter_slots(
+            &st.gnd[c * ns * w..(c + 1) * ns * w],
+            (w, nb, n_dirs),
+            |b, slot| ctx.ground_row(b, slot),
+            outgoing,
+            |ch, a| {
+                out.absorbed_ground.push((c as u32, ch));
+                out.absorbed_val.push(a);
+            },
+        );
+    } else {
+        for ch in 0..w {
+            let a = st.gnd[c * w + ch];
+            for j in 0..n_dirs {
+                outgoing[j * w + ch] += a * ground_fr[j];
+            }
+            let emitted: f64 = (0..n_dirs).map(|j| outgoing[j * w + ch]).sum();
+            if a - emitted != 0.0 {
+                out.absorbed_ground.push((c as u32, ch));
+                out.absorbed_val.push(a - emitted);
+            }
+        }
+    }
+    let o = cell_centre(spec, c);
+    points = st.gnd_pts.of(c);
+    ground = true;
+    origin_up = DVec3::new(o.x, o.y, spec.origin.z);
+    origin_dn = origin_up;
+    skip = None;
+    normal = None;
+    Emitter {
+        origin_up,
+        origin_dn,
+        skip,
+        normal,
+        points,
+        ground,
+    }
+}
+
+/// Sends an emitter's `outgoing` power along every tiling direction: from both half-barycentres
+/// (turbid, `split`: the two-point quadrature) or from each scattering point; first-order sun
+/// rays (`first`) with the hotspot correlation.
+fn send_emitter(
+    ctx: &Ctx,
+    src: &Emitter,
+    split: bool,
+    first: bool,
+    outgoing: &[f64],
+    pw: &mut [f64],
+    out: &mut ChunkOut,
+) {
+    let (w, n_dirs) = (ctx.w, ctx.n_dirs);
+    let spec = ctx.inp.spec;
+    let tiling = ctx.inp.dirs.tiling();
+    let Emitter {
+        origin_up,
+        origin_dn,
+        skip,
+        normal,
+        points,
+        ground,
+    } = *src;
+    // First-order sun rays (what turbid cells, facets and the ground scatter of the
+    // direct beam) get the hotspot correlation through turbid cells on their way up.
+    let hs = first && ctx.inp.emitters.is_empty();
+    // Horizontal size of the emitting element, for the image footprints: a turbid
+    // cell, a facet or ground sub-cell, or (no scattering point) a column / a point.
+    out.foot = if split || (ground && points.is_empty()) {
+        (spec.cell.x, spec.cell.y)
+    } else if points.is_empty() {
+        (0.0, 0.0)
+    } else {
+        let d = ctx.sub as f64;
+        (spec.cell.x / d, spec.cell.y / d)
+    };
+    let t_kernel = std::time::Instant::now();
+    // Rays without the hotspot go to the batched walk's queue (see
+    // `Ctx::trace_any`).
+    let dense = matches!(out.tur.as_deref(), Some(TurAcc::Dense { .. }));
+    for j in 0..n_dirs {
+        let v = &outgoing[j * w..(j + 1) * w];
+        if v.iter().all(|&x| x == 0.0) {
+            continue;
+        }
+        if split {
+            // Two-point quadrature of the interception distribution: half the power
+            // from the barycentre of each half of the intercepted energy.
+            let hs_j = hs && ctx.hs_dir[j];
+            for o in [origin_up, origin_dn] {
+                if walk::select(ctx, hs_j, dense).batched() {
+                    // What `send` does for this ray (powers v · 0.5, then
+                    // `Ctx::queue`).
+                    ctx.queue_scaled(o, j, v, 0.5, out);
+                } else {
+                    send(ctx, o, j, None, v, 0.5, hs_j, pw, out);
+                }
+            }
+            continue;
+        }
+        let fallback = [(
+            if tiling[j].omega.z > 0.0 {
+                origin_up
+            } else {
+                origin_dn
+            },
+            1.0,
+        )];
+        let pts = if points.is_empty() {
+            &fallback[..]
+        } else {
+            points
+        };
+        for &(pt, share) in pts {
+            let mut origin = if ground {
+                DVec3::new(pt.x, pt.y, spec.origin.z)
+            } else {
+                pt
+            };
+            if let Some(n) = normal {
+                // Start just off the facet on the side the ray leaves through.
+                let side = n.dot(tiling[j].omega).signum();
+                origin += n * side * 1e-9 * spec.cell.min_element();
+            }
+            let hs_j = hs && ctx.hs_dir[j];
+            send(ctx, origin, j, skip, v, share, hs_j, pw, out);
+        }
+    }
+    out.kernel_seconds += t_kernel.elapsed().as_secs_f64();
 }
 
 /// Scratch arrays of [`emit_turbid_records`].
@@ -418,7 +524,7 @@ pub(in crate::radiative) fn emit_turbid_records(
     pw: &mut [f64],
     out: &mut ChunkOut,
 ) {
-    let (w, nb, ns, n_dirs) = (ctx.w, ctx.nb, ctx.n_slots, ctx.n_dirs);
+    let (w, n_dirs) = (ctx.w, ctx.n_dirs);
     let spec = ctx.inp.spec;
     let tr = &st.trec;
     let k = tr.keys[recs[0] as usize] as usize / ctx.tstores;
@@ -428,19 +534,6 @@ pub(in crate::radiative) fn emit_turbid_records(
     };
     let tm = ctx.tur_mat[ent.material as usize] as usize;
     let centre = cell_centre(spec, ctx.entry_cell[k] as usize);
-    let barycentre = |p: &[f64]| -> (DVec3, DVec3) {
-        let up = if p[3] > 0.0 {
-            DVec3::new(p[0], p[1], p[2]) / p[3]
-        } else {
-            centre
-        };
-        let dn = if p[7] > 0.0 {
-            DVec3::new(p[4], p[5], p[6]) / p[7]
-        } else {
-            centre
-        };
-        (up, dn)
-    };
     sc.outgoing.resize(n_dirs * w, 0.0);
     sc.intercepted.clear();
     sc.intercepted.resize(w, 0.0);
@@ -481,64 +574,15 @@ pub(in crate::radiative) fn emit_turbid_records(
         };
         let r = r as usize;
         sc.outgoing.iter_mut().for_each(|v| *v = 0.0);
-        for slot in 0..ns {
-            let base = (r * ns + slot) * w;
-            let wv = &tr.pow[base..base + w];
-            if wv.iter().all(|&v| v == 0.0) {
-                continue;
-            }
-            if blend {
-                sc.cj.iter_mut().for_each(|v| *v = 0.0);
-            }
-            for ch in 0..w {
-                let val = wv[ch];
-                if val == 0.0 {
-                    continue;
-                }
-                sc.intercepted[ch] += val;
-                let mut put = |j: usize, t: f64| {
-                    let c = val * t;
-                    sc.outgoing[j * w + ch] += c;
-                    if blend {
-                        sc.cj[j] += c;
-                    }
-                };
-                if slot == ns - 1 {
-                    let trow = tables[ch % nb].row(sun_row);
-                    for (j, &t) in trow.iter().take(n_dirs).enumerate() {
-                        put(j, t as f64);
-                    }
-                } else {
-                    let trow = ctx.slot_row(tm, ch % nb, slot);
-                    for (j, &t) in trow.iter().enumerate() {
-                        put(j, t);
-                    }
-                }
-            }
-            if blend {
-                let pb = (r * ns + slot) * 8;
-                let (pu, pd) = barycentre(&tr.pts[pb..pb + 8]);
-                for (a, &c) in sc.acc.iter_mut().zip(&sc.cj) {
-                    if c != 0.0 {
-                        a[0] += c * pu.x;
-                        a[1] += c * pu.y;
-                        a[2] += c * pu.z;
-                        a[3] += c * pd.x;
-                        a[4] += c * pd.y;
-                        a[5] += c * pd.z;
-                        a[6] += c;
-                    }
-                }
-            }
-        }
+        scatter_record(ctx, tr, r, (tables, tm, sun_row), blend, centre, sc);
         let (pu, pd) = if blend {
             (centre, centre)
         } else {
-            barycentre(&tr.pts[r * 8..r * 8 + 8])
+            half_points(&tr.pts[r * 8..r * 8 + 8], centre)
         };
         let t_kernel = std::time::Instant::now();
         // Rays without the hotspot go to the batched walk's queue (see `Ctx::trace_any`).
-        let queued = ctx.batch && matches!(out.tur.as_deref(), Some(TurAcc::Dense { .. }));
+        let dense = matches!(out.tur.as_deref(), Some(TurAcc::Dense { .. }));
         for j in 0..n_dirs {
             let v = &sc.outgoing[j * w..(j + 1) * w];
             if v.iter().all(|&x| x == 0.0) {
@@ -565,7 +609,7 @@ pub(in crate::radiative) fn emit_turbid_records(
             for o in [o_up, o_dn] {
                 if group && !hs_j {
                     ctx.to_exit(cell, o, j, v, 0.5, &mut sc.ex, pw, out);
-                } else if !hs_j && queued {
+                } else if walk::select(ctx, hs_j, dense).batched() {
                     // What `send` does for this ray (powers v · 0.5, then `Ctx::queue`).
                     ctx.queue_scaled(o, j, v, 0.5, out);
                 } else {
@@ -576,40 +620,7 @@ pub(in crate::radiative) fn emit_turbid_records(
         out.kernel_seconds += t_kernel.elapsed().as_secs_f64();
     }
     if group {
-        // The rays that left the cell through the same exit store along the same direction,
-        // merged (DART 5 paper §3.2, Figure 7c): one ray per (exit sub-face, direction) from
-        // the power-weighted barycentre of their exit points.
-        let t_kernel = std::time::Instant::now();
-        let ne = sc.ex.n_exit;
-        sc.ex.touched.sort_unstable();
-        let mut n = 0;
-        while n < sc.ex.touched.len() {
-            let j = sc.ex.touched[n] as usize / ne;
-            let mut m = n;
-            let mut total = 0.0;
-            while m < sc.ex.touched.len() && sc.ex.touched[m] as usize / ne == j {
-                total += sc.ex.group[sc.ex.touched[m] as usize * (w + 4) + w + 3];
-                m += 1;
-            }
-            for &g in &sc.ex.touched[n..m] {
-                let g = g as usize * (w + 4);
-                let rec = &mut sc.ex.group[g..g + w + 4];
-                let wt = rec[w + 3];
-                if wt > 0.0 {
-                    let o = DVec3::new(rec[w], rec[w + 1], rec[w + 2]) / wt;
-                    pw.copy_from_slice(&rec[..w]);
-                    out.ray_scale = if total > 0.0 { wt / total } else { 1.0 };
-                    ctx.trace(o, j, None, pw, out);
-                }
-                rec.iter_mut().for_each(|x| *x = 0.0);
-            }
-            n = m;
-        }
-        for &g in &sc.ex.touched {
-            sc.ex.flag[g as usize] = false;
-        }
-        sc.ex.touched.clear();
-        out.kernel_seconds += t_kernel.elapsed().as_secs_f64();
+        trace_exit_groups(ctx, &mut sc.ex, pw, out);
     }
     out.ray_scale = 1.0;
     for ch in 0..w {
@@ -619,6 +630,129 @@ pub(in crate::radiative) fn emit_turbid_records(
             out.absorbed_val.push(a);
         }
     }
+}
+
+/// The barycentres of the first and second halves of a points record's intercepted energy
+/// (`[Σ wt p₁ (3), Σ wt, Σ wt p₂ (3), Σ wt]`), `centre` for an empty half.
+fn half_points(p: &[f64], centre: DVec3) -> (DVec3, DVec3) {
+    let up = if p[3] > 0.0 {
+        DVec3::new(p[0], p[1], p[2]) / p[3]
+    } else {
+        centre
+    };
+    let dn = if p[7] > 0.0 {
+        DVec3::new(p[4], p[5], p[6]) / p[7]
+    } else {
+        centre
+    };
+    (up, dn)
+}
+
+/// One record `r` of [`emit_turbid_records`]: its power per slot along every direction with the
+/// slot's phase row (the sun's row for the sun slot; `rows`: the material's tables, turbid
+/// material slot and sun row) into `sc.outgoing`, its intercepted power into
+/// `sc.intercepted`; `blend`: the per-direction power-weighted points into `sc.acc`.
+fn scatter_record(
+    ctx: &Ctx,
+    tr: &TurRecords,
+    r: usize,
+    (tables, tm, sun_row): (&[PhaseTable], usize, usize),
+    blend: bool,
+    centre: DVec3,
+    sc: &mut RecScratch,
+) {
+    let (w, nb, ns, n_dirs) = (ctx.w, ctx.nb, ctx.n_slots, ctx.n_dirs);
+    for slot in 0..ns {
+        let base = (r * ns + slot) * w;
+        let wv = &tr.pow[base..base + w];
+        if wv.iter().all(|&v| v == 0.0) {
+            continue;
+        }
+        if blend {
+            sc.cj.iter_mut().for_each(|v| *v = 0.0);
+        }
+        for ch in 0..w {
+            let val = wv[ch];
+            if val == 0.0 {
+                continue;
+            }
+            sc.intercepted[ch] += val;
+            let mut put = |j: usize, t: f64| {
+                let c = val * t;
+                sc.outgoing[j * w + ch] += c;
+                if blend {
+                    sc.cj[j] += c;
+                }
+            };
+            if slot == ns - 1 {
+                let trow = tables[ch % nb].row(sun_row);
+                for (j, &t) in trow.iter().take(n_dirs).enumerate() {
+                    put(j, t as f64);
+                }
+            } else {
+                let trow = ctx.slot_row(tm, ch % nb, slot);
+                for (j, &t) in trow.iter().enumerate() {
+                    put(j, t);
+                }
+            }
+        }
+        if blend {
+            let pb = (r * ns + slot) * 8;
+            let (pu, pd) = half_points(&tr.pts[pb..pb + 8], centre);
+            for (a, &c) in sc.acc.iter_mut().zip(&sc.cj) {
+                if c != 0.0 {
+                    a[0] += c * pu.x;
+                    a[1] += c * pu.y;
+                    a[2] += c * pu.z;
+                    a[3] += c * pd.x;
+                    a[4] += c * pd.y;
+                    a[5] += c * pd.z;
+                    a[6] += c;
+                }
+            }
+        }
+    }
+}
+
+/// The rays of a cell's stores that left it through the same exit store along the same
+/// direction, merged and traced (DART 5 paper §3.2, Figure 7c): one ray per (exit sub-face,
+/// direction) from the power-weighted barycentre of their exit points; `ex` emptied.
+fn trace_exit_groups(ctx: &Ctx, ex: &mut ExitGroups, pw: &mut [f64], out: &mut ChunkOut) {
+    let w = ctx.w;
+    // The rays that left the cell through the same exit store along the same direction,
+    // merged (DART 5 paper §3.2, Figure 7c): one ray per (exit sub-face, direction) from
+    // the power-weighted barycentre of their exit points.
+    let t_kernel = std::time::Instant::now();
+    let ne = ex.n_exit;
+    ex.touched.sort_unstable();
+    let mut n = 0;
+    while n < ex.touched.len() {
+        let j = ex.touched[n] as usize / ne;
+        let mut m = n;
+        let mut total = 0.0;
+        while m < ex.touched.len() && ex.touched[m] as usize / ne == j {
+            total += ex.group[ex.touched[m] as usize * (w + 4) + w + 3];
+            m += 1;
+        }
+        for &g in &ex.touched[n..m] {
+            let g = g as usize * (w + 4);
+            let rec = &mut ex.group[g..g + w + 4];
+            let wt = rec[w + 3];
+            if wt > 0.0 {
+                let o = DVec3::new(rec[w], rec[w + 1], rec[w + 2]) / wt;
+                pw.copy_from_slice(&rec[..w]);
+                out.ray_scale = if total > 0.0 { wt / total } else { 1.0 };
+                ctx.trace(o, j, None, pw, out);
+            }
+            rec.iter_mut().for_each(|x| *x = 0.0);
+        }
+        n = m;
+    }
+    for &g in &ex.touched {
+        ex.flag[g as usize] = false;
+    }
+    ex.touched.clear();
+    out.kernel_seconds += t_kernel.elapsed().as_secs_f64();
 }
 
 /// Scatters one element's power stored per incidence slot (`stored[slot · w + ch]`, w channels

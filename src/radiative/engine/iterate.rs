@@ -4,6 +4,7 @@
 //! geometrically ([`Increments`]).
 
 use super::*;
+use crate::radiative::walk;
 
 /// Runs the flux tracking.
 pub fn run(inp: &RadiativeInput) -> RadiativeResult {
@@ -151,28 +152,7 @@ fn context<'a>(inp: &'a RadiativeInput<'a>) -> (Ctx<'a>, LaunchPlan, Vec<f64>) {
             g_dir[dir * n_tm + tm] = g_flat[tm * (n_dirs + 1) + dir];
         }
     }
-    let mut ents = Vec::with_capacity(grid.turbid.len());
-    let mut cells = Vec::with_capacity(n_cells);
-    for c in 0..n_cells {
-        let ent_lo = ents.len() as u32;
-        for e in grid.turbid_start[c]..grid.turbid_start[c + 1] {
-            let te = &grid.turbid[e as usize];
-            let tm = tur_mat[te.material as usize];
-            if tm != u32::MAX {
-                ents.push(Ent {
-                    idx: e,
-                    tm,
-                    density: te.density as f64,
-                });
-            }
-        }
-        cells.push(CellRec {
-            ent_lo,
-            ent_hi: ents.len() as u32,
-            fac_lo: grid.facet_start.get(c).copied().unwrap_or(0),
-            fac_hi: grid.facet_start.get(c + 1).copied().unwrap_or(0),
-        });
-    }
+    let (ents, cells) = cell_records(inp, &tur_mat);
     let size = (
         spec.n[0] as f64 * spec.cell.x,
         spec.n[1] as f64 * spec.cell.y,
@@ -211,62 +191,17 @@ fn context<'a>(inp: &'a RadiativeInput<'a>) -> (Ctx<'a>, LaunchPlan, Vec<f64>) {
     // DART's threshold is per steradian × the ray's ΔΩ (physics.md §6.4): relative to the
     // largest tile, so the regular tiles keep `min_ray` and an exact view direction of 0.001 sr
     // is tracked as far as the tile it was cut from.
-    let d_omega_max = tiling
-        .iter()
-        .map(|d| d.solid_angle_sr)
-        .fold(0.0_f64, f64::max);
-    let mut ray_factor: Vec<f64> = tiling
-        .iter()
-        .map(|d| {
-            if d_omega_max > 0.0 {
-                (d.solid_angle_sr / d_omega_max).min(1.0)
-            } else {
-                1.0
-            }
-        })
-        .collect();
-    ray_factor.push(1.0);
+    let ray_factor = ray_factors(tiling);
     // Rows of the interception slots: the phase rows of each slot's member directions,
     // averaged with the power a smooth diffuse field deposits along each member: ∝ G(Ω_i) ΔΩ_i
     // for turbid cells, ∝ ∫_{ΔΩ_i}|μ|dΩ for the ground. One direction per slot (reference
     // preset) gives the exact rows.
     let n_sec = n_slots - 1;
-    let mut slot_rows = Vec::with_capacity(tur_ids.len() * nb * n_sec * n_dirs);
-    for &m in &tur_ids {
-        let TrackOptics::Turbid { g, tables, .. } = &inp.optics[m] else {
-            unreachable!("tur_ids holds turbid materials only");
-        };
-        let weights: Vec<f64> = tiling
-            .iter()
-            .enumerate()
-            .map(|(i, d)| g[i] * d.solid_angle_sr)
-            .collect();
-        for table in tables.iter().take(nb) {
-            slot_rows.extend(slot_average_rows(
-                table,
-                &weights,
-                inp.sector_of,
-                n_sec,
-                n_dirs,
-            ));
-        }
-    }
+    let slot_rows = slot_rows(inp, &tur_ids, n_sec);
     let ground_rows = ground_rows(inp, n_sec);
     let (brdf_ref, n_brdf_refs, facet_rows) = facet_rows(inp, n_sec);
     // Hotspot terms (physics.md §3.5): sun–view gap correlation of first-order sun rays.
-    let mut hs = vec![[0.0; 2]; n_dirs * n_tm];
-    for (tm, &m) in tur_ids.iter().enumerate() {
-        let TrackOptics::Turbid { leaf_size_m, .. } = &inp.optics[m] else {
-            unreachable!("tur_ids holds turbid materials only");
-        };
-        if *leaf_size_m > 0.0 && inp.sun.z < 0.0 {
-            let g_sun = g_dir[n_dirs * n_tm + tm];
-            for j in 0..n_dirs {
-                hs[j * n_tm + tm] =
-                    hotspot_terms(inp.sun, omega[j], g_sun, g_dir[j * n_tm + tm], *leaf_size_m);
-            }
-        }
-    }
+    let hs = hotspot_table(inp, &tur_ids, &g_dir, &omega);
     let hs_dir: Vec<bool> = (0..n_dirs)
         .map(|j| (0..n_tm).any(|tm| hs[j * n_tm + tm][0] > 0.0))
         .collect();
@@ -313,7 +248,7 @@ fn context<'a>(inp: &'a RadiativeInput<'a>) -> (Ctx<'a>, LaunchPlan, Vec<f64>) {
         hs_dir,
         image_grid: ImageGrid::new(spec, inp.image_oversampling),
         simple,
-        batch: crate::radiative::walk::batched(simple, &inp.params, w, &arch),
+        batch: walk::batched(simple, &inp.params, w, &arch),
         scells,
         skip,
         subfaces: inp.params.turbid_subfaces,
@@ -343,6 +278,109 @@ fn context<'a>(inp: &'a RadiativeInput<'a>) -> (Ctx<'a>, LaunchPlan, Vec<f64>) {
         batch_tables(&mut ctx);
     }
     (ctx, plan, source)
+}
+
+/// The tracker's turbid entries (tracked materials only) and one record per cell (its entries
+/// and facet refs).
+fn cell_records(inp: &RadiativeInput, tur_mat: &[u32]) -> (Vec<Ent>, Vec<CellRec>) {
+    let grid = inp.grid;
+    let n_cells = inp.spec.n_cells();
+    let mut ents = Vec::with_capacity(grid.turbid.len());
+    let mut cells = Vec::with_capacity(n_cells);
+    for c in 0..n_cells {
+        let ent_lo = ents.len() as u32;
+        for e in grid.turbid_start[c]..grid.turbid_start[c + 1] {
+            let te = &grid.turbid[e as usize];
+            let tm = tur_mat[te.material as usize];
+            if tm != u32::MAX {
+                ents.push(Ent {
+                    idx: e,
+                    tm,
+                    density: te.density as f64,
+                });
+            }
+        }
+        cells.push(CellRec {
+            ent_lo,
+            ent_hi: ents.len() as u32,
+            fac_lo: grid.facet_start.get(c).copied().unwrap_or(0),
+            fac_hi: grid.facet_start.get(c + 1).copied().unwrap_or(0),
+        });
+    }
+    (ents, cells)
+}
+
+/// Factor on the power threshold per direction (sun last, 1): DART's threshold is per
+/// steradian × the ray's ΔΩ (physics.md §6.4), relative to the largest tile.
+fn ray_factors(tiling: &[crate::resources::directions::Direction]) -> Vec<f64> {
+    let d_omega_max = tiling
+        .iter()
+        .map(|d| d.solid_angle_sr)
+        .fold(0.0_f64, f64::max);
+    let mut ray_factor: Vec<f64> = tiling
+        .iter()
+        .map(|d| {
+            if d_omega_max > 0.0 {
+                (d.solid_angle_sr / d_omega_max).min(1.0)
+            } else {
+                1.0
+            }
+        })
+        .collect();
+    ray_factor.push(1.0);
+    ray_factor
+}
+
+/// The turbid materials' slot rows per band, `[material][band][slot][dir]` (see [`context`]).
+fn slot_rows(inp: &RadiativeInput, tur_ids: &[usize], n_sec: usize) -> Vec<f64> {
+    let tiling = inp.dirs.tiling();
+    let (nb, n_dirs) = (inp.e_dir.len(), tiling.len());
+    let mut slot_rows = Vec::with_capacity(tur_ids.len() * nb * n_sec * n_dirs);
+    for &m in tur_ids {
+        let TrackOptics::Turbid { g, tables, .. } = &inp.optics[m] else {
+            unreachable!("tur_ids holds turbid materials only");
+        };
+        let weights: Vec<f64> = tiling
+            .iter()
+            .enumerate()
+            .map(|(i, d)| g[i] * d.solid_angle_sr)
+            .collect();
+        for table in tables.iter().take(nb) {
+            slot_rows.extend(slot_average_rows(
+                table,
+                &weights,
+                inp.sector_of,
+                n_sec,
+                n_dirs,
+            ));
+        }
+    }
+    slot_rows
+}
+
+/// Hotspot terms per (tiling direction, turbid material) (physics.md §3.5), `[0, 0]` without
+/// the hotspot (see [`hotspot_terms`]).
+fn hotspot_table(
+    inp: &RadiativeInput,
+    tur_ids: &[usize],
+    g_dir: &[f64],
+    omega: &[DVec3],
+) -> Vec<[f64; 2]> {
+    let (n_dirs, n_tm) = (inp.dirs.tiling().len(), tur_ids.len());
+    let mut hs = vec![[0.0; 2]; n_dirs * n_tm];
+    for (tm, &m) in tur_ids.iter().enumerate() {
+        let TrackOptics::Turbid { leaf_size_m, .. } = &inp.optics[m] else {
+            unreachable!("tur_ids holds turbid materials only");
+        };
+        if *leaf_size_m > 0.0 && inp.sun.z < 0.0 {
+            let g_sun = g_dir[n_dirs * n_tm + tm];
+            for j in 0..n_dirs {
+                hs[j * n_tm + tm] =
+                    hotspot_terms(inp.sun, omega[j], g_sun, g_dir[j * n_tm + tm], *leaf_size_m);
+            }
+        }
+    }
+    hs
 }
 
 /// The ground BRDF's rows per band (physics.md §5.2): the slot-averaged rows, then the sun row
@@ -647,7 +685,7 @@ pub(in crate::radiative) fn new_out(ctx: &Ctx) -> ChunkOut {
             ctx.n_slots,
             ctx.w,
             ctx.pts_per,
-            !ctx.lane_dirs32.is_empty(),
+            walk::select(ctx, false, true) == walk::WalkKind::BatchF32,
         ))),
         ..Default::default()
     }

@@ -209,7 +209,7 @@ impl Ctx<'_> {
     /// Queue length at which the queue is walked.
     #[inline(always)]
     fn flush_at(&self) -> usize {
-        if self.lane_dirs32.is_empty() {
+        if super::select(self, false, true) != super::WalkKind::BatchF32 {
             FLUSH_AT
         } else {
             FLUSH_AT_WIDE

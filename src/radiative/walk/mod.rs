@@ -3,7 +3,8 @@
 //! cell crossing intercepts (DART 5 flux tracking, Gastellu-Etchegorry et al. 2015, Remote
 //! Sens. 7, 1667–1701, §3; physics.md §3.5, §3.6, §5, §6.3). Five kernels walk the rays, all
 //! with the same physics; [`select`] is the one place that says which one takes a ray (per ray
-//! in [`Ctx::trace_any`], per queue in [`Ctx::flush`]), from two settings of the run
+//! in [`Ctx::trace_any`] and where the turbid emitters queue their rays directly, per queue in
+//! [`Ctx::flush`], and for the accumulator's single-precision records), from two settings of the run
 //! ([`batched`] and [`batched_f32`], kept in [`Ctx::batch`] and [`Ctx::lane_dirs32`]) and two
 //! facts of the ray.
 //!
@@ -68,7 +69,7 @@ impl Ctx<'_> {
     ) {
         let dense = matches!(out.tur.as_deref(), Some(TurAcc::Dense { .. }));
         let kind = select(self, HS, dense);
-        if let WalkKind::BatchF64 | WalkKind::BatchF32 = kind {
+        if kind.batched() {
             self.queue(p, dir, pw, out);
             return;
         }
@@ -102,6 +103,14 @@ pub(in crate::radiative) enum WalkKind {
     BatchF64,
     /// The batched single-precision-geometry walk on 16 lanes (AVX-512).
     BatchF32,
+}
+
+impl WalkKind {
+    /// The ray is queued for the batched walk ([`Ctx::queue`]) instead of walked now.
+    #[inline(always)]
+    pub(in crate::radiative) fn batched(self) -> bool {
+        matches!(self, WalkKind::BatchF64 | WalkKind::BatchF32)
+    }
 }
 
 /// The walk that takes a ray of the run of `ctx` (see the module doc's table): `hotspot`, the
