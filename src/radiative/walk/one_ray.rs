@@ -29,7 +29,6 @@ impl Ctx<'_> {
         let w = if W == 0 { self.w } else { W };
         let pw = &mut pw[..w];
         let spec = self.inp.spec;
-        let grid = self.inp.grid;
         let d = self.omega[dir];
         let slot = self.slot_of(dir) as u32;
         let n_tm = self.n_tm;
@@ -73,24 +72,7 @@ impl Ctx<'_> {
                     let mut hit: Option<(u32, u32, f64)> = None;
                     if cr.fac_lo != cr.fac_hi {
                         let o = dda.point(0.0);
-                        for r in cr.fac_lo as usize..cr.fac_hi as usize {
-                            let f = grid.facet_ids[r];
-                            if Some(f) == skip_facet {
-                                continue;
-                            }
-                            let fa = &self.inp.facets[f as usize];
-                            if let Some(t) = intersect(&fa.v, o, d)
-                                && t >= t0 - t_tol
-                                && t <= t1 + t_tol
-                                && hit.is_none_or(|h| t < h.2)
-                            {
-                                let n = (fa.v[1] - fa.v[0]).cross(fa.v[2] - fa.v[0]);
-                                let front = n.dot(d) < 0.0;
-                                if front || fa.two_sided {
-                                    hit = Some((r as u32, f, t));
-                                }
-                            }
-                        }
+                        hit = self.nearest_facet(cr, o, d, (t0, t1), t_tol, skip_facet);
                         if let Some((_, _, th)) = hit {
                             t1 = th.max(t0);
                         }
@@ -180,26 +162,8 @@ impl Ctx<'_> {
                         }
                     }
                     if let Some((r, f, th)) = hit {
-                        let fa = &self.inp.facets[f as usize];
-                        let n = (fa.v[1] - fa.v[0]).cross(fa.v[2] - fa.v[0]).normalize();
-                        let mu = n.dot(d).abs().max(1e-6);
-                        let from_front = n.dot(d) < 0.0;
                         let hp = dda.point(th);
-                        let t_dir = match &self.inp.optics[fa.material as usize] {
-                            TrackOptics::Lambert { t_dir, .. } => Some(t_dir),
-                            _ => None,
-                        };
-                        let mut any_direct = false;
-                        out.fac_key
-                            .push((r, f, from_front, self.sub_of(c, hp), slot));
-                        for (ch, v) in pw.iter_mut().enumerate() {
-                            let td = t_dir.map_or(0.0, |t| t[ch % self.nb]);
-                            let through = if td > 0.0 { td.powf(1.0 / mu) } else { 0.0 };
-                            out.fac_val.push(*v * (1.0 - through));
-                            *v *= through;
-                            any_direct |= *v > 0.0;
-                        }
-                        out.fac_val.extend_from_slice(&[hp.x, hp.y, hp.z, psum]);
+                        let any_direct = self.facet_hit(r, f, hp, c, slot, d, pw, psum, out);
                         if !any_direct || pw.iter().sum::<f64>() < min_ray {
                             add(&mut out.lost, pw);
                             break 'restart;
@@ -243,76 +207,19 @@ impl Ctx<'_> {
                             break 'restart;
                         }
                         s_base += dda.t;
-                        let mut q = dda.point(dda.t);
-                        let (len, off) = if axis == 0 {
-                            (self.size.0, spec.topography_offset.0)
-                        } else {
-                            (self.size.1, spec.topography_offset.1)
-                        };
-                        // Leaving through +x re-enters at x = 0 where the ground is `off` lower.
-                        q[axis] -= s as f64 * len;
-                        q.z -= s as f64 * off;
-                        q[axis] = if s > 0 {
-                            spec.origin[axis]
-                        } else {
-                            spec.origin[axis] + len
-                        };
-                        if q.z > spec.top() && d.z >= 0.0 {
-                            self.escape(q, dir, pw, out);
-                            break 'restart;
-                        }
-                        // Continuous topography: re-entering above the neighbouring tile's top
-                        // while going down — march through the empty air of the repeated tiles
-                        // (each side crossing shifts the altitude) until the ray reaches the top
-                        // plane or comes back inside the box.
-                        while q.z > spec.top() {
-                            let t_top = (spec.top() - q.z) / d.z;
-                            let mut side: Option<(usize, i64, f64)> = None;
-                            for a in 0..2 {
-                                let len = if a == 0 { self.size.0 } else { self.size.1 };
-                                let t = if d[a] > 0.0 {
-                                    (spec.origin[a] + len - q[a]) / d[a]
-                                } else if d[a] < 0.0 {
-                                    (spec.origin[a] - q[a]) / d[a]
-                                } else {
-                                    f64::INFINITY
-                                };
-                                if side.is_none_or(|s| t < s.2) {
-                                    side = Some((a, if d[a] > 0.0 { 1 } else { -1 }, t));
-                                }
+                        let q = match self.reenter(
+                            dda.point(dda.t),
+                            d,
+                            (axis, s),
+                            &mut crossings,
+                            &mut s_base,
+                        ) {
+                            Ok(q) => q,
+                            Err(q) => {
+                                self.escape(q, dir, pw, out);
+                                break 'restart;
                             }
-                            match side {
-                                Some((a, s, t)) if t < t_top => {
-                                    crossings += 1;
-                                    if crossings > self.inp.params.max_crossings {
-                                        // Descending more slowly than the terrain: it goes
-                                        // down the slope forever without meeting it again —
-                                        // it has left the scene (a downward escape).
-                                        self.escape(q, dir, pw, out);
-                                        break 'restart;
-                                    }
-                                    q += d * t.max(0.0);
-                                    s_base += t.max(0.0);
-                                    let (len, off) = if a == 0 {
-                                        (self.size.0, spec.topography_offset.0)
-                                    } else {
-                                        (self.size.1, spec.topography_offset.1)
-                                    };
-                                    let _ = len;
-                                    q.z -= s as f64 * off;
-                                    q[a] = if s > 0 {
-                                        spec.origin[a]
-                                    } else {
-                                        spec.origin[a] + len
-                                    };
-                                }
-                                _ => {
-                                    q += d * t_top;
-                                    s_base += t_top;
-                                    q.z = spec.top();
-                                }
-                            }
-                        }
+                        };
                         if q.z < spec.origin.z {
                             add(&mut out.lost, pw);
                             break 'restart;
@@ -326,5 +233,165 @@ impl Ctx<'_> {
         }
         out.crossings += n_cross;
         out.skipped += n_skip;
+    }
+
+    /// The nearest facet of cell record `cr` that the ray from `o` along `d` hits within the
+    /// segment `[t0, t1]` (± `t_tol`), from its front or on a two-sided facet, ignoring
+    /// `skip_facet`: (facet ref, facet, distance).
+    #[inline(always)]
+    fn nearest_facet(
+        &self,
+        cr: CellRec,
+        o: DVec3,
+        d: DVec3,
+        (t0, t1): (f64, f64),
+        t_tol: f64,
+        skip_facet: Option<u32>,
+    ) -> Option<(u32, u32, f64)> {
+        let grid = self.inp.grid;
+        let mut hit: Option<(u32, u32, f64)> = None;
+        for r in cr.fac_lo as usize..cr.fac_hi as usize {
+            let f = grid.facet_ids[r];
+            if Some(f) == skip_facet {
+                continue;
+            }
+            let fa = &self.inp.facets[f as usize];
+            if let Some(t) = intersect(&fa.v, o, d)
+                && t >= t0 - t_tol
+                && t <= t1 + t_tol
+                && hit.is_none_or(|h| t < h.2)
+            {
+                let n = (fa.v[1] - fa.v[0]).cross(fa.v[2] - fa.v[0]);
+                let front = n.dot(d) < 0.0;
+                if front || fa.two_sided {
+                    hit = Some((r as u32, f, t));
+                }
+            }
+        }
+        hit
+    }
+
+    /// Books a hit of facet `f` (ref `r`) at `hp` in cell `c` (physics.md §5.1): the
+    /// intercepted power per channel (all but the direct transmittance `T_dir^{1/|μ|}`) with
+    /// the hit point, `pw` left with the directly transmitted part; whether any is left.
+    #[inline(always)]
+    fn facet_hit(
+        &self,
+        r: u32,
+        f: u32,
+        hp: DVec3,
+        c: usize,
+        slot: u32,
+        d: DVec3,
+        pw: &mut [f64],
+        psum: f64,
+        out: &mut ChunkOut,
+    ) -> bool {
+        let fa = &self.inp.facets[f as usize];
+        let n = (fa.v[1] - fa.v[0]).cross(fa.v[2] - fa.v[0]).normalize();
+        let mu = n.dot(d).abs().max(1e-6);
+        let from_front = n.dot(d) < 0.0;
+        let t_dir = match &self.inp.optics[fa.material as usize] {
+            TrackOptics::Lambert { t_dir, .. } => Some(t_dir),
+            _ => None,
+        };
+        let mut any_direct = false;
+        out.fac_key
+            .push((r, f, from_front, self.sub_of(c, hp), slot));
+        for (ch, v) in pw.iter_mut().enumerate() {
+            let td = t_dir.map_or(0.0, |t| t[ch % self.nb]);
+            let through = if td > 0.0 { td.powf(1.0 / mu) } else { 0.0 };
+            out.fac_val.push(*v * (1.0 - through));
+            *v *= through;
+            any_direct |= *v > 0.0;
+        }
+        out.fac_val.extend_from_slice(&[hp.x, hp.y, hp.z, psum]);
+        any_direct
+    }
+
+    /// A ray that left through side `axis` (step `s`) at `q` re-entered on the opposite side
+    /// of a repetitive scene with continuous topography (the ground `off` lower or higher):
+    /// above the neighbouring tile's top while going down it marches through the empty air of
+    /// the repeated tiles (each side crossing shifts the altitude) until it reaches the top
+    /// plane or comes back inside the box. `Ok`: the point where it goes on; `Err`: it escapes
+    /// from there (up, or down the slope for ever: more than `max_crossings`).
+    #[inline(always)]
+    fn reenter(
+        &self,
+        mut q: DVec3,
+        d: DVec3,
+        (axis, s): (usize, i64),
+        crossings: &mut u32,
+        s_base: &mut f64,
+    ) -> Result<DVec3, DVec3> {
+        let spec = self.inp.spec;
+        let (len, off) = if axis == 0 {
+            (self.size.0, spec.topography_offset.0)
+        } else {
+            (self.size.1, spec.topography_offset.1)
+        };
+        // Leaving through +x re-enters at x = 0 where the ground is `off` lower.
+        q[axis] -= s as f64 * len;
+        q.z -= s as f64 * off;
+        q[axis] = if s > 0 {
+            spec.origin[axis]
+        } else {
+            spec.origin[axis] + len
+        };
+        if q.z > spec.top() && d.z >= 0.0 {
+            return Err(q);
+        }
+        // Continuous topography: re-entering above the neighbouring tile's top
+        // while going down — march through the empty air of the repeated tiles
+        // (each side crossing shifts the altitude) until the ray reaches the top
+        // plane or comes back inside the box.
+        while q.z > spec.top() {
+            let t_top = (spec.top() - q.z) / d.z;
+            let mut side: Option<(usize, i64, f64)> = None;
+            for a in 0..2 {
+                let len = if a == 0 { self.size.0 } else { self.size.1 };
+                let t = if d[a] > 0.0 {
+                    (spec.origin[a] + len - q[a]) / d[a]
+                } else if d[a] < 0.0 {
+                    (spec.origin[a] - q[a]) / d[a]
+                } else {
+                    f64::INFINITY
+                };
+                if side.is_none_or(|s| t < s.2) {
+                    side = Some((a, if d[a] > 0.0 { 1 } else { -1 }, t));
+                }
+            }
+            match side {
+                Some((a, s, t)) if t < t_top => {
+                    *crossings += 1;
+                    if *crossings > self.inp.params.max_crossings {
+                        // Descending more slowly than the terrain: it goes
+                        // down the slope forever without meeting it again —
+                        // it has left the scene (a downward escape).
+                        return Err(q);
+                    }
+                    q += d * t.max(0.0);
+                    *s_base += t.max(0.0);
+                    let (len, off) = if a == 0 {
+                        (self.size.0, spec.topography_offset.0)
+                    } else {
+                        (self.size.1, spec.topography_offset.1)
+                    };
+                    let _ = len;
+                    q.z -= s as f64 * off;
+                    q[a] = if s > 0 {
+                        spec.origin[a]
+                    } else {
+                        spec.origin[a] + len
+                    };
+                }
+                _ => {
+                    q += d * t_top;
+                    *s_base += t_top;
+                    q.z = spec.top();
+                }
+            }
+        }
+        Ok(q)
     }
 }
