@@ -3,10 +3,10 @@
 //! cell crossing intercepts (DART 5 flux tracking, Gastellu-Etchegorry et al. 2015, Remote
 //! Sens. 7, 1667–1701, §3; physics.md §3.5, §3.6, §5, §6.3). Five kernels walk the rays, all
 //! with the same physics; [`select`] is the one place that says which one takes a ray (per ray
-//! in [`Ctx::trace_any`] and where the turbid emitters queue their rays directly, per queue in
-//! [`Ctx::flush`], and for the accumulator's single-precision records), from two settings of the run
-//! ([`batched`] and [`batched_f32`], kept in [`Ctx::batch`] and [`Ctx::lane_dirs32`]) and two
-//! facts of the ray.
+//! in [`Ctx::trace_any`] and where the turbid emitters queue their rays directly, per queue
+//! in [`Ctx::flush`], and for the accumulator's single-precision records), from two settings
+//! of the run ([`batched`] and [`batched_f32`], kept in [`Ctx::batch`] and
+//! [`Ctx::lane_dirs32`]) and two facts of the ray (hotspot-correlated; dense accumulator).
 //!
 //! | [`WalkKind`] | kernel | runs when | bits |
 //! |---|---|---|---|
@@ -19,7 +19,10 @@
 //! Rays of `BatchF64` / `BatchF32` are queued per chunk ([`Ctx::queue`]) and walked when the
 //! queue is long enough and at the end of the chunk ([`Ctx::flush`]). Without AVX2 the
 //! batched walk never runs (`Lean` instead). Channel counts 1, 2 and 4 get copies of the
-//! kernels with the channel loops unrolled (const generic `W`; `W = 0`: any count).
+//! kernels with the channel loops unrolled (const generic `W`; `W = 0`: any count). Not a
+//! grid walk: with `turbid_exit_grouping`, a turbid store's scattered rays are first followed
+//! to their cell's exit inside the cell ([`Ctx::to_exit`]), then the merged exit rays are
+//! traced through [`Ctx::trace`] like any other.
 
 pub(in crate::radiative) mod batch;
 mod one_ray;
