@@ -1,4 +1,4 @@
-//! Lane-wise operations of the batched walk (`engine::batch`, [`super::dda::DdaL`],
+//! Lane-wise operations of the batched walk (`walk::batch`, [`super::dda::DdaL`],
 //! [`super::fastmath::attenuation_l`], [`super::fastmath::HalfBarycentres::eval_l`]) on `L`
 //! f64 lanes: 4 lanes in AVX2 + FMA registers ([`V3`], x86-64 CPUs since 2013–2015) or 8 in
 //! AVX-512 registers ([`V4`]). Each operation is the one IEEE operation per lane that the

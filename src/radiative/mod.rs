@@ -9,6 +9,7 @@ pub mod images;
 #[cfg(target_arch = "x86_64")]
 pub mod lanes;
 pub mod products;
+mod walk;
 
 /// Above this many (facet × direction) pairs, facets use the renormalised cosine fractions
 /// instead of exact projected solid angles (memory and set-up time).

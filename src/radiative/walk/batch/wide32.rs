@@ -1,6 +1,6 @@
 //! The batched walk in single-precision geometry on 16 lanes (AVX-512; the default there,
-//! [`super::super::TrackingParams::batch_f32`]): the rays of [`Ctx::walk_batch`], each lane's
-//! traversal kept in the frame of its current cell (issue #4, session 20).
+//! [`crate::radiative::engine::TrackingParams::batch_f32`]): the rays of [`Ctx::walk_batch`], each lane's
+//! traversal kept in the frame of its current cell (issue #4).
 //!
 //! Per lane: the entry point in the current cell's frame (m, in [0, size] per axis, `f32`),
 //! the distance from it to the next boundary of each axis (`f32`), the cell indices (`i32`).
@@ -38,7 +38,7 @@ const L: usize = 16;
 
 /// What a lane takes from its direction at a ray start (formed once per direction).
 #[derive(Debug, Clone, Copy, Default)]
-pub(in crate::radiative::engine) struct LaneDir32 {
+pub(in crate::radiative) struct LaneDir32 {
     /// Unit direction.
     dir: [f32; 3],
     /// Cell size over |d|: the distance between two boundaries of the axis (+∞ for d = 0).
@@ -82,7 +82,7 @@ impl Grid4 {
 }
 
 impl LaneDir32 {
-    pub(in crate::radiative::engine) fn new(spec: &GridSpec, d: DVec3) -> Self {
+    pub(in crate::radiative) fn new(spec: &GridSpec, d: DVec3) -> Self {
         let n = spec.n.map(|v| v as i32);
         let stride = [1, n[0], n[0] * n[1]];
         let mut c = LaneDir32::default();
@@ -108,7 +108,7 @@ impl LaneDir32 {
 }
 
 /// Whether a grid fits the walk's `i32` indices (linear indices and one period beyond).
-pub(in crate::radiative::engine) fn fits(spec: &GridSpec) -> bool {
+pub(in crate::radiative) fn fits(spec: &GridSpec) -> bool {
     let n: u64 = spec.n.iter().map(|&v| v as u64 + 2).product();
     n < (i32::MAX as u64) / 4
 }
@@ -512,7 +512,7 @@ impl Ctx<'_> {
     /// accumulator with the local points records (the walk runs only where
     /// [`super::lane_dirs32`] is not empty: AVX-512, so the queue is otherwise walked by
     /// [`Ctx::walk_batch`]).
-    pub(in crate::radiative::engine) fn walk_wide<const W: usize>(
+    pub(in crate::radiative) fn walk_wide<const W: usize>(
         &self,
         queue: &[Queued],
         tur: &mut TurAcc,
@@ -564,7 +564,7 @@ impl Ctx<'_> {
     /// The walk of [`super`]'s module doc on 16 lanes in single-precision geometry (this
     /// module's doc); `ONE_TM`: the scene has one tracked turbid material.
     #[inline(always)]
-    pub(in crate::radiative::engine) fn walk_wide32<const W: usize, const ONE_TM: bool>(
+    pub(in crate::radiative) fn walk_wide32<const W: usize, const ONE_TM: bool>(
         &self,
         v: V4,
         queue: &[Queued],

@@ -2,7 +2,7 @@
 //! (dense accumulator, `turbid_subfaces: Off`, 1, 2 or 4 channels, a scene that
 //! [`Ctx::simple`] covers) are queued per chunk ([`Ctx::queue`]) and walked L at a time, one
 //! per lane ([`Ctx::flush`]): by default 16 lanes in single-precision geometry on CPUs with
-//! AVX-512 (module `wide32`, [`super::TrackingParams::batch_f32`]); otherwise (this module's
+//! AVX-512 (module `wide32`, [`crate::radiative::engine::TrackingParams::batch_f32`]); otherwise (this module's
 //! double-precision walk) 8 lanes in AVX-512 registers on CPUs that have it, 4 in AVX2
 //! elsewhere on x86-64 ([`crate::radiative::lanes`]; `pulp` runtime detection, no unsafe
 //! code; without AVX2 the queued rays are walked one by one by [`Ctx::walk_lean`]). Per
@@ -26,12 +26,12 @@
 //! latency of one ray's dependency chain, and the unpredictable per-axis branch of the scalar
 //! DDA becomes a mask.
 
-use super::{ChunkOut, Ctx, TurAcc};
-#[cfg(target_arch = "x86_64")]
-use super::{DenseView, add};
 use crate::radiative::dda::DirStart;
 #[cfg(target_arch = "x86_64")]
 use crate::radiative::dda::{DdaL, Exit};
+use crate::radiative::engine::{ChunkOut, Ctx, TurAcc};
+#[cfg(target_arch = "x86_64")]
+use crate::radiative::engine::{DenseView, add};
 #[cfg(target_arch = "x86_64")]
 use crate::radiative::fastmath::{HalfBarycentres, attenuation_l};
 #[cfg(target_arch = "x86_64")]
@@ -45,28 +45,26 @@ use pulp::x86::V3;
 #[cfg(target_arch = "x86_64")]
 mod wide32;
 #[cfg(target_arch = "x86_64")]
-pub(super) use wide32::LaneDir32;
+pub(in crate::radiative) use wide32::LaneDir32;
+#[cfg(target_arch = "x86_64")]
+pub(in crate::radiative) use wide32::fits as fits32;
 /// Placeholder off x86-64 (no single-precision walk there).
 #[cfg(not(target_arch = "x86_64"))]
 #[derive(Debug, Clone, Copy, Default)]
-pub(super) struct LaneDir32;
+pub(in crate::radiative) struct LaneDir32;
 
 /// [`LaneDir32`] of every direction of `ctx` (sun last) when the single-precision 16-lane walk
-/// runs ([`super::TrackingParams::batch_f32`] on an AVX-512 CPU, a grid that fits its `i32`
+/// runs ([`crate::radiative::engine::TrackingParams::batch_f32`] on an AVX-512 CPU, a grid that fits its `i32`
 /// indices); empty otherwise.
-pub(super) fn lane_dirs32(ctx: &Ctx) -> Vec<LaneDir32> {
+pub(in crate::radiative) fn lane_dirs32(ctx: &Ctx) -> Vec<LaneDir32> {
     #[cfg(target_arch = "x86_64")]
-    if ctx.inp.params.batch_f32
-        && matches!(ctx.arch, pulp::Arch::V4(_))
-        && wide32::fits(ctx.inp.spec)
-    {
+    if super::batched_f32(ctx) {
         return ctx
             .omega
             .iter()
             .map(|&d| LaneDir32::new(ctx.inp.spec, d))
             .collect();
     }
-    let _ = ctx;
     Vec::new()
 }
 
@@ -83,7 +81,7 @@ const FLUSH_AT_WIDE: usize = 1024;
 /// the first `w` used), factor on its power threshold (see [`ChunkOut::ray_scale`]) and the
 /// emitter's footprint (m, for images).
 #[derive(Debug, Clone, Copy)]
-pub(super) struct Queued {
+pub(in crate::radiative) struct Queued {
     p: DVec3,
     dir: u32,
     pw: [f64; 4],
@@ -96,7 +94,7 @@ pub(super) struct Queued {
 /// first product of the one-ray walk's threshold), the single material's G (read only when
 /// the scene has exactly one) and the interception slot.
 #[derive(Debug, Clone, Copy, Default)]
-pub(super) struct LaneDir {
+pub(in crate::radiative) struct LaneDir {
     start: DirStart,
     min_ray: f64,
     g: f64,
@@ -104,7 +102,7 @@ pub(super) struct LaneDir {
 }
 
 /// [`LaneDir`] of every direction of `ctx` (sun last).
-pub(super) fn lane_dirs(ctx: &Ctx) -> Vec<LaneDir> {
+pub(in crate::radiative) fn lane_dirs(ctx: &Ctx) -> Vec<LaneDir> {
     (0..ctx.omega.len())
         .map(|dir| LaneDir {
             start: DirStart::new(ctx.inp.spec, ctx.omega[dir]),
@@ -117,7 +115,7 @@ pub(super) fn lane_dirs(ctx: &Ctx) -> Vec<LaneDir> {
 
 /// Whether dispatch target `arch` runs the batched walk (x86-64 with AVX2 and FMA: 4 lanes;
 /// with AVX-512: 8).
-pub(super) fn available(arch: &pulp::Arch) -> bool {
+pub(in crate::radiative) fn available(arch: &pulp::Arch) -> bool {
     #[cfg(target_arch = "x86_64")]
     {
         matches!(arch, pulp::Arch::V4(_) | pulp::Arch::V3(_))
@@ -133,11 +131,11 @@ pub(super) fn available(arch: &pulp::Arch) -> bool {
 /// records): `"AVX-512"` (the batched walk on 16 single-precision or 8 double-precision
 /// lanes), `"AVX2"` (4 lanes), or `"baseline"` (rays one by one).
 pub fn kernel_isa() -> &'static str {
-    instruction_set(super::KernelIsa::Best)
+    instruction_set(crate::radiative::engine::KernelIsa::Best)
 }
 
 /// The instruction set the walks run on this CPU under cap `isa` (see [`kernel_isa`]).
-pub fn instruction_set(isa: super::KernelIsa) -> &'static str {
+pub fn instruction_set(isa: crate::radiative::engine::KernelIsa) -> &'static str {
     match isa.arch() {
         #[cfg(target_arch = "x86_64")]
         pulp::Arch::V4(_) => "AVX-512",
@@ -148,11 +146,11 @@ pub fn instruction_set(isa: super::KernelIsa) -> &'static str {
 }
 
 /// Rays the batched walk has in flight on this CPU under cap `isa`, with or without the
-/// single-precision walk (`batch_f32`, [`super::TrackingParams::batch_f32`]): 16 (AVX-512,
+/// single-precision walk (`batch_f32`, [`crate::radiative::engine::TrackingParams::batch_f32`]): 16 (AVX-512,
 /// single precision), 8 (AVX-512), 4 (AVX2), 1 (no batched walk). Products of runs with the
 /// same count are the same bits; between 8 and 4 they differ in the last bits (summation
 /// order), between 16 and the others by ~3e-7 relative (single-precision geometry).
-pub fn batch_lanes(isa: super::KernelIsa, batch_f32: bool) -> usize {
+pub fn batch_lanes(isa: crate::radiative::engine::KernelIsa, batch_f32: bool) -> usize {
     match isa.arch() {
         #[cfg(target_arch = "x86_64")]
         pulp::Arch::V4(_) if batch_f32 => 16,
@@ -167,7 +165,7 @@ pub fn batch_lanes(isa: super::KernelIsa, batch_f32: bool) -> usize {
 impl Ctx<'_> {
     /// Queues a ray for the batched walk instead of walking it now (see the module doc); the
     /// queue is walked when it is long enough and by [`Ctx::flush`] at the end of the chunk.
-    pub(super) fn queue(&self, p: DVec3, dir: usize, pw: &[f64], out: &mut ChunkOut) {
+    pub(in crate::radiative) fn queue(&self, p: DVec3, dir: usize, pw: &[f64], out: &mut ChunkOut) {
         let mut q = Queued {
             p,
             dir: dir as u32,
@@ -184,7 +182,7 @@ impl Ctx<'_> {
 
     /// [`Ctx::queue`] of a ray of powers `v[ch] · share` (W, the products `send` forms).
     #[inline]
-    pub(super) fn queue_scaled(
+    pub(in crate::radiative) fn queue_scaled(
         &self,
         p: DVec3,
         dir: usize,
@@ -211,7 +209,7 @@ impl Ctx<'_> {
     /// Queue length at which the queue is walked.
     #[inline(always)]
     fn flush_at(&self) -> usize {
-        if self.lane_dirs32.is_empty() {
+        if super::select(self, false, true) != super::WalkKind::BatchF32 {
             FLUSH_AT
         } else {
             FLUSH_AT_WIDE
@@ -219,14 +217,14 @@ impl Ctx<'_> {
     }
 
     /// Walks every queued ray (in queue order into the lanes); a no-op on an empty queue.
-    pub(super) fn flush(&self, out: &mut ChunkOut) {
+    pub(in crate::radiative) fn flush(&self, out: &mut ChunkOut) {
         if out.queue.is_empty() {
             return;
         }
         let queue = std::mem::take(&mut out.queue);
         let mut tur = out.tur.take().expect("accumulator");
         #[cfg(target_arch = "x86_64")]
-        if !self.lane_dirs32.is_empty() {
+        if super::select(self, false, true) == super::WalkKind::BatchF32 {
             match self.w {
                 1 => self.walk_wide::<1>(&queue, &mut tur, out),
                 2 => self.walk_wide::<2>(&queue, &mut tur, out),
@@ -309,7 +307,7 @@ impl Ctx<'_> {
         for q in queue {
             let mut pw = q.pw;
             (out.foot, out.ray_scale) = (q.foot, q.ray_scale);
-            self.trace_simple::<W>(q.p, q.dir as usize, &mut pw, tur, out);
+            self.trace_lean(q.p, q.dir as usize, &mut pw, tur, out);
         }
         (out.foot, out.ray_scale) = (foot, scale);
     }
