@@ -55,6 +55,19 @@ const LARGE_FILES: &[(&str, &str)] = &[];
 
 const MAX_LINES: usize = 1500;
 
+/// Upward imports that remain (module, imported module), each to be removed by moving a type
+/// down a layer (issue #30): engine parameter and product types still defined in their engine
+/// (`TrackingParams`/`KernelIsa`/`TrackOptics` in radiative, `SamplerKind` in photon,
+/// `FarRoulette`/`LidarRun` in lidar, `MonteCarloInfo` in photon, `BeamProfile`/`ReturnsMethod`
+/// in lidar). An entry that no longer occurs fails the test, so the list only shrinks.
+const KNOWN_UPWARD: &[(&str, &str)] = &[
+    ("radiative", "photon"),
+    ("resources", "lidar"),
+    ("resources", "radiative"),
+    ("resources", "photon"),
+    ("scene", "lidar"),
+];
+
 fn root() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR"))
 }
@@ -150,6 +163,7 @@ fn every_module_has_a_layer() {
 fn modules_import_only_from_lower_layers() {
     let rank: BTreeMap<&str, usize> = LAYERS.iter().enumerate().map(|(i, m)| (*m, i)).collect();
     let mut bad = Vec::new();
+    let mut seen_known = BTreeSet::new();
     for (module, path, text) in sources() {
         let Some(&own) = rank.get(module.as_str()) else {
             continue;
@@ -162,12 +176,23 @@ fn modules_import_only_from_lower_layers() {
                 if let Some(&t) = rank.get(target.as_str())
                     && t > own
                 {
+                    if KNOWN_UPWARD.contains(&(module.as_str(), target.as_str())) {
+                        seen_known.insert((module.clone(), target.clone()));
+                        continue;
+                    }
                     bad.push(format!(
                         "{}:{line}: `{module}` imports `{target}` (a higher layer)",
                         path.display()
                     ));
                 }
             }
+        }
+    }
+    for (m, t) in KNOWN_UPWARD {
+        if !seen_known.contains(&(m.to_string(), t.to_string())) {
+            bad.push(format!(
+                "{m} → {t} no longer occurs: take it off KNOWN_UPWARD"
+            ));
         }
     }
     assert!(bad.is_empty(), "upward imports:\n{}", bad.join("\n"));
@@ -180,6 +205,9 @@ fn the_module_graph_has_no_cycle() {
     for (module, _, text) in sources() {
         for (_, code) in code_lines(&text) {
             for t in crate_refs(&code) {
+                if KNOWN_UPWARD.contains(&(module.as_str(), t.as_str())) {
+                    continue;
+                }
                 if t != module && names.contains(&t) {
                     graph.entry(module.clone()).or_default().insert(t);
                 }
