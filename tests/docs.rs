@@ -116,8 +116,8 @@ fn every_scene_format_field_is_in_the_reference() {
             "src/direction/mod.rs",
             &["DirectionParams", "ExactDirection", "OversampleRegion"],
         ),
-        ("src/lidar/pulse.rs", &["BeamProfile"]),
-        ("src/lidar/returns.rs", &["ReturnsMethod"]),
+        ("src/lidar/pulse/mod.rs", &["BeamProfile"]),
+        ("src/lidar/returns/mod.rs", &["ReturnsMethod"]),
     ];
     let mut missing = Vec::new();
     let mut checked = 0;

@@ -25,8 +25,8 @@ SOURCES = [
     ("src/physics/lad.rs", ["Lad", "LeafSpecular"]),
     ("src/physics/prospect.rs", ["ProspectModel"]),
     ("src/direction/mod.rs", ["DirectionParams", "ExactDirection", "OversampleRegion"]),
-    ("src/lidar/pulse.rs", ["BeamProfile"]),
-    ("src/lidar/returns.rs", ["ReturnsMethod"]),
+    ("src/lidar/pulse/mod.rs", ["BeamProfile"]),
+    ("src/lidar/returns/mod.rs", ["ReturnsMethod"]),
 ]
 
 # Defaults that are not a literal in a `default = "fn"` function.
