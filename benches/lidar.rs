@@ -19,6 +19,9 @@
 //! squares (J²), returns, fits, capped fits, evaluations — to FILE, to compare fitters on the
 //! same waveforms).
 //!
+//! `--row returns` (only when asked for): the two returns methods' time per waveform on
+//! synthetic and Monte-Carlo-like waveforms (see `returns_methods`).
+//!
 //! `--error` runs the speed-against-error study instead of the speed rows (see
 //! `error_study`): `--setting EST:PHOTONS[:SCATTERING]` (repeatable; PHOTONS `auto`: the per-pulse default
 //! of `photons_per_pulse`; default `legacy:1000`, `stratified:600` and `expected:auto`), `--reps R` realizations per setting (default 4), `--ref-photons N`
@@ -38,7 +41,7 @@
 //! The bench scenes are LiDAR-only, so no passive solver runs (`SceneDesc::runs_passive`); the
 //! 64-photon Monte Carlo solver setting only matters if a scene asks for the passive run.
 
-use lumenscape::lidar::returns::ReturnsMethod;
+use lumenscape::lidar::returns::{ReturnsMethod, detect_returns_method};
 use lumenscape::lidar::waveform::Waveform;
 use lumenscape::photon::engine::SamplerKind;
 use lumenscape::resources::lidar::{LidarProducts, LidarRun};
@@ -50,9 +53,13 @@ use lumenscape::scene::desc::{
 };
 use lumenscape::scene::generators::{forest, urban};
 use lumenscape::simulation::Simulation;
+use std::time::Instant;
 
 mod common;
 use common::peak_rss_mib;
+#[path = "../tests/fixtures/returns_waveforms.rs"]
+mod returns_waveforms;
+use returns_waveforms::{forest_waveform, gaussian_waveform, peak, settings};
 
 fn lidar(pulses: PulsePattern, photons: Option<u32>) -> LidarDesc {
     LidarDesc {
@@ -460,6 +467,12 @@ struct Outcome {
 
 fn main() {
     let mut opt = Options::parse();
+    if opt.rows.iter().any(|r| r == "returns") {
+        returns_methods();
+        if opt.rows.len() == 1 {
+            return;
+        }
+    }
     let quick = opt.quick;
     let threads = rayon::current_num_threads() as f64;
     let f = forest::forest(&forest::ForestParams {
@@ -833,5 +846,58 @@ fn error_study(f: &SceneDesc, size_m: f64, opt: &mut Options) {
             rate / (100.0 * conv[0]).powi(2)
         );
         println!("    total error per realization (%): {}", per_rep.join(" "));
+    }
+}
+
+/// µs per waveform for both methods with the pipeline's settings and floor (1e-3 × peak).
+fn returns_methods() {
+    let n = 100;
+    let sets: Vec<(&str, Vec<Waveform>)> = vec![
+        (
+            "3-6 Gaussians, 400 bins, clean",
+            (0..n).map(|s| gaussian_waveform(s, false)).collect(),
+        ),
+        (
+            "3-6 Gaussians, 400 bins, Poisson 1e5",
+            (0..n).map(|s| gaussian_waveform(s, true)).collect(),
+        ),
+        (
+            "MC forest, 1000 packets, pulse σ = 2 bins",
+            (0..n).map(|s| forest_waveform(s, 1000, 2.0)).collect(),
+        ),
+        (
+            "MC forest, 1000 packets, pulse FWHM 3 ns",
+            (0..n)
+                .map(|s| forest_waveform(s, 1000, 3.0 / 2.3548))
+                .collect(),
+        ),
+    ];
+    for (name, ws) in &sets {
+        for method in [
+            ReturnsMethod::PeakDetection,
+            ReturnsMethod::GaussianDecomposition,
+        ] {
+            let reps = if method == ReturnsMethod::PeakDetection {
+                200
+            } else {
+                1
+            };
+            let mut count = 0;
+            let t = Instant::now();
+            for _ in 0..reps {
+                for w in ws {
+                    count += detect_returns_method(w, 1e-3 * peak(w), method, &settings())
+                        .unwrap()
+                        .len();
+                }
+            }
+            let per = (reps * ws.len()) as f64;
+            eprintln!(
+                "{name} ({} bins): {method:?} {:.2} µs/waveform, {:.2} returns/waveform",
+                ws[0].n_bins(),
+                t.elapsed().as_secs_f64() * 1e6 / per,
+                count as f64 / per
+            );
+        }
     }
 }

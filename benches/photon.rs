@@ -1,6 +1,9 @@
 //! Monte Carlo speed against error (harness = false). `cargo bench --bench photon`
 //! (`-- --quick` for fewer rows).
 //!
+//! `-- --samplers`: the scattering-direction samplers' speed and memory instead (alias against
+//! Box tables, continuous samplers; see `samplers`).
+//!
 //! 1. Turbid layer (LAI 3, red + NIR, sun 20°, principal-plane views): continuous Monte Carlo at
 //!    increasing photon counts → wall time, photons/s/core, worst relative BRF standard error,
 //!    worst |error| and |z| against DISORT; the photon count and time needed for 1 % and 0.3 %
@@ -9,7 +12,13 @@
 //! 2. Forest (40 m, 24 trees) and disk canopy: same Monte Carlo figures, and the difference
 //!    between flux tracking (default preset) and Monte Carlo in units of σ.
 
+use glam::DVec3;
 use lumenscape::photon::engine::SamplerKind;
+use lumenscape::photon::sampling::{
+    AliasTable, BoxTable, BrdfGrid, BrdfSampler, LeafSampler, sample_fluid_phase, total_variation,
+};
+use lumenscape::physics::lad::Lad;
+use lumenscape::physics::phase::FluidPhase;
 use lumenscape::radiative::products::RadiativeProducts;
 use lumenscape::resources::scene::{RunSettings, Solver};
 use lumenscape::scene::SceneSource;
@@ -17,10 +26,19 @@ use lumenscape::scene::desc::{LadDesc, Preset, SceneDesc};
 use lumenscape::scene::generators::turbid_layer::{TurbidLayerParams, turbid_layer};
 use lumenscape::scene::generators::{BandOptics, disk_canopy, forest, principal_plane_directions};
 use lumenscape::simulation::Simulation;
+use rand_xoshiro::Xoshiro256PlusPlus;
+use rand_xoshiro::rand_core::SeedableRng;
 use std::time::Instant;
 
 mod common;
 use common::peak_rss_mib;
+#[path = "../tests/fixtures/sampler_rows.rs"]
+mod sampler_rows;
+use sampler_rows::{hg_row, incoming, leaf_row, reference_brdfs};
+
+fn rng(seed: u64) -> Xoshiro256PlusPlus {
+    Xoshiro256PlusPlus::seed_from_u64(seed)
+}
 
 fn run(desc: &SceneDesc, solver: Solver, preset: Option<Preset>) -> (f64, RadiativeProducts) {
     let t0 = Instant::now();
@@ -56,6 +74,10 @@ fn mc(photons: u64, sampler: SamplerKind) -> Solver {
 }
 
 fn main() {
+    if std::env::args().any(|a| a == "--samplers") {
+        samplers();
+        return;
+    }
     let quick = std::env::args().any(|a| a == "--quick");
     let threads = rayon::current_num_threads();
     let oracle = std::fs::read_to_string(concat!(
@@ -222,6 +244,141 @@ fn main() {
             100.0 * worst_rel,
             worst_dz,
             peak_rss_mib()
+        );
+    }
+}
+
+/// The samplers row (`--samplers`): alias against Box tables on HG and planophile-leaf phase
+/// rows of 100, 400 and 1000 directions (build time, bytes per row, draws per second, largest
+/// relative bias and total variation against the row), then the continuous samplers' draws per
+/// second (fluid phase functions, leaves of five LADs at three incidences, BRDFs).
+fn samplers() {
+    let draws = 20_000_000usize;
+    println!("| row | N | sampler | bytes/row | Mdraws/s | max rel. bias | TV |");
+    println!("|---|---|---|---|---|---|---|");
+    for n in [100usize, 400, 1000] {
+        for (row_name, row) in [
+            ("HG g=0.85", hg_row(n, 0.85)),
+            ("leaf planophile", leaf_row(n)),
+        ] {
+            let sum: f64 = row.iter().sum();
+            let p: Vec<f64> = row.iter().map(|x| x / sum).collect();
+            let t0 = Instant::now();
+            let a = AliasTable::new(&row).unwrap();
+            let build_a = t0.elapsed().as_secs_f64();
+            let mut r = rng(1);
+            let t0 = Instant::now();
+            let mut acc = 0usize;
+            for _ in 0..draws {
+                acc = acc.wrapping_add(a.sample(&mut r));
+            }
+            let dt = t0.elapsed().as_secs_f64();
+            let tv = total_variation(&p, &a.probabilities());
+            println!(
+                "| {row_name} | {n} | alias (build {:.1} µs) | {} | {:.0} | {:.1e} | {tv:.1e} |",
+                build_a * 1e6,
+                a.bytes(),
+                draws as f64 / dt / 1e6,
+                p.iter()
+                    .zip(a.probabilities())
+                    .map(|(x, y)| (y / x - 1.0).abs())
+                    .fold(0.0, f64::max)
+            );
+            std::hint::black_box(acc);
+            for (gamma, per) in [(2.0, 10usize), (2.0, 100), (2.0, 1000), (8.0, 100)] {
+                let t0 = Instant::now();
+                let b = BoxTable::new(&row, gamma, per * n).unwrap();
+                let build_b = t0.elapsed().as_secs_f64();
+                let q = b.probabilities();
+                let max_rel = p
+                    .iter()
+                    .zip(&q)
+                    .map(|(x, y)| (y / x - 1.0).abs())
+                    .fold(0.0, f64::max);
+                let mut r = rng(2);
+                let t0 = Instant::now();
+                let mut acc = 0usize;
+                for _ in 0..draws {
+                    acc = acc.wrapping_add(b.sample(&mut r));
+                }
+                let dt = t0.elapsed().as_secs_f64();
+                std::hint::black_box(acc);
+                println!(
+                    "| {row_name} | {n} | box γ={gamma} M={per}N (K={}, build {:.0} µs, bound {:.1e}) | {} | {:.0} | {max_rel:.1e} | {:.1e} |",
+                    b.resolution().classes,
+                    build_b * 1e6,
+                    b.bias_bound().unwrap_or(f64::NAN),
+                    b.bytes(),
+                    draws as f64 / dt / 1e6,
+                    total_variation(&p, &q)
+                );
+            }
+        }
+    }
+    // Continuous samplers (draws/s).
+    let mut r = rng(3);
+    let w = incoming(40.0);
+    let m = 2_000_000usize;
+    for phase in [
+        FluidPhase::HenyeyGreenstein { g: 0.85 },
+        FluidPhase::air(),
+        FluidPhase::dart_aerosol_default(),
+    ] {
+        let t0 = Instant::now();
+        let mut acc = DVec3::ZERO;
+        for _ in 0..m {
+            acc += sample_fluid_phase(&phase, w, &mut r);
+        }
+        std::hint::black_box(acc);
+        println!(
+            "{phase:?}: {:.1} M/s",
+            m as f64 / t0.elapsed().as_secs_f64() / 1e6
+        );
+    }
+    for lad in [
+        Lad::Spherical,
+        Lad::Planophile,
+        Lad::EllipsoidalChi { chi: 2.0 },
+        Lad::Beta {
+            mu: 0.433,
+            nu: 0.433,
+        },
+        Lad::EllipsoidalChi { chi: 100.0 },
+    ] {
+        let d = lad.resolve().unwrap();
+        let s = LeafSampler::new(&d).unwrap();
+        for deg in [0.0, 60.0, 89.9] {
+            let w = incoming(deg);
+            let t0 = Instant::now();
+            let mut acc = DVec3::ZERO;
+            for _ in 0..m {
+                acc += s.scatter(w, 0.5, &mut r).dir;
+            }
+            std::hint::black_box(acc);
+            println!(
+                "leaf {lad:?} at {deg}°: {:.1} M/s, expected trials {:.3}, {} pieces, {} bytes",
+                m as f64 / t0.elapsed().as_secs_f64() / 1e6,
+                s.expected_trials(w, d.g_function(w.z)),
+                s.pieces(),
+                s.bytes()
+            );
+        }
+    }
+    for (name, brdf, _) in reference_brdfs().into_iter().step_by(3) {
+        let t0 = Instant::now();
+        let s = BrdfSampler::new(&brdf, BrdfGrid::default()).unwrap();
+        let build = t0.elapsed().as_secs_f64();
+        let t0 = Instant::now();
+        let mut acc = 0.0;
+        for _ in 0..m {
+            acc += s.sample(DVec3::Z, w, &mut r).unwrap().weight;
+        }
+        std::hint::black_box(acc);
+        println!(
+            "BRDF {name}: build {:.1} ms, {:.1} M/s, {} bytes",
+            build * 1e3,
+            m as f64 / t0.elapsed().as_secs_f64() / 1e6,
+            s.bytes()
         );
     }
 }

@@ -1,13 +1,13 @@
 //! Discrete returns by the two [`ReturnsMethod`]s (issue #6): accuracy of the fast peak
 //! detection on synthetic waveforms against the known Gaussians, agreement with the Gaussian
-//! decomposition, hard inputs (no NaN), the `max_components` cap, and a timing benchmark
-//! (`cargo test --release --test lidar_returns_fast -- --ignored --nocapture`).
+//! decomposition, hard inputs (no NaN) and the `max_components` cap. Their timing is a bench
+//! row: `cargo bench --bench lidar -- --row returns`.
 //!
 //! Synthetic returns are Gaussians integrated exactly over each bin (the decomposition's own
 //! model, `E [Φ(b) − Φ(a)]`), so every error printed here is the method's, not the data's.
 //! Noise is Poisson (exact draws, `photon_counting::poisson`) from fixed seeds.
 
-use lumenscape::lidar::photon_counting::{UniformSource, poisson};
+use lumenscape::lidar::photon_counting::UniformSource;
 use lumenscape::lidar::pulse::PulseShape;
 use lumenscape::lidar::returns::{
     DecompositionSettings, Return, ReturnsMethod, detect_peaks, detect_returns_method,
@@ -15,63 +15,10 @@ use lumenscape::lidar::returns::{
 };
 use lumenscape::lidar::special::normal_interval;
 use lumenscape::lidar::waveform::{Waveform, WaveformBinner};
-use rand_xoshiro::Xoshiro256PlusPlus;
-use rand_xoshiro::rand_core::SeedableRng;
-use std::time::Instant;
 
-const T0: f64 = 6670.0;
-
-fn rng(seed: u64) -> Xoshiro256PlusPlus {
-    Xoshiro256PlusPlus::seed_from_u64(seed)
-}
-
-/// A Gaussian return: centre (ns), σ (ns), energy (J).
-#[derive(Debug, Clone, Copy)]
-struct Truth {
-    t_ns: f64,
-    sigma_ns: f64,
-    energy: f64,
-}
-
-/// Sum of Gaussians integrated over 1-ns bins starting at `T0`.
-fn bin_integrated(n: usize, comps: &[Truth]) -> Waveform {
-    let mut w = Waveform::zeros(T0, 1.0, n);
-    for (i, v) in w.total.iter_mut().enumerate() {
-        let (a, b) = (T0 + i as f64, T0 + i as f64 + 1.0);
-        *v = comps
-            .iter()
-            .map(|c| {
-                c.energy * normal_interval((a - c.t_ns) / c.sigma_ns, (b - c.t_ns) / c.sigma_ns)
-            })
-            .sum();
-    }
-    w.first_order = w.total.clone();
-    w
-}
-
-/// Poisson noise at `counts_per_joule`.
-fn with_poisson(w: &Waveform, counts_per_joule: f64, seed: u64) -> Waveform {
-    let mut r = rng(seed);
-    let mut out = w.clone();
-    for v in out.total.iter_mut() {
-        *v = poisson(*v * counts_per_joule, &mut r) as f64 / counts_per_joule;
-    }
-    out.first_order = out.total.clone();
-    out
-}
-
-fn settings() -> DecompositionSettings {
-    // The LiDAR pipeline's settings (simulate.rs).
-    DecompositionSettings {
-        max_components: 15,
-        max_iterations: 60,
-        ..Default::default()
-    }
-}
-
-fn peak(w: &Waveform) -> f64 {
-    w.total.iter().cloned().fold(0.0, f64::max)
-}
+#[path = "fixtures/returns_waveforms.rs"]
+mod returns_waveforms;
+use returns_waveforms::*;
 
 fn peaks(w: &Waveform) -> Vec<Return> {
     detect_peaks(w, 1e-3 * peak(w), &settings()).unwrap()
@@ -602,128 +549,4 @@ fn returns_method_is_written_by_variant_name() {
         "GaussianDecomposition"
     );
     assert!(ron::from_str::<ReturnsMethod>("Fastest").is_err());
-}
-
-// ----------------------------------------------------------------------------- benchmark
-
-fn normal(u: &mut Xoshiro256PlusPlus) -> f64 {
-    let a = u.next_uniform().max(1e-300);
-    let b = u.next_uniform();
-    (-2.0 * a.ln()).sqrt() * (2.0 * std::f64::consts::PI * b).cos()
-}
-
-/// A Monte-Carlo-like forest waveform: `packets` packets from four canopy layers and the
-/// ground (30 m of canopy over 120 m of path, 1-ns bins: ~410 bins), 30 % of them scattered
-/// again (exponential extra path, half the weight each order), convolved with a ±3σ Gaussian
-/// pulse of `sigma_ns`.
-fn forest_waveform(seed: u64, packets: usize, sigma_ns: f64) -> Waveform {
-    let mut u = rng(seed);
-    let mut b = WaveformBinner::new(2000.0, 2120.0, 1.0).unwrap();
-    let layers = [
-        (1008.0, 1.0, 0.25),
-        (1012.0, 1.5, 0.25),
-        (1020.0, 1.2, 0.15),
-        (1027.0, 0.8, 0.1),
-    ];
-    let e0 = 1e-12 / packets as f64;
-    for _ in 0..packets {
-        let x = u.next_uniform();
-        let mut acc = 0.0;
-        let mut range = 1035.0;
-        for &(c, s, p) in &layers {
-            acc += p;
-            if x < acc {
-                range = c + s * normal(&mut u);
-                break;
-            }
-        }
-        let mut path = 2.0 * range;
-        let mut order = 1;
-        let mut weight = e0 * (0.5 + u.next_uniform());
-        while u.next_uniform() < 0.3 {
-            path += -2.0 * u.next_uniform().max(1e-300).ln();
-            weight *= 0.5;
-            order += 1;
-        }
-        b.add(path, weight, order);
-    }
-    let p = PulseShape::from_sigma_ns(sigma_ns, 3.0).unwrap();
-    b.waveform().convolve(&p, None).unwrap()
-}
-
-/// 3–6 bin-integrated Gaussian returns (σ = 1.8–2.4 bins, 10–50 bins apart) in 400 bins,
-/// optionally with Poisson noise of 1e5 counts per unit energy.
-fn gaussian_waveform(seed: u64, noisy: bool) -> Waveform {
-    let mut u = rng(seed);
-    let mut truth = Vec::new();
-    let mut t = T0 + 30.0 + 20.0 * u.next_uniform();
-    for _ in 0..3 + seed % 4 {
-        truth.push(Truth {
-            t_ns: t,
-            sigma_ns: 1.8 + 0.6 * u.next_uniform(),
-            energy: 0.2 + u.next_uniform(),
-        });
-        t += 10.0 + 40.0 * u.next_uniform();
-    }
-    let w = bin_integrated(400, &truth);
-    if noisy {
-        with_poisson(&w, 1e5, seed)
-    } else {
-        w
-    }
-}
-
-/// µs per waveform for both methods with the pipeline's settings and floor (1e-3 × peak).
-#[test]
-#[ignore]
-fn benchmark_returns_methods() {
-    let n = 100;
-    let sets: Vec<(&str, Vec<Waveform>)> = vec![
-        (
-            "3-6 Gaussians, 400 bins, clean",
-            (0..n).map(|s| gaussian_waveform(s, false)).collect(),
-        ),
-        (
-            "3-6 Gaussians, 400 bins, Poisson 1e5",
-            (0..n).map(|s| gaussian_waveform(s, true)).collect(),
-        ),
-        (
-            "MC forest, 1000 packets, pulse σ = 2 bins",
-            (0..n).map(|s| forest_waveform(s, 1000, 2.0)).collect(),
-        ),
-        (
-            "MC forest, 1000 packets, pulse FWHM 3 ns",
-            (0..n)
-                .map(|s| forest_waveform(s, 1000, 3.0 / 2.3548))
-                .collect(),
-        ),
-    ];
-    for (name, ws) in &sets {
-        for method in [
-            ReturnsMethod::PeakDetection,
-            ReturnsMethod::GaussianDecomposition,
-        ] {
-            let reps = if method == ReturnsMethod::PeakDetection {
-                200
-            } else {
-                1
-            };
-            let mut count = 0;
-            let t = Instant::now();
-            for _ in 0..reps {
-                for w in ws {
-                    count += detect_returns_method(w, 1e-3 * peak(w), method, &settings())
-                        .unwrap()
-                        .len();
-                }
-            }
-            let per = (reps * ws.len()) as f64;
-            eprintln!(
-                "{name} ({} bins): {method:?} {:.2} µs/waveform, {:.2} returns/waveform",
-                ws[0].n_bins(),
-                t.elapsed().as_secs_f64() * 1e6 / per,
-                count as f64 / per
-            );
-        }
-    }
 }

@@ -12,8 +12,8 @@
 //! quadrature of `Brdf::brf_local`), except for the Box table, which is tested against its own
 //! quantised probabilities (and its bias against the true ones is bounded separately).
 //!
-//! The speed/memory study of alias vs Box is an ignored test:
-//! `cargo test --release --test photon_samplers -- --ignored --nocapture`.
+//! The speed/memory study of alias vs Box is a bench row: `cargo bench --bench photon --
+//! --samplers`.
 
 use glam::DVec3;
 use lumenscape::photon::sampling::*;
@@ -26,6 +26,10 @@ use lumenscape::physics::phase::{AIR_DEPOLARIZATION, FluidPhase};
 use rand_xoshiro::Xoshiro256PlusPlus;
 use rand_xoshiro::rand_core::SeedableRng;
 use std::f64::consts::{FRAC_PI_2, PI, TAU};
+
+#[path = "fixtures/sampler_rows.rs"]
+mod sampler_rows;
+use sampler_rows::*;
 
 const N_SAMPLES: usize = 200_000;
 
@@ -181,39 +185,6 @@ fn alias_table_chi2_with_zeros_and_1e9_dynamic_range() {
         }
         assert_gof(&format!("alias N={n}"), &counts, &p);
     }
-}
-
-/// Equal-area sphere tiling used for realistic phase rows: `nz` zones equal in μ ∈ [−1, 1],
-/// each split in `nphi` equal azimuth sectors (all sectors have solid angle 4π/(nz·nphi)).
-fn sector_row(nz: usize, nphi: usize, sub: usize, f: impl Fn(DVec3) -> f64) -> Vec<f64> {
-    let mut row = Vec::with_capacity(nz * nphi);
-    for iz in 0..nz {
-        for ip in 0..nphi {
-            let mut s = 0.0;
-            for a in 0..sub {
-                let mu = -1.0 + 2.0 * (iz as f64 + (a as f64 + 0.5) / sub as f64) / nz as f64;
-                let st = (1.0 - mu * mu).sqrt();
-                for b in 0..sub {
-                    let phi = TAU * (ip as f64 + (b as f64 + 0.5) / sub as f64) / nphi as f64;
-                    s += f(DVec3::new(st * phi.cos(), st * phi.sin(), mu));
-                }
-            }
-            row.push(s);
-        }
-    }
-    let t: f64 = row.iter().sum();
-    row.iter().map(|x| x / t).collect()
-}
-
-fn hg_row(n: usize, g: f64) -> Vec<f64> {
-    let (nz, nphi) = match n {
-        100 => (10, 10),
-        400 => (20, 20),
-        _ => (25, 40),
-    };
-    let w = DVec3::new(40f64.to_radians().sin(), 0.0, -40f64.to_radians().cos());
-    let phase = FluidPhase::HenyeyGreenstein { g };
-    sector_row(nz, nphi, 8, |d| phase.eval_dirs(w, d))
 }
 
 #[test]
@@ -421,12 +392,6 @@ fn all_lads() -> Vec<Lad> {
             bins: vec![0.1, 0.5, 0.2, 0.0, 0.7],
         },
     ]
-}
-
-/// Downward photon at zenith angle `deg` (azimuth 0).
-fn incoming(deg: f64) -> DVec3 {
-    let t = deg.to_radians();
-    DVec3::new(t.sin(), 0.0, -t.cos())
 }
 
 /// `(1/2π)∫_{φ1}^{φ2} |A + B cos φ| dφ` in closed form (split at the roots).
@@ -717,46 +682,6 @@ fn peel_off_gamma_uses_closed_form_for_spherical_lad() {
 // Surfaces
 // ---------------------------------------------------------------------------------------------
 
-fn reference_brdfs() -> Vec<(String, Brdf, f64)> {
-    let path = concat!(
-        env!("CARGO_MANIFEST_DIR"),
-        "/assets/reference/surface_brdf_parameters.json"
-    );
-    let v: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(path).unwrap()).unwrap();
-    let mut out = Vec::new();
-    for e in v["parameters"]["rpv"].as_array().unwrap() {
-        let b = Brdf::Rpv {
-            rho0: e["rho_0"].as_f64().unwrap(),
-            k: e["k"].as_f64().unwrap(),
-            theta: e["g"].as_f64().unwrap(),
-            rho_c: e["rho_c"].as_f64(),
-        };
-        out.push((
-            e["name"].as_str().unwrap().to_string(),
-            b,
-            e["sza"].as_f64().unwrap(),
-        ));
-    }
-    for e in v["parameters"]["hapke"].as_array().unwrap() {
-        let b = Brdf::Hapke {
-            w: e["w"].as_f64().unwrap(),
-            b: e["b"].as_f64().unwrap(),
-            c: e["c"].as_f64().unwrap(),
-            theta_bar_deg: e["theta"].as_f64().unwrap(),
-            b0: e["B_0"].as_f64().unwrap(),
-            h: e["h"].as_f64().unwrap(),
-        };
-        out.push((
-            e["name"].as_str().unwrap().to_string(),
-            b,
-            e["sza"].as_f64().unwrap(),
-        ));
-    }
-    assert_eq!(out.len(), 18);
-    out
-}
-
 #[test]
 fn brdf_sampler_is_exact_and_unbiased() {
     // Tilted facet so that the facet frame is exercised.
@@ -1040,158 +965,5 @@ fn hard_cases_give_finite_unit_directions() {
     for _ in 0..1000 {
         assert_eq!(a.sample(&mut r), 2);
         assert_eq!(b.sample(&mut r), 2);
-    }
-}
-
-// ---------------------------------------------------------------------------------------------
-// Speed and memory study (ignored: run in release)
-// ---------------------------------------------------------------------------------------------
-
-fn leaf_row(n: usize) -> Vec<f64> {
-    let (nz, nphi) = match n {
-        100 => (10, 10),
-        400 => (20, 20),
-        _ => (25, 40),
-    };
-    let d = Lad::Planophile.resolve().unwrap();
-    let k = VolscattKernel::new(&d, 90, false);
-    let w = incoming(40.0);
-    sector_row(nz, nphi, 4, |o| {
-        let (a, b) = leaf_gamma_parts(&k, w, o);
-        0.45 * a + 0.35 * b
-    })
-}
-
-#[test]
-#[ignore]
-fn bench_alias_vs_box() {
-    use std::time::Instant;
-    let draws = 20_000_000usize;
-    println!("| row | N | sampler | bytes/row | Mdraws/s | max rel. bias | TV |");
-    println!("|---|---|---|---|---|---|---|");
-    for n in [100usize, 400, 1000] {
-        for (row_name, row) in [
-            ("HG g=0.85", hg_row(n, 0.85)),
-            ("leaf planophile", leaf_row(n)),
-        ] {
-            let sum: f64 = row.iter().sum();
-            let p: Vec<f64> = row.iter().map(|x| x / sum).collect();
-            let t0 = Instant::now();
-            let a = AliasTable::new(&row).unwrap();
-            let build_a = t0.elapsed().as_secs_f64();
-            let mut r = rng(1);
-            let t0 = Instant::now();
-            let mut acc = 0usize;
-            for _ in 0..draws {
-                acc = acc.wrapping_add(a.sample(&mut r));
-            }
-            let dt = t0.elapsed().as_secs_f64();
-            let tv = total_variation(&p, &a.probabilities());
-            println!(
-                "| {row_name} | {n} | alias (build {:.1} µs) | {} | {:.0} | {:.1e} | {tv:.1e} |",
-                build_a * 1e6,
-                a.bytes(),
-                draws as f64 / dt / 1e6,
-                p.iter()
-                    .zip(a.probabilities())
-                    .map(|(x, y)| (y / x - 1.0).abs())
-                    .fold(0.0, f64::max)
-            );
-            std::hint::black_box(acc);
-            for (gamma, per) in [(2.0, 10usize), (2.0, 100), (2.0, 1000), (8.0, 100)] {
-                let t0 = Instant::now();
-                let b = BoxTable::new(&row, gamma, per * n).unwrap();
-                let build_b = t0.elapsed().as_secs_f64();
-                let q = b.probabilities();
-                let max_rel = p
-                    .iter()
-                    .zip(&q)
-                    .map(|(x, y)| (y / x - 1.0).abs())
-                    .fold(0.0, f64::max);
-                let mut r = rng(2);
-                let t0 = Instant::now();
-                let mut acc = 0usize;
-                for _ in 0..draws {
-                    acc = acc.wrapping_add(b.sample(&mut r));
-                }
-                let dt = t0.elapsed().as_secs_f64();
-                std::hint::black_box(acc);
-                println!(
-                    "| {row_name} | {n} | box γ={gamma} M={per}N (K={}, build {:.0} µs, bound {:.1e}) | {} | {:.0} | {max_rel:.1e} | {:.1e} |",
-                    b.resolution().classes,
-                    build_b * 1e6,
-                    b.bias_bound().unwrap_or(f64::NAN),
-                    b.bytes(),
-                    draws as f64 / dt / 1e6,
-                    total_variation(&p, &q)
-                );
-            }
-        }
-    }
-    // Continuous samplers (draws/s).
-    let mut r = rng(3);
-    let w = incoming(40.0);
-    let m = 2_000_000usize;
-    for phase in [
-        FluidPhase::HenyeyGreenstein { g: 0.85 },
-        FluidPhase::air(),
-        FluidPhase::dart_aerosol_default(),
-    ] {
-        let t0 = Instant::now();
-        let mut acc = DVec3::ZERO;
-        for _ in 0..m {
-            acc += sample_fluid_phase(&phase, w, &mut r);
-        }
-        std::hint::black_box(acc);
-        println!(
-            "{phase:?}: {:.1} M/s",
-            m as f64 / t0.elapsed().as_secs_f64() / 1e6
-        );
-    }
-    for lad in [
-        Lad::Spherical,
-        Lad::Planophile,
-        Lad::EllipsoidalChi { chi: 2.0 },
-        Lad::Beta {
-            mu: 0.433,
-            nu: 0.433,
-        },
-        Lad::EllipsoidalChi { chi: 100.0 },
-    ] {
-        let d = lad.resolve().unwrap();
-        let s = LeafSampler::new(&d).unwrap();
-        for deg in [0.0, 60.0, 89.9] {
-            let w = incoming(deg);
-            let t0 = Instant::now();
-            let mut acc = DVec3::ZERO;
-            for _ in 0..m {
-                acc += s.scatter(w, 0.5, &mut r).dir;
-            }
-            std::hint::black_box(acc);
-            println!(
-                "leaf {lad:?} at {deg}°: {:.1} M/s, expected trials {:.3}, {} pieces, {} bytes",
-                m as f64 / t0.elapsed().as_secs_f64() / 1e6,
-                s.expected_trials(w, d.g_function(w.z)),
-                s.pieces(),
-                s.bytes()
-            );
-        }
-    }
-    for (name, brdf, _) in reference_brdfs().into_iter().step_by(3) {
-        let t0 = Instant::now();
-        let s = BrdfSampler::new(&brdf, BrdfGrid::default()).unwrap();
-        let build = t0.elapsed().as_secs_f64();
-        let t0 = Instant::now();
-        let mut acc = 0.0;
-        for _ in 0..m {
-            acc += s.sample(DVec3::Z, w, &mut r).unwrap().weight;
-        }
-        std::hint::black_box(acc);
-        println!(
-            "BRDF {name}: build {:.1} ms, {:.1} M/s, {} bytes",
-            build * 1e3,
-            m as f64 / t0.elapsed().as_secs_f64() / 1e6,
-            s.bytes()
-        );
     }
 }

@@ -1,9 +1,12 @@
-//! LiDAR building blocks that do not depend on the photon engine (DART 5 paper §4, "Ray-Carlo";
-//! physics.md §9).
+//! LiDAR (DART 5 paper §4, "Ray-Carlo"; physics.md §9). LiDAR builds on the photon engine
+//! ([`crate::photon::engine`]), never the reverse.
 //!
-//! The Photon stage traces weighted packets and hands each one received by the LiDAR (energy in J,
-//! total path length in m, scattering order) to a [`waveform::WaveformBinner`]; everything after
-//! that is here:
+//! * [`tracking`]: the pulse tracking in receiver mode — each pulse's beam rays traced by the
+//!   photon engine, every return (energy in J, total path length in m, scattering order) booked
+//!   into a [`waveform::WaveformBinner`]; [`simulate`]: a whole instrument's pulses, by chunks,
+//!   through tracking, convolution, returns and photon counting.
+//!
+//! Everything after the binner does not depend on the photon engine:
 //!
 //! * [`pulse`]: emitted pulse in time ([`pulse::PulseShape`], Gaussian, truncated) and space
 //!   ([`pulse::FootprintProfile`], Gaussian beam; footprint radius from divergence; oblique

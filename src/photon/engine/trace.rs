@@ -112,42 +112,7 @@ pub(crate) fn trace_photon(
                 return;
             }
             Hit::Volume { c, p } if c & FLUID_BIT != 0 => {
-                let c = c & !FLUID_BIT;
-                let f = ctx.fluid_of(c).expect("fluid cell");
-                out.events += 1;
-                // Peel-off: intensity ω P(Θ)/(4π) per unit weight (unless the K-point forced
-                // estimate along the flight already accounted for fluid collisions).
-                let d_in = ph.d;
-                let forced_here = match ctx.receiver {
-                    Some(_) => ph.order == 0,
-                    None => inp.params.fluid_peel_points > 0,
-                };
-                if !forced_here {
-                    ctx.peel(ph, p, None, false, out, scratch, tr, |_, ov, s| {
-                        let pv = f.phase.eval_dirs(d_in, ov) / (4.0 * PI);
-                        for b in 0..nb {
-                            s[b] = f.ssa[b] * pv;
-                        }
-                        true
-                    });
-                }
-                let acc = out
-                    .abs_fluid
-                    .entry(c as u32)
-                    .or_insert_with(|| vec![0.0; ctx.w]);
-                for b in 0..nb {
-                    let w_new = ph.w[b] * f.ssa[b];
-                    acc[off + b] += ph.w[b] - w_new;
-                    ph.w[b] = w_new;
-                }
-                let d_new = sample_fluid_phase(&f.phase, ph.d, rng);
-                ph.d = d_new;
-                if discrete {
-                    ph.di = inp.dirs.find_sector(ph.d);
-                    ph.d = ctx.omega[ph.di];
-                }
-                ph.p = p;
-                ph.skip_facet = None;
+                fluid_event(ctx, ph, c, p, rng, out, scratch, tr);
             }
             Hit::Volume { c, p } => {
                 out.events += 1;
@@ -290,112 +255,7 @@ pub(crate) fn trace_photon(
                 ph.skip_facet = None;
             }
             Hit::Facet { f, p } => {
-                out.events += 1;
-                let fa = &inp.facets[f as usize];
-                let n = (fa.v[1] - fa.v[0]).cross(fa.v[2] - fa.v[0]).normalize();
-                let front = n.dot(ph.d) < 0.0;
-                let n_in = if front { n } else { -n }; // normal on the incidence side
-                let mu = n.dot(ph.d).abs().max(1e-6);
-                let w_before = ph.w.clone();
-                let is_ground_facet = inp.ground_facet.get(f as usize).copied().unwrap_or(false);
-                let mut passed_through = false;
-                match &inp.optics[fa.material as usize] {
-                    PhotonOptics::Lambert { r, t, t_dir } => {
-                        let mut pd = Bands::from_elem(0.0, nb);
-                        let mut pr = Bands::from_elem(0.0, nb);
-                        let mut pt = Bands::from_elem(0.0, nb);
-                        let nbx = nb;
-                        for b in 0..nbx {
-                            let through = if t_dir[b] > 0.0 {
-                                t_dir[b].powf(1.0 / mu)
-                            } else {
-                                0.0
-                            };
-                            pd[b] = through;
-                            pr[b] = (1.0 - through) * r[b];
-                            pt[b] = (1.0 - through) * t[b];
-                        }
-                        {
-                            let it = out.int_fac.get(f);
-                            for b in 0..nbx {
-                                it[off + b] += ph.w[b] * (1.0 - pd[b]);
-                            }
-                        }
-                        // Peel-off: reflected ρ|n·v|/π on the incidence side, τ|n·v|/π beyond
-                        // (unless the flight's walk scored it: `Photon::surface_scored`).
-                        let scored = ph.surface_scored;
-                        ctx.peel(
-                            ph,
-                            p,
-                            Some(f),
-                            is_ground_facet,
-                            out,
-                            scratch,
-                            tr,
-                            |_, ov, s| {
-                                if scored {
-                                    return false;
-                                }
-                                let c = n_in.dot(ov);
-                                let mut any = false;
-                                for b in 0..nbx {
-                                    s[b] = if c > 0.0 { pr[b] } else { pt[b] } * c.abs() / PI;
-                                    any |= s[b] > 0.0;
-                                }
-                                any
-                            },
-                        );
-                        let k =
-                            choose(&mut ph.w[..nbx], &[&pd[..nbx], &pr[..nbx], &pt[..nbx]], rng);
-                        match k {
-                            None => {}
-                            Some(0) => passed_through = true,
-                            Some(1) => {
-                                ph.d = sample_cosine_hemisphere(n_in, rng);
-                            }
-                            _ => {
-                                ph.d = sample_cosine_hemisphere(-n_in, rng);
-                            }
-                        }
-                        if discrete && k.is_some_and(|k| k > 0) {
-                            ph.di = inp.dirs.find_sector(ph.d);
-                            ph.d = ctx.omega[ph.di];
-                        }
-                    }
-                    PhotonOptics::Brdf { models, sampler } => {
-                        {
-                            let it = out.int_fac.get(f);
-                            for b in 0..nb {
-                                it[off + b] += ph.w[b];
-                            }
-                        }
-                        brdf_event(
-                            ctx,
-                            ph,
-                            p,
-                            Some(f),
-                            n_in,
-                            models,
-                            sampler,
-                            rng,
-                            out,
-                            scratch,
-                            tr,
-                        );
-                    }
-                    _ => {
-                        for b in 0..nb {
-                            ph.w[b] = 0.0;
-                        }
-                    }
-                }
-                let a = out.abs_fac.get(f);
-                for b in 0..nb {
-                    a[off + b] += w_before[b] - ph.w[b];
-                }
-                ph.p = p;
-                ph.skip_facet = Some(f);
-                if passed_through {
+                if facet_event(ctx, ph, f, p, rng, out, scratch, tr) {
                     // Direct transmission is not a scattering event: same order, same flight
                     // direction (continue without the roulette/order bookkeeping); the return
                     // path now crosses this facet too.
@@ -404,60 +264,7 @@ pub(crate) fn trace_photon(
                 }
             }
             Hit::Ground { p } => {
-                out.events += 1;
-                let col = ctx.column(p);
-                {
-                    let it = out.int_gnd.get(col);
-                    for b in 0..nb {
-                        it[off + b] += ph.w[b];
-                        out.summary[ctx.sum.ground(off + b)] += ph.w[b];
-                    }
-                }
-                let w_before = ph.w.clone();
-                let gid = inp.flat_ground.expect("flat ground") as usize;
-                match &inp.optics[gid] {
-                    PhotonOptics::Lambert { r, .. } => {
-                        // (Scored by the walk of an expected-value flight.)
-                        let scored = ph.surface_scored;
-                        ctx.peel(ph, p, None, true, out, scratch, tr, |_, ov, s| {
-                            if scored {
-                                return false;
-                            }
-                            let c = ov.z;
-                            for b in 0..nb {
-                                s[b] = r[b] * c / PI;
-                            }
-                            true
-                        });
-                        for b in 0..nb {
-                            ph.w[b] *= r[b];
-                        }
-                        ctx.ground_direction(ph, rng);
-                    }
-                    PhotonOptics::Brdf { models, sampler } => {
-                        brdf_event(
-                            ctx,
-                            ph,
-                            p,
-                            None,
-                            DVec3::Z,
-                            models,
-                            sampler,
-                            rng,
-                            out,
-                            scratch,
-                            tr,
-                        );
-                    }
-                    _ => ph.w.iter_mut().for_each(|x| *x = 0.0),
-                }
-                let a = out.abs_gnd.get(col);
-                for b in 0..nb {
-                    a[off + b] += w_before[b] - ph.w[b];
-                    out.summary[ctx.sum.absorbed_ground(off + b)] += w_before[b] - ph.w[b];
-                }
-                ph.p = p;
-                ph.skip_facet = None;
+                ground_event(ctx, ph, p, rng, out, scratch, tr);
             }
         }
         ph.order += 1;
@@ -512,4 +319,258 @@ pub(crate) fn trace_photon(
             }
         }
     }
+}
+
+/// A collision with the flat ground at `p` (DART 5 paper §4): interception and absorption
+/// tallies of its column, then Lambertian reflection (peel-off, cosine-weighted direction) or
+/// a BRDF event (physics.md §5.2–5.3); other optics absorb the photon.
+#[allow(clippy::too_many_arguments)]
+fn ground_event(
+    ctx: &Ctx,
+    ph: &mut Photon,
+    p: DVec3,
+    rng: &mut Xoshiro256PlusPlus,
+    out: &mut BatchOut,
+    scratch: &mut [f64],
+    tr: &mut [f64],
+) {
+    let inp = ctx.inp;
+    let nb = ctx.nb;
+    let off = ph.off;
+    out.events += 1;
+    let col = ctx.column(p);
+    {
+        let it = out.int_gnd.get(col);
+        for b in 0..nb {
+            it[off + b] += ph.w[b];
+            out.summary[ctx.sum.ground(off + b)] += ph.w[b];
+        }
+    }
+    let w_before = ph.w.clone();
+    let gid = inp.flat_ground.expect("flat ground") as usize;
+    match &inp.optics[gid] {
+        PhotonOptics::Lambert { r, .. } => {
+            // (Scored by the walk of an expected-value flight.)
+            let scored = ph.surface_scored;
+            ctx.peel(ph, p, None, true, out, scratch, tr, |_, ov, s| {
+                if scored {
+                    return false;
+                }
+                let c = ov.z;
+                for b in 0..nb {
+                    s[b] = r[b] * c / PI;
+                }
+                true
+            });
+            for b in 0..nb {
+                ph.w[b] *= r[b];
+            }
+            ctx.ground_direction(ph, rng);
+        }
+        PhotonOptics::Brdf { models, sampler } => {
+            brdf_event(
+                ctx,
+                ph,
+                p,
+                None,
+                DVec3::Z,
+                models,
+                sampler,
+                rng,
+                out,
+                scratch,
+                tr,
+            );
+        }
+        _ => ph.w.iter_mut().for_each(|x| *x = 0.0),
+    }
+    let a = out.abs_gnd.get(col);
+    for b in 0..nb {
+        a[off + b] += w_before[b] - ph.w[b];
+        out.summary[ctx.sum.absorbed_ground(off + b)] += w_before[b] - ph.w[b];
+    }
+    ph.p = p;
+    ph.skip_facet = None;
+}
+
+/// A collision with facet `f` at `p` (DART 5 paper §4; physics.md §5): interception and
+/// absorption tallies, then a Lambertian facet's direct transmission, reflection or diffuse
+/// transmission (peel-off, band-weighted choice) or a BRDF event; other optics absorb the
+/// photon. Returns whether the photon passed straight through (direct transmission).
+#[allow(clippy::too_many_arguments)]
+fn facet_event(
+    ctx: &Ctx,
+    ph: &mut Photon,
+    f: u32,
+    p: DVec3,
+    rng: &mut Xoshiro256PlusPlus,
+    out: &mut BatchOut,
+    scratch: &mut [f64],
+    tr: &mut [f64],
+) -> bool {
+    let inp = ctx.inp;
+    let nb = ctx.nb;
+    let off = ph.off;
+    let discrete = inp.params.sampler.is_discrete();
+    out.events += 1;
+    let fa = &inp.facets[f as usize];
+    let n = (fa.v[1] - fa.v[0]).cross(fa.v[2] - fa.v[0]).normalize();
+    let front = n.dot(ph.d) < 0.0;
+    let n_in = if front { n } else { -n }; // normal on the incidence side
+    let mu = n.dot(ph.d).abs().max(1e-6);
+    let w_before = ph.w.clone();
+    let is_ground_facet = inp.ground_facet.get(f as usize).copied().unwrap_or(false);
+    let mut passed_through = false;
+    match &inp.optics[fa.material as usize] {
+        PhotonOptics::Lambert { r, t, t_dir } => {
+            let mut pd = Bands::from_elem(0.0, nb);
+            let mut pr = Bands::from_elem(0.0, nb);
+            let mut pt = Bands::from_elem(0.0, nb);
+            let nbx = nb;
+            for b in 0..nbx {
+                let through = if t_dir[b] > 0.0 {
+                    t_dir[b].powf(1.0 / mu)
+                } else {
+                    0.0
+                };
+                pd[b] = through;
+                pr[b] = (1.0 - through) * r[b];
+                pt[b] = (1.0 - through) * t[b];
+            }
+            {
+                let it = out.int_fac.get(f);
+                for b in 0..nbx {
+                    it[off + b] += ph.w[b] * (1.0 - pd[b]);
+                }
+            }
+            // Peel-off: reflected ρ|n·v|/π on the incidence side, τ|n·v|/π beyond
+            // (unless the flight's walk scored it: `Photon::surface_scored`).
+            let scored = ph.surface_scored;
+            ctx.peel(
+                ph,
+                p,
+                Some(f),
+                is_ground_facet,
+                out,
+                scratch,
+                tr,
+                |_, ov, s| {
+                    if scored {
+                        return false;
+                    }
+                    let c = n_in.dot(ov);
+                    let mut any = false;
+                    for b in 0..nbx {
+                        s[b] = if c > 0.0 { pr[b] } else { pt[b] } * c.abs() / PI;
+                        any |= s[b] > 0.0;
+                    }
+                    any
+                },
+            );
+            let k = choose(&mut ph.w[..nbx], &[&pd[..nbx], &pr[..nbx], &pt[..nbx]], rng);
+            match k {
+                None => {}
+                Some(0) => passed_through = true,
+                Some(1) => {
+                    ph.d = sample_cosine_hemisphere(n_in, rng);
+                }
+                _ => {
+                    ph.d = sample_cosine_hemisphere(-n_in, rng);
+                }
+            }
+            if discrete && k.is_some_and(|k| k > 0) {
+                ph.di = inp.dirs.find_sector(ph.d);
+                ph.d = ctx.omega[ph.di];
+            }
+        }
+        PhotonOptics::Brdf { models, sampler } => {
+            {
+                let it = out.int_fac.get(f);
+                for b in 0..nb {
+                    it[off + b] += ph.w[b];
+                }
+            }
+            brdf_event(
+                ctx,
+                ph,
+                p,
+                Some(f),
+                n_in,
+                models,
+                sampler,
+                rng,
+                out,
+                scratch,
+                tr,
+            );
+        }
+        _ => {
+            for b in 0..nb {
+                ph.w[b] = 0.0;
+            }
+        }
+    }
+    let a = out.abs_fac.get(f);
+    for b in 0..nb {
+        a[off + b] += w_before[b] - ph.w[b];
+    }
+    ph.p = p;
+    ph.skip_facet = Some(f);
+    passed_through
+}
+
+/// A fluid collision in cell `c` (with [`FLUID_BIT`]) at `p` (physics.md §4.2): peel-off with
+/// the phase function unless the forced estimate along the flight accounted for it, absorption
+/// `1 − ω` booked per band, and a new direction from the phase function.
+#[allow(clippy::too_many_arguments)]
+fn fluid_event(
+    ctx: &Ctx,
+    ph: &mut Photon,
+    c: usize,
+    p: DVec3,
+    rng: &mut Xoshiro256PlusPlus,
+    out: &mut BatchOut,
+    scratch: &mut [f64],
+    tr: &mut [f64],
+) {
+    let inp = ctx.inp;
+    let nb = ctx.nb;
+    let off = ph.off;
+    let discrete = inp.params.sampler.is_discrete();
+    let c = c & !FLUID_BIT;
+    let f = ctx.fluid_of(c).expect("fluid cell");
+    out.events += 1;
+    // Peel-off: intensity ω P(Θ)/(4π) per unit weight (unless the K-point forced
+    // estimate along the flight already accounted for fluid collisions).
+    let d_in = ph.d;
+    let forced_here = match ctx.receiver {
+        Some(_) => ph.order == 0,
+        None => inp.params.fluid_peel_points > 0,
+    };
+    if !forced_here {
+        ctx.peel(ph, p, None, false, out, scratch, tr, |_, ov, s| {
+            let pv = f.phase.eval_dirs(d_in, ov) / (4.0 * PI);
+            for b in 0..nb {
+                s[b] = f.ssa[b] * pv;
+            }
+            true
+        });
+    }
+    let acc = out
+        .abs_fluid
+        .entry(c as u32)
+        .or_insert_with(|| vec![0.0; ctx.w]);
+    for b in 0..nb {
+        let w_new = ph.w[b] * f.ssa[b];
+        acc[off + b] += ph.w[b] - w_new;
+        ph.w[b] = w_new;
+    }
+    let d_new = sample_fluid_phase(&f.phase, ph.d, rng);
+    ph.d = d_new;
+    if discrete {
+        ph.di = inp.dirs.find_sector(ph.d);
+        ph.d = ctx.omega[ph.di];
+    }
+    ph.p = p;
+    ph.skip_facet = None;
 }
