@@ -188,6 +188,9 @@ pub(in crate::radiative) struct Emitter<'s> {
     normal: Option<DVec3>,
     points: &'s [(DVec3, f64)],
     ground: bool,
+    /// Turbid: the within-cell standard deviation of the intercepted energy's position per
+    /// axis, m (see [`turbid_emitter`]); zero for other emitters.
+    spread: DVec3,
 }
 
 /// Turbid entry `k` (`turbid_subfaces: Off`): its stored power per slot scattered with the
@@ -240,16 +243,24 @@ fn turbid_emitter<'s>(
     let p = &st.tur_pts[k];
     let cell = ctx.entry_cell[k] as usize;
     let centre = cell_centre(spec, cell);
-    origin_up = if p[3] > 0.0 {
-        DVec3::new(p[0], p[1], p[2]) / p[3]
+    // The barycentre of the intercepted energy and its within-cell spread per axis (the
+    // maximum-entropy density with that mean; physics.md §3.6): the two-point emission
+    // matches the first and second moments of the source along each axis.
+    let wsum = p[3] + p[7];
+    let mean = if wsum > 0.0 {
+        (DVec3::new(p[0], p[1], p[2]) + DVec3::new(p[4], p[5], p[6])) / wsum
     } else {
         centre
     };
-    origin_dn = if p[7] > 0.0 {
-        DVec3::new(p[4], p[5], p[6]) / p[7]
-    } else {
-        centre
-    };
+    let lo = centre - 0.5 * spec.cell;
+    let rel = ((mean - lo) / spec.cell).clamp(DVec3::ZERO, DVec3::ONE);
+    let spread = DVec3::new(
+        max_entropy_sigma(rel.x),
+        max_entropy_sigma(rel.y),
+        max_entropy_sigma(rel.z),
+    ) * spec.cell;
+    origin_up = mean;
+    origin_dn = mean;
     skip = None;
     normal = None;
     for ch in 0..w {
@@ -267,6 +278,7 @@ fn turbid_emitter<'s>(
         normal,
         points: &[],
         ground: false,
+        spread,
     })
 }
 
@@ -327,6 +339,7 @@ fn facet_emitter<'s>(
         normal,
         points,
         ground: false,
+        spread: DVec3::ZERO,
     }
 }
 
@@ -381,6 +394,7 @@ fn ground_emitter<'s>(
         normal,
         points,
         ground,
+        spread: DVec3::ZERO,
     }
 }
 
@@ -406,6 +420,7 @@ fn send_emitter(
         normal,
         points,
         ground,
+        spread,
     } = *src;
     // First-order sun rays (what turbid cells, facets and the ground scatter of the
     // direct beam) get the hotspot correlation through turbid cells on their way up.
@@ -433,7 +448,15 @@ fn send_emitter(
             // Two-point quadrature of the interception distribution: half the power
             // from the barycentre of each half of the intercepted energy.
             let hs_j = hs && ctx.hs_dir[j];
-            for o in [origin_up, origin_dn] {
+            // Points at mean ± v, v = (±σx, ±σy, σz): the horizontal signs alternate over
+            // the directions so that no horizontal diagonal is favoured.
+            let dv = DVec3::new(
+                if j & 1 == 0 { spread.x } else { -spread.x },
+                if j & 2 == 0 { spread.y } else { -spread.y },
+                spread.z,
+            );
+            let _ = origin_dn;
+            for o in [origin_up + dv, origin_up - dv] {
                 if walk::select(ctx, hs_j, dense).batched() {
                     // What `send` does for this ray (powers v · 0.5, then
                     // `Ctx::queue`).

@@ -218,3 +218,53 @@ pub(in crate::radiative) fn cell_centre(spec: &GridSpec, c: usize) -> DVec3 {
     let [i, j, k] = spec.ijk(c);
     spec.origin + (DVec3::new(i as f64, j as f64, k as f64) + 0.5) * spec.cell
 }
+
+/// Mean of the truncated exponential density `∝ e^{−u x}` on x ∈ [0, 1]:
+/// `1/u − 1/(e^u − 1)` (series `1/2 − u/12 + u³/720` near u = 0).
+fn trunc_exp_mean(u: f64) -> f64 {
+    if u.abs() < 1e-3 {
+        return 0.5 - u / 12.0 + u * u * u / 720.0;
+    }
+    1.0 / u - 1.0 / u.exp_m1()
+}
+
+/// Variance of the density of [`trunc_exp_mean`]: `1/u² − e^u/(e^u − 1)²` (series
+/// `1/12 − u²/240` near u = 0).
+fn trunc_exp_var(u: f64) -> f64 {
+    if u.abs() < 1e-3 {
+        return 1.0 / 12.0 - u * u / 240.0;
+    }
+    let e = u.exp_m1();
+    1.0 / (u * u) - (e + 1.0) / (e * e)
+}
+
+/// Within-cell spread of the intercepted energy along one axis, from its mean alone: the
+/// standard deviation, in units of the cell width, of the maximum-entropy density on [0, 1]
+/// with mean `m` (Jaynes 1957: the truncated exponential `∝ e^{−u x}`, whose rate u is found
+/// by bisection on the monotone mean). This is the exact spread of single-direction
+/// interception in a homogeneous cell (Beer's law along the axis: `u = kΔ/|μ|`); a uniform
+/// source has m = ½ and σ = 1/√12. Used by the turbid two-point emission (physics.md §3.6).
+pub fn max_entropy_sigma(m: f64) -> f64 {
+    let m = m.clamp(1e-9, 1.0 - 1e-9);
+    if (m - 0.5).abs() < 1e-12 {
+        return (1.0f64 / 12.0).sqrt();
+    }
+    // trunc_exp_mean decreases from 1 (u → −∞) through ½ (u = 0) to 0 (u → +∞).
+    let (mut lo, mut hi) = if m < 0.5 { (0.0, 1e9) } else { (-1e9, 0.0) };
+    // Bracket tightened geometrically before bisecting: |u| ≤ 1/min(m, 1 − m) + 1.
+    let bound = 1.0 / m.min(1.0 - m) + 1.0;
+    if m < 0.5 {
+        hi = bound;
+    } else {
+        lo = -bound;
+    }
+    for _ in 0..64 {
+        let mid = 0.5 * (lo + hi);
+        if trunc_exp_mean(mid) > m {
+            lo = mid;
+        } else {
+            hi = mid;
+        }
+    }
+    trunc_exp_var(0.5 * (lo + hi)).max(0.0).sqrt()
+}

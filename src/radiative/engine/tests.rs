@@ -234,3 +234,31 @@ fn tabulated_half_barycentres_match_the_closed_form() {
     }
     assert!(worst < 1e-6, "worst |Δs|/ℓ = {worst:e}");
 }
+
+/// The maximum-entropy spread recovers the standard deviation of a Beer's-law interception
+/// density from its mean (checked against direct quadrature of `u e^{−ux}/(1 − e^{−u})`), is
+/// 1/√12 for a centred mean and symmetric about ½.
+#[test]
+fn max_entropy_sigma_recovers_beer_law_spread() {
+    for u in [1e-6, 0.01, 0.3, 1.0, 3.0, 10.0, 50.0, 300.0] {
+        let n = 200_000;
+        let (mut s0, mut s1, mut s2) = (0.0, 0.0, 0.0);
+        for i in 0..n {
+            let x = (i as f64 + 0.5) / n as f64;
+            let f = (-u * x).exp();
+            s0 += f;
+            s1 += f * x;
+            s2 += f * x * x;
+        }
+        let m = s1 / s0;
+        let sd = (s2 / s0 - m * m).sqrt();
+        let got = max_entropy_sigma(m);
+        assert!((got / sd - 1.0).abs() < 1e-4, "u {u}: {got} vs {sd}");
+        assert!((max_entropy_sigma(1.0 - m) - got).abs() < 1e-12, "symmetry at u {u}");
+    }
+    assert!((max_entropy_sigma(0.5) - (1.0f64 / 12.0).sqrt()).abs() < 1e-15);
+    for m in [0.0, 1.0, -1.0, 2.0] {
+        let s = max_entropy_sigma(m);
+        assert!(s.is_finite() && (0.0..1e-6).contains(&s), "m {m}: {s}");
+    }
+}
