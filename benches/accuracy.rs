@@ -1,14 +1,15 @@
 //! Flux-tracking accuracy against cell size (harness = false): the horizontally homogeneous
 //! turbid layer (spherical LAD, bi-Lambertian leaves, no hotspot: the medium DISORT solves
 //! exactly) for every LAI, sun zenith and band of the DISORT oracle
-//! (`assets/reference/turbid_canopy_disort.csv`), at each cell size. Prints, per cell size, the
+//! (`assets/reference/turbid_canopy_disort_ext.csv`: LAI 1, 3, 5, sun zenith 0, 20, 35, 50°), at each cell size. Prints, per cell size, the
 //! worst BRF error (principal plane, view zenith −75…75°) and the worst albedo, absorption and
 //! transmission errors over all cases, with the wall time, so that the table reads as error
 //! against cost; `--detail` prints every case.
 //!
 //! `cargo bench --bench accuracy` (default preset, 100 directions, cells 1, 0.5, 0.25, 0.2 m,
 //! layer 2 m high on 1 m × 1 m). Options: `-- --cells 1,0.5` the cell sizes (m), `--preset
-//! reference|default|preview`, `--dirs N`, `--lai 1,3`, `--sza 0,20`, `--detail`.
+//! reference|default|preview`, `--dirs N`, `--lai 1,3`, `--sza 0,20`, `--per-direction` (interception stored per incident
+//! direction instead of per angular sector), `--detail`.
 
 use lumenscape::radiative::products::RadiativeProducts;
 use lumenscape::resources::scene::RunSettings;
@@ -46,7 +47,7 @@ struct Case {
 fn oracle() -> BTreeMap<(u64, usize, u64), Case> {
     let text = std::fs::read_to_string(concat!(
         env!("CARGO_MANIFEST_DIR"),
-        "/assets/reference/turbid_canopy_disort.csv"
+        "/assets/reference/turbid_canopy_disort_ext.csv"
     ))
     .expect("oracle");
     let mut cases: BTreeMap<(u64, usize, u64), Case> = BTreeMap::new();
@@ -74,7 +75,14 @@ fn oracle() -> BTreeMap<(u64, usize, u64), Case> {
     cases
 }
 
-fn run(lai: f64, sza: f64, cell: f64, preset: Preset, dirs: usize) -> (f64, RadiativeProducts) {
+fn run(
+    lai: f64,
+    sza: f64,
+    cell: f64,
+    preset: Preset,
+    dirs: usize,
+    per_direction: bool,
+) -> (f64, RadiativeProducts) {
     let mut d = turbid_layer(&TurbidLayerParams {
         lai,
         lad: LadDesc::Spherical,
@@ -87,6 +95,11 @@ fn run(lai: f64, sza: f64, cell: f64, preset: Preset, dirs: usize) -> (f64, Radi
     });
     common::no_hotspot(&mut d);
     d.directions.as_mut().expect("directions").count = dirs;
+    if per_direction {
+        d.radiative
+            .get_or_insert_with(Default::default)
+            .per_direction_stores = Some(true);
+    }
     let t0 = Instant::now();
     let mut sim = Simulation::from_desc(
         &d,
@@ -120,6 +133,7 @@ fn main() {
     };
     let dirs = list(&args, "--dirs", &[100.0])[0] as usize;
     let detail = args.iter().any(|a| a == "--detail");
+    let per_direction = args.iter().any(|a| a == "--per-direction");
     let cases = oracle();
     let lais = list(&args, "--lai", &[]);
     let szas = list(&args, "--sza", &[]);
@@ -146,7 +160,7 @@ fn main() {
         let (mut wall, mut wb, mut sb, mut nb, mut wa, mut wf, mut wt) =
             (0.0, 0.0f64, 0.0, 0usize, 0.0f64, 0.0f64, 0.0f64);
         for &(lai, sza) in &wanted {
-            let (t, p) = run(lai, sza, cell, preset, dirs);
+            let (t, p) = run(lai, sza, cell, preset, dirs, per_direction);
             wall += t;
             for band in 0..2 {
                 let c = &cases[&(lai.to_bits(), band, sza.to_bits())];

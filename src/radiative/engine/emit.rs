@@ -188,9 +188,59 @@ pub(in crate::radiative) struct Emitter<'s> {
     normal: Option<DVec3>,
     points: &'s [(DVec3, f64)],
     ground: bool,
-    /// Turbid: the within-cell standard deviation of the intercepted energy's position per
-    /// axis, m (see [`turbid_emitter`]); zero for other emitters.
-    spread: DVec3,
+    /// Turbid: the two emission points' offsets from the barycentre (m; the horizontal
+    /// signs alternate over directions), the first point's weight, and the cell's bounds
+    /// (see [`turbid_emitter`]); `None` for other emitters.
+    pair: Option<TurbidPair>,
+}
+
+/// The two emission points of a turbid cell: `origin + d1` with weight `w1` and `origin + d2`
+/// with weight `1 − w1`, inside `[lo, hi]`.
+#[derive(Clone, Copy)]
+struct TurbidPair {
+    d1: DVec3,
+    d2: DVec3,
+    w1: f64,
+    lo: DVec3,
+    hi: DVec3,
+}
+
+impl TurbidPair {
+    /// The pair of a cell (`centre`, size `cell`, m) whose intercepted energy has its
+    /// barycentre at `mean`: per axis the maximum-entropy density with that mean
+    /// (physics.md §3.6); vertically its two-point Gauss rule, horizontally two offsets with
+    /// the same weights that match the mean and the variance.
+    fn new(mean: DVec3, centre: DVec3, cell: DVec3) -> Self {
+        let lo = centre - 0.5 * cell;
+        let rel = ((mean - lo) / cell).clamp(DVec3::ZERO, DVec3::ONE);
+        let (z1, z2, w1) = max_entropy_gauss2(rel.z);
+        // w₁a₁ + w₂a₂ = 0 and w₁a₁² + w₂a₂² = 1: a₁ = √(w₂/w₁), a₂ = −√(w₁/w₂).
+        let r = ((1.0 - w1) / w1).sqrt().clamp(1e-6, 1e6);
+        let (a1, a2) = (r, -1.0 / r);
+        let (sx, sy) = (max_entropy_sigma(rel.x), max_entropy_sigma(rel.y));
+        TurbidPair {
+            d1: DVec3::new(a1 * sx, a1 * sy, z1) * cell,
+            d2: DVec3::new(a2 * sx, a2 * sy, z2) * cell,
+            w1,
+            lo,
+            hi: lo + cell,
+        }
+    }
+
+    /// The two points for direction `j`, inside the cell by 1e-6 of its size.
+    fn points(&self, origin: DVec3, j: usize) -> [(DVec3, f64); 2] {
+        let s = DVec3::new(
+            if j & 1 == 0 { 1.0 } else { -1.0 },
+            if j & 2 == 0 { 1.0 } else { -1.0 },
+            1.0,
+        );
+        let eps = 1e-6 * (self.hi - self.lo);
+        let inside = |p: DVec3| p.clamp(self.lo + eps, self.hi - eps);
+        [
+            (inside(origin + s * self.d1), self.w1),
+            (inside(origin + s * self.d2), 1.0 - self.w1),
+        ]
+    }
 }
 
 /// Turbid entry `k` (`turbid_subfaces: Off`): its stored power per slot scattered with the
@@ -243,22 +293,15 @@ fn turbid_emitter<'s>(
     let p = &st.tur_pts[k];
     let cell = ctx.entry_cell[k] as usize;
     let centre = cell_centre(spec, cell);
-    // The barycentre of the intercepted energy and its within-cell spread per axis (the
-    // maximum-entropy density with that mean; physics.md §3.6): the two-point emission
-    // matches the first and second moments of the source along each axis.
+    // The barycentre of the intercepted energy and the two emission points of its within-cell
+    // distribution (physics.md §3.6).
     let wsum = p[3] + p[7];
     let mean = if wsum > 0.0 {
         (DVec3::new(p[0], p[1], p[2]) + DVec3::new(p[4], p[5], p[6])) / wsum
     } else {
         centre
     };
-    let lo = centre - 0.5 * spec.cell;
-    let rel = ((mean - lo) / spec.cell).clamp(DVec3::ZERO, DVec3::ONE);
-    let spread = DVec3::new(
-        max_entropy_sigma(rel.x),
-        max_entropy_sigma(rel.y),
-        max_entropy_sigma(rel.z),
-    ) * spec.cell;
+    let pair = TurbidPair::new(mean, centre, spec.cell);
     origin_up = mean;
     origin_dn = mean;
     skip = None;
@@ -278,7 +321,7 @@ fn turbid_emitter<'s>(
         normal,
         points: &[],
         ground: false,
-        spread,
+        pair: Some(pair),
     })
 }
 
@@ -339,7 +382,7 @@ fn facet_emitter<'s>(
         normal,
         points,
         ground: false,
-        spread: DVec3::ZERO,
+        pair: None,
     }
 }
 
@@ -394,7 +437,7 @@ fn ground_emitter<'s>(
         normal,
         points,
         ground,
-        spread: DVec3::ZERO,
+        pair: None,
     }
 }
 
@@ -420,7 +463,7 @@ fn send_emitter(
         normal,
         points,
         ground,
-        spread,
+        pair,
     } = *src;
     // First-order sun rays (what turbid cells, facets and the ground scatter of the
     // direct beam) get the hotspot correlation through turbid cells on their way up.
@@ -448,21 +491,16 @@ fn send_emitter(
             // Two-point quadrature of the interception distribution: half the power
             // from the barycentre of each half of the intercepted energy.
             let hs_j = hs && ctx.hs_dir[j];
-            // Points at mean ± v, v = (±σx, ±σy, σz): the horizontal signs alternate over
-            // the directions so that no horizontal diagonal is favoured.
-            let dv = DVec3::new(
-                if j & 1 == 0 { spread.x } else { -spread.x },
-                if j & 2 == 0 { spread.y } else { -spread.y },
-                spread.z,
-            );
-            let _ = origin_dn;
-            for o in [origin_up + dv, origin_up - dv] {
+            let pts = pair.map_or([(origin_up, 0.5), (origin_dn, 0.5)], |p| {
+                p.points(origin_up, j)
+            });
+            for (o, share) in pts {
                 if walk::select(ctx, hs_j, dense).batched() {
-                    // What `send` does for this ray (powers v · 0.5, then
+                    // What `send` does for this ray (powers v · share, then
                     // `Ctx::queue`).
-                    ctx.queue_scaled(o, j, v, 0.5, out);
+                    ctx.queue_scaled(o, j, v, share, out);
                 } else {
-                    send(ctx, o, j, None, v, 0.5, hs_j, pw, out);
+                    send(ctx, o, j, None, v, share, hs_j, pw, out);
                 }
             }
             continue;
@@ -598,11 +636,13 @@ pub(in crate::radiative) fn emit_turbid_records(
         let r = r as usize;
         sc.outgoing.iter_mut().for_each(|v| *v = 0.0);
         scatter_record(ctx, tr, r, (tables, tm, sun_row), blend, centre, sc);
-        let (pu, pd) = if blend {
-            (centre, centre)
+        let rec_mean = if blend {
+            centre
         } else {
-            half_points(&tr.pts[r * 8..r * 8 + 8], centre)
+            let (pu, pd) = half_points(&tr.pts[r * 8..r * 8 + 8], centre);
+            0.5 * (pu + pd)
         };
+        let rec_pair = TurbidPair::new(rec_mean, centre, spec.cell);
         let t_kernel = std::time::Instant::now();
         // Rays without the hotspot go to the batched walk's queue (see `Ctx::trace_any`).
         let dense = matches!(out.tur.as_deref(), Some(TurAcc::Dense { .. }));
@@ -614,29 +654,28 @@ pub(in crate::radiative) fn emit_turbid_records(
             for (e, x) in sc.emitted.iter_mut().zip(v) {
                 *e += x;
             }
-            let (o_up, o_dn) = if blend {
+            let pts = if blend {
                 let a = &sc.acc[j];
                 if a[6] > 0.0 {
-                    (
-                        DVec3::new(a[0], a[1], a[2]) / a[6],
-                        DVec3::new(a[3], a[4], a[5]) / a[6],
-                    )
+                    let m = (DVec3::new(a[0], a[1], a[2]) + DVec3::new(a[3], a[4], a[5]))
+                        / (2.0 * a[6]);
+                    TurbidPair::new(m, centre, spec.cell).points(m, j)
                 } else {
-                    (centre, centre)
+                    TurbidPair::new(centre, centre, spec.cell).points(centre, j)
                 }
             } else {
-                (pu, pd)
+                rec_pair.points(rec_mean, j)
             };
             // Two-point quadrature of the store's interception distribution.
             let hs_j = hs && ctx.hs_dir[j];
-            for o in [o_up, o_dn] {
+            for (o, share) in pts {
                 if group && !hs_j {
-                    ctx.to_exit(cell, o, j, v, 0.5, &mut sc.ex, pw, out);
+                    ctx.to_exit(cell, o, j, v, share, &mut sc.ex, pw, out);
                 } else if walk::select(ctx, hs_j, dense).batched() {
-                    // What `send` does for this ray (powers v · 0.5, then `Ctx::queue`).
-                    ctx.queue_scaled(o, j, v, 0.5, out);
+                    // What `send` does for this ray (powers v · share, then `Ctx::queue`).
+                    ctx.queue_scaled(o, j, v, share, out);
                 } else {
-                    send(ctx, o, j, None, v, 0.5, hs_j, pw, out);
+                    send(ctx, o, j, None, v, share, hs_j, pw, out);
                 }
             }
         }

@@ -220,51 +220,97 @@ pub(in crate::radiative) fn cell_centre(spec: &GridSpec, c: usize) -> DVec3 {
 }
 
 /// Mean of the truncated exponential density `∝ e^{−u x}` on x ∈ [0, 1]:
-/// `1/u − 1/(e^u − 1)` (series `1/2 − u/12 + u³/720` near u = 0).
+/// `1/u − 1/(e^u − 1)`; for |u| < ¼ its Bernoulli series `1/2 − u/12 + u³/720 − u⁵/30240 +
+/// u⁷/1209600 − u⁹/47900160` (the closed form cancels there).
 fn trunc_exp_mean(u: f64) -> f64 {
-    if u.abs() < 1e-3 {
-        return 0.5 - u / 12.0 + u * u * u / 720.0;
+    if u.abs() < 0.25 {
+        let u2 = u * u;
+        return 0.5
+            - u * (1.0 / 12.0
+                - u2 * (1.0 / 720.0
+                    - u2 * (1.0 / 30240.0 - u2 * (1.0 / 1209600.0 - u2 / 47900160.0))));
     }
     1.0 / u - 1.0 / u.exp_m1()
 }
 
-/// Variance of the density of [`trunc_exp_mean`]: `1/u² − e^u/(e^u − 1)²` (series
-/// `1/12 − u²/240` near u = 0).
+/// Variance of the density of [`trunc_exp_mean`]: `1/u² − e^u/(e^u − 1)²`; for |u| < ¼ the
+/// series `1/12 − u²/240 + u⁴/6048 − u⁶/172800 + u⁸/5322240` (the derivative of the mean's).
 fn trunc_exp_var(u: f64) -> f64 {
-    if u.abs() < 1e-3 {
-        return 1.0 / 12.0 - u * u / 240.0;
+    if u.abs() < 0.25 {
+        let u2 = u * u;
+        return 1.0 / 12.0
+            - u2 * (1.0 / 240.0 - u2 * (1.0 / 6048.0 - u2 * (1.0 / 172800.0 - u2 / 5322240.0)));
+    }
+    if u > 40.0 {
+        // e^u/(e^u − 1)² < e^{−40}: the untruncated exponential (and no overflow).
+        return 1.0 / (u * u);
     }
     let e = u.exp_m1();
     1.0 / (u * u) - (e + 1.0) / (e * e)
 }
 
-/// Within-cell spread of the intercepted energy along one axis, from its mean alone: the
-/// standard deviation, in units of the cell width, of the maximum-entropy density on [0, 1]
-/// with mean `m` (Jaynes 1957: the truncated exponential `∝ e^{−u x}`, whose rate u is found
-/// by bisection on the monotone mean). This is the exact spread of single-direction
-/// interception in a homogeneous cell (Beer's law along the axis: `u = kΔ/|μ|`); a uniform
-/// source has m = ½ and σ = 1/√12. Used by the turbid two-point emission (physics.md §3.6).
-pub fn max_entropy_sigma(m: f64) -> f64 {
-    let m = m.clamp(1e-9, 1.0 - 1e-9);
-    if (m - 0.5).abs() < 1e-12 {
-        return (1.0f64 / 12.0).sqrt();
+/// Third central moment of the density of [`trunc_exp_mean`] (minus the derivative of the
+/// variance): `2/u³ − e^u(e^u + 1)/(e^u − 1)³`; for |u| < ¼ the series `u/120 − u³/1512 +
+/// u⁵/28800 − u⁷/665280`.
+fn trunc_exp_skew(u: f64) -> f64 {
+    if u.abs() < 0.25 {
+        let u2 = u * u;
+        return u * (1.0 / 120.0 - u2 * (1.0 / 1512.0 - u2 * (1.0 / 28800.0 - u2 / 665280.0)));
     }
-    // trunc_exp_mean decreases from 1 (u → −∞) through ½ (u = 0) to 0 (u → +∞).
-    let (mut lo, mut hi) = if m < 0.5 { (0.0, 1e9) } else { (-1e9, 0.0) };
-    // Bracket tightened geometrically before bisecting: |u| ≤ 1/min(m, 1 − m) + 1.
-    let bound = 1.0 / m.min(1.0 - m) + 1.0;
-    if m < 0.5 {
-        hi = bound;
-    } else {
-        lo = -bound;
+    if u > 40.0 {
+        return 2.0 / (u * u * u);
     }
-    for _ in 0..64 {
+    let e = u.exp_m1();
+    2.0 / (u * u * u) - (e + 1.0) * (e + 2.0) / (e * e * e)
+}
+
+/// The rate u ≥ 0 of the truncated exponential on [0, 1] whose mean is `m` ∈ (0, ½]
+/// (bisection on the monotone mean, which lies below 1/u).
+fn trunc_exp_rate(m: f64) -> f64 {
+    if m >= 0.5 {
+        return 0.0;
+    }
+    let (mut lo, mut hi) = (0.0, 1.0 / m);
+    for _ in 0..100 {
         let mid = 0.5 * (lo + hi);
+        if mid <= lo || mid >= hi {
+            break;
+        }
         if trunc_exp_mean(mid) > m {
             lo = mid;
         } else {
             hi = mid;
         }
     }
-    trunc_exp_var(0.5 * (lo + hi)).max(0.0).sqrt()
+    0.5 * (lo + hi)
+}
+
+/// Within-cell spread of the intercepted energy along one axis, from its mean alone: the
+/// standard deviation, in units of the cell width, of the maximum-entropy density on [0, 1]
+/// with mean `m` (Jaynes 1957: the truncated exponential `∝ e^{−u x}`). This is the exact
+/// spread of single-direction interception in a homogeneous cell (Beer's law along the axis:
+/// `u = kΔ/|μ|`); a uniform source has m = ½ and σ = 1/√12. Symmetric: σ(m) = σ(1 − m).
+pub fn max_entropy_sigma(m: f64) -> f64 {
+    // The density for 1 − m is the mirror image: solve for the mean below ½ (u ≥ 0).
+    let m = m.min(1.0 - m).clamp(1e-9, 0.5);
+    trunc_exp_var(trunc_exp_rate(m)).max(0.0).sqrt()
+}
+
+/// Two-point Gauss rule of the maximum-entropy density on [0, 1] with mean `m` (see
+/// [`max_entropy_sigma`]): offsets from the mean `(y₁, y₂)` (cell widths, y₁ > 0 > y₂ for
+/// m ≤ ½) and the weight w₁ of the first point (w₂ = 1 − w₁). The nodes are the roots of the
+/// density's second orthogonal polynomial `y² − (κ₃/v) y − v` (v the variance, κ₃ the third
+/// central moment), so the rule integrates cubics in the position exactly (Gautschi 2004,
+/// §1.4); a uniform density gives ±1/√12 with weights ½.
+pub fn max_entropy_gauss2(m: f64) -> (f64, f64, f64) {
+    let flip = m > 0.5;
+    let mm = m.min(1.0 - m).clamp(1e-9, 0.5);
+    let u = trunc_exp_rate(mm);
+    let v = trunc_exp_var(u).max(1e-300);
+    let k3 = trunc_exp_skew(u);
+    let c = k3 / v;
+    let r = (c * c + 4.0 * v).sqrt();
+    let (y1, y2) = (0.5 * (c + r), 0.5 * (c - r));
+    let w1 = -y2 / (y1 - y2);
+    if flip { (-y1, -y2, w1) } else { (y1, y2, w1) }
 }
