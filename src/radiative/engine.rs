@@ -82,8 +82,8 @@ pub(in crate::radiative) use ctx::*;
 pub(in crate::radiative) use emit::*;
 pub(in crate::radiative) use geometry::*;
 pub use geometry::{
-    barycentre, cell_exit, entry_store, half_barycentres, half_barycentres_fast,
-    half_barycentres_with, intersect, max_entropy_sigma,
+    barycentre, cell_exit, entry_store, exp_moment_position, half_barycentres,
+    half_barycentres_fast, half_barycentres_with, intersect, max_entropy_sigma,
 };
 pub use hotspot::{hotspot_integral, hotspot_terms, hotspot_terms_path};
 pub use iterate::run;

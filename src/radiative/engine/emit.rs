@@ -194,52 +194,66 @@ pub(in crate::radiative) struct Emitter<'s> {
     pair: Option<TurbidPair>,
 }
 
-/// The two emission points of a turbid cell: `origin + d1` with weight `w1` and `origin + d2`
-/// with weight `1 − w1`, inside `[lo, hi]`.
+/// The two emission points of a turbid cell (physics.md §3.6): per direction, the height z*
+/// at which one ray carries the exact expectation of the source's vertical distribution
+/// through a homogeneous medium ([`exp_moment_position_of_rate`]), and horizontally the
+/// barycentre ± the spread per axis (the horizontal signs alternate over directions), half
+/// the power each.
 #[derive(Clone, Copy)]
 struct TurbidPair {
-    d1: DVec3,
-    d2: DVec3,
-    w1: f64,
+    /// Cell index.
+    cell: usize,
+    /// Rate and mirror flag of the vertical maximum-entropy density.
+    u: f64,
+    flip: bool,
+    /// Horizontal offsets (m).
+    dx: f64,
+    dy: f64,
     lo: DVec3,
     hi: DVec3,
 }
 
 impl TurbidPair {
-    /// The pair of a cell (`centre`, size `cell`, m) whose intercepted energy has its
-    /// barycentre at `mean`: per axis the maximum-entropy density with that mean
-    /// (physics.md §3.6); vertically its two-point Gauss rule, horizontally two offsets with
-    /// the same weights that match the mean and the variance.
-    fn new(mean: DVec3, centre: DVec3, cell: DVec3) -> Self {
-        let lo = centre - 0.5 * cell;
-        let rel = ((mean - lo) / cell).clamp(DVec3::ZERO, DVec3::ONE);
-        let (z1, z2, w1) = max_entropy_gauss2(rel.z);
-        // w₁a₁ + w₂a₂ = 0 and w₁a₁² + w₂a₂² = 1: a₁ = √(w₂/w₁), a₂ = −√(w₁/w₂).
-        let r = ((1.0 - w1) / w1).sqrt().clamp(1e-6, 1e6);
-        let (a1, a2) = (r, -1.0 / r);
-        let (sx, sy) = (max_entropy_sigma(rel.x), max_entropy_sigma(rel.y));
+    /// The pair of cell `cell` (`centre`, size `size`, m) whose intercepted energy has its
+    /// barycentre at `mean`: per axis the maximum-entropy density with that mean.
+    fn new(cell: usize, mean: DVec3, centre: DVec3, size: DVec3) -> Self {
+        let lo = centre - 0.5 * size;
+        let rel = ((mean - lo) / size).clamp(DVec3::ZERO, DVec3::ONE);
+        let (u, flip) = max_entropy_rate(rel.z);
         TurbidPair {
-            d1: DVec3::new(a1 * sx, a1 * sy, z1) * cell,
-            d2: DVec3::new(a2 * sx, a2 * sy, z2) * cell,
-            w1,
+            cell,
+            u,
+            flip,
+            dx: max_entropy_sigma(rel.x) * size.x,
+            dy: max_entropy_sigma(rel.y) * size.y,
             lo,
-            hi: lo + cell,
+            hi: lo + size,
         }
     }
 
-    /// The two points for direction `j`, inside the cell by 1e-6 of its size.
-    fn points(&self, origin: DVec3, j: usize) -> [(DVec3, f64); 2] {
-        let s = DVec3::new(
-            if j & 1 == 0 { 1.0 } else { -1.0 },
-            if j & 2 == 0 { 1.0 } else { -1.0 },
-            1.0,
+    /// The two points for direction `j` from barycentre `origin`, inside the cell by 1e-6 of
+    /// its size, with their power shares.
+    fn points(&self, ctx: &Ctx, origin: DVec3, j: usize) -> [(DVec3, f64); 2] {
+        let d = ctx.omega[j];
+        let cr = ctx.cells[self.cell];
+        let gd = &ctx.g_dir[j * ctx.n_tm..(j + 1) * ctx.n_tm];
+        let k: f64 = ctx.ents[cr.ent_lo as usize..cr.ent_hi as usize]
+            .iter()
+            .map(|e| gd[e.tm as usize] * e.density)
+            .sum();
+        let dz = self.hi.z - self.lo.z;
+        // Downstream ∝ e^{c z/Δz}: c = kΔz/μ (μ signed; a horizontal ray: no dependence).
+        let c = if d.z.abs() > 1e-12 { k * dz / d.z } else { 0.0 };
+        let z = self.lo.z + dz * exp_moment_position_of_rate(self.u, self.flip, c);
+        let h = DVec3::new(
+            if j & 1 == 0 { self.dx } else { -self.dx },
+            if j & 2 == 0 { self.dy } else { -self.dy },
+            0.0,
         );
         let eps = 1e-6 * (self.hi - self.lo);
         let inside = |p: DVec3| p.clamp(self.lo + eps, self.hi - eps);
-        [
-            (inside(origin + s * self.d1), self.w1),
-            (inside(origin + s * self.d2), 1.0 - self.w1),
-        ]
+        let o = DVec3::new(origin.x, origin.y, z);
+        [(inside(o + h), 0.5), (inside(o - h), 0.5)]
     }
 }
 
@@ -301,7 +315,7 @@ fn turbid_emitter<'s>(
     } else {
         centre
     };
-    let pair = TurbidPair::new(mean, centre, spec.cell);
+    let pair = TurbidPair::new(cell, mean, centre, spec.cell);
     origin_up = mean;
     origin_dn = mean;
     skip = None;
@@ -492,7 +506,7 @@ fn send_emitter(
             // from the barycentre of each half of the intercepted energy.
             let hs_j = hs && ctx.hs_dir[j];
             let pts = pair.map_or([(origin_up, 0.5), (origin_dn, 0.5)], |p| {
-                p.points(origin_up, j)
+                p.points(ctx, origin_up, j)
             });
             for (o, share) in pts {
                 if walk::select(ctx, hs_j, dense).batched() {
@@ -642,7 +656,7 @@ pub(in crate::radiative) fn emit_turbid_records(
             let (pu, pd) = half_points(&tr.pts[r * 8..r * 8 + 8], centre);
             0.5 * (pu + pd)
         };
-        let rec_pair = TurbidPair::new(rec_mean, centre, spec.cell);
+        let rec_pair = TurbidPair::new(cell, rec_mean, centre, spec.cell);
         let t_kernel = std::time::Instant::now();
         // Rays without the hotspot go to the batched walk's queue (see `Ctx::trace_any`).
         let dense = matches!(out.tur.as_deref(), Some(TurAcc::Dense { .. }));
@@ -659,12 +673,12 @@ pub(in crate::radiative) fn emit_turbid_records(
                 if a[6] > 0.0 {
                     let m = (DVec3::new(a[0], a[1], a[2]) + DVec3::new(a[3], a[4], a[5]))
                         / (2.0 * a[6]);
-                    TurbidPair::new(m, centre, spec.cell).points(m, j)
+                    TurbidPair::new(cell, m, centre, spec.cell).points(ctx, m, j)
                 } else {
-                    TurbidPair::new(centre, centre, spec.cell).points(centre, j)
+                    TurbidPair::new(cell, centre, centre, spec.cell).points(ctx, centre, j)
                 }
             } else {
-                rec_pair.points(rec_mean, j)
+                rec_pair.points(ctx, rec_mean, j)
             };
             // Two-point quadrature of the store's interception distribution.
             let hs_j = hs && ctx.hs_dir[j];

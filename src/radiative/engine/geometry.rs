@@ -249,40 +249,37 @@ fn trunc_exp_var(u: f64) -> f64 {
     1.0 / (u * u) - (e + 1.0) / (e * e)
 }
 
-/// Third central moment of the density of [`trunc_exp_mean`] (minus the derivative of the
-/// variance): `2/u³ − e^u(e^u + 1)/(e^u − 1)³`; for |u| < ¼ the series `u/120 − u³/1512 +
-/// u⁵/28800 − u⁷/665280`.
-fn trunc_exp_skew(u: f64) -> f64 {
-    if u.abs() < 0.25 {
-        let u2 = u * u;
-        return u * (1.0 / 120.0 - u2 * (1.0 / 1512.0 - u2 * (1.0 / 28800.0 - u2 / 665280.0)));
-    }
-    if u > 40.0 {
-        return 2.0 / (u * u * u);
-    }
-    let e = u.exp_m1();
-    2.0 / (u * u * u) - (e + 1.0) * (e + 2.0) / (e * e * e)
-}
-
-/// The rate u ≥ 0 of the truncated exponential on [0, 1] whose mean is `m` ∈ (0, ½]
-/// (bisection on the monotone mean, which lies below 1/u).
+/// The rate u ≥ 0 of the truncated exponential on [0, 1] whose mean is `m` ∈ (0, ½]: Newton
+/// steps on the monotone mean (`d mean/du = −variance`) kept inside the bracket [0, 1/m] (the
+/// mean lies below 1/u), with bisection when a step leaves it (Press et al. 2007, `rtsafe`).
 fn trunc_exp_rate(m: f64) -> f64 {
     if m >= 0.5 {
         return 0.0;
     }
     let (mut lo, mut hi) = (0.0, 1.0 / m);
+    let mut u = if m > 0.3 {
+        12.0 * (0.5 - m)
+    } else {
+        1.0 / m - 1.0
+    };
     for _ in 0..100 {
-        let mid = 0.5 * (lo + hi);
-        if mid <= lo || mid >= hi {
-            break;
-        }
-        if trunc_exp_mean(mid) > m {
-            lo = mid;
+        let f = trunc_exp_mean(u) - m;
+        if f > 0.0 {
+            lo = u;
         } else {
-            hi = mid;
+            hi = u;
         }
+        let v = trunc_exp_var(u);
+        let mut next = u + f / v;
+        if !(next > lo && next < hi) || v <= 0.0 {
+            next = 0.5 * (lo + hi);
+        }
+        if (next - u).abs() <= 1e-15 * u.max(1e-3) {
+            return next;
+        }
+        u = next;
     }
-    0.5 * (lo + hi)
+    u
 }
 
 /// Within-cell spread of the intercepted energy along one axis, from its mean alone: the
@@ -296,21 +293,50 @@ pub fn max_entropy_sigma(m: f64) -> f64 {
     trunc_exp_var(trunc_exp_rate(m)).max(0.0).sqrt()
 }
 
-/// Two-point Gauss rule of the maximum-entropy density on [0, 1] with mean `m` (see
-/// [`max_entropy_sigma`]): offsets from the mean `(y₁, y₂)` (cell widths, y₁ > 0 > y₂ for
-/// m ≤ ½) and the weight w₁ of the first point (w₂ = 1 − w₁). The nodes are the roots of the
-/// density's second orthogonal polynomial `y² − (κ₃/v) y − v` (v the variance, κ₃ the third
-/// central moment), so the rule integrates cubics in the position exactly (Gautschi 2004,
-/// §1.4); a uniform density gives ±1/√12 with weights ½.
-pub fn max_entropy_gauss2(m: f64) -> (f64, f64, f64) {
+/// `ln Z(v)`, `Z(v) = ∫₀¹ e^{−v x} dx = (1 − e^{−v})/v` (Z(0) = 1), without overflow for any
+/// finite v (series `−v/2 + v²/24` near 0).
+fn ln_trunc_exp_norm(v: f64) -> f64 {
+    if v.abs() < 1e-4 {
+        return -0.5 * v + v * v / 24.0;
+    }
+    if v > 0.0 {
+        (-(-v).exp_m1()).ln() - v.ln()
+    } else {
+        let w = -v;
+        w + (-(-w).exp_m1()).ln() - w.ln()
+    }
+}
+
+/// The position x* ∈ [0, 1] (cell widths) with `e^{c x*} = ⟨e^{c x}⟩` under the
+/// maximum-entropy density of mean `m` on [0, 1] (see [`max_entropy_sigma`]):
+/// `x* = ln(Z(u − c)/Z(u))/c` for the density `∝ e^{−u x}` (mirrored for m > ½). In a
+/// homogeneous medium everything a ray from height z sends downstream along a direction of
+/// vertical cosine μ is proportional to `e^{c z}` with `c = ±kΔz/|μ|` (+ upwards), so one
+/// emission height x* per direction reproduces the source's exact expectation (physics.md
+/// §3.6); `c → 0` gives the mean.
+pub fn exp_moment_position(m: f64, c: f64) -> f64 {
     let flip = m > 0.5;
-    let mm = m.min(1.0 - m).clamp(1e-9, 0.5);
-    let u = trunc_exp_rate(mm);
-    let v = trunc_exp_var(u).max(1e-300);
-    let k3 = trunc_exp_skew(u);
-    let c = k3 / v;
-    let r = (c * c + 4.0 * v).sqrt();
-    let (y1, y2) = (0.5 * (c + r), 0.5 * (c - r));
-    let w1 = -y2 / (y1 - y2);
-    if flip { (-y1, -y2, w1) } else { (y1, y2, w1) }
+    let u = trunc_exp_rate(m.min(1.0 - m).clamp(1e-9, 0.5));
+    exp_moment_position_of_rate(u, flip, c)
+}
+
+/// [`exp_moment_position`] for the density `∝ e^{−u x}` (`flip`: mirrored, `∝ e^{−u(1−x)}`),
+/// the rate solved once per cell and the position evaluated per direction.
+pub fn exp_moment_position_of_rate(u: f64, flip: bool, c: f64) -> f64 {
+    // Mirrored density x' = 1 − x: ⟨e^{cx}⟩ = e^c ⟨e^{−c x'}⟩.
+    let cc = if flip { -c } else { c };
+    let x = if cc.abs() < 1e-9 {
+        trunc_exp_mean(u)
+    } else {
+        let cc = cc.clamp(-1e6, 1e6);
+        (ln_trunc_exp_norm(u - cc) - ln_trunc_exp_norm(u)) / cc
+    };
+    let x = x.clamp(0.0, 1.0);
+    if flip { 1.0 - x } else { x }
+}
+
+/// The rate u ≥ 0 and the mirror flag of the maximum-entropy density on [0, 1] with mean `m`
+/// (see [`exp_moment_position_of_rate`]).
+pub fn max_entropy_rate(m: f64) -> (f64, bool) {
+    (trunc_exp_rate(m.min(1.0 - m).clamp(1e-9, 0.5)), m > 0.5)
 }

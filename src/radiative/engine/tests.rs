@@ -254,41 +254,66 @@ fn max_entropy_sigma_recovers_beer_law_spread() {
         let sd = (s2 / s0 - m * m).sqrt();
         let got = max_entropy_sigma(m);
         assert!((got / sd - 1.0).abs() < 1e-4, "u {u}: {got} vs {sd}");
-        assert!((max_entropy_sigma(1.0 - m) / got - 1.0).abs() < 1e-13, "symmetry at u {u}");
+        assert!(
+            (max_entropy_sigma(1.0 - m) / got - 1.0).abs() < 1e-13,
+            "symmetry at u {u}"
+        );
         // Continuous: a relative change of 1e-13 in the mean moves σ by O(1e-13).
         let near = max_entropy_sigma(m * (1.0 + 1e-13));
-        assert!((near / got - 1.0).abs() < 1e-11, "u {u}: σ jumps ({near} vs {got})");
-    }
-    assert!((max_entropy_sigma(0.5) - (1.0f64 / 12.0).sqrt()).abs() < 1e-15);
-    for m in [0.0, 1e-300, 1e-12, 1.0, 1.0 - 1e-16, -1.0, 2.0, f64::MIN_POSITIVE] {
-        let s = max_entropy_sigma(m);
-        assert!(s.is_finite() && (0.0..1e-6).contains(&s), "m {m}: {s}");
-        let (y1, y2, w1) = max_entropy_gauss2(m);
         assert!(
-            y1.is_finite() && y2.is_finite() && (0.0..=1.0).contains(&w1),
-            "m {m}: {y1} {y2} {w1}"
+            (near / got - 1.0).abs() < 1e-11,
+            "u {u}: σ jumps ({near} vs {got})"
         );
     }
-    // The Gauss rule reproduces the moments 0–3 of the density (quadrature against direct
-    // integration) and its nodes lie inside [0, 1].
-    for u in [1e-6, 0.2, 0.3, 2.0, 30.0, 45.0, 400.0] {
-        let n = 400_000;
-        let mut mom = [0.0f64; 4];
-        for i in 0..n {
-            let x = (i as f64 + 0.5) / n as f64;
-            let f = (-u * x).exp();
-            for (k, m) in mom.iter_mut().enumerate() {
-                *m += f * x.powi(k as i32);
+    assert!((max_entropy_sigma(0.5) - (1.0f64 / 12.0).sqrt()).abs() < 1e-15);
+    for m in [
+        0.0,
+        1e-300,
+        1e-12,
+        1.0,
+        1.0 - 1e-16,
+        -1.0,
+        2.0,
+        f64::MIN_POSITIVE,
+    ] {
+        let s = max_entropy_sigma(m);
+        assert!(s.is_finite() && (0.0..1e-6).contains(&s), "m {m}: {s}");
+    }
+}
+
+/// The exponential-moment position reproduces ⟨e^{cx}⟩ of the maximum-entropy density
+/// (direct quadrature), tends to the mean for c → 0 and to the support's ends for |c| → ∞,
+/// and stays finite for extreme inputs.
+#[test]
+fn exp_moment_position_matches_the_exponential_moment() {
+    for u in [0.0, 1e-6, 0.3, 2.0, 30.0, -5.0] {
+        for c in [-50.0, -4.8, -0.5, 1e-12, 0.7, 4.8, 60.0] {
+            let n = 400_000;
+            let (mut z0, mut z1, mut ze) = (0.0f64, 0.0, 0.0);
+            for i in 0..n {
+                let x = (i as f64 + 0.5) / n as f64;
+                let f = (-u * x).exp();
+                z0 += f;
+                z1 += f * x;
+                ze += f * (c * x).exp();
             }
+            let m = z1 / z0;
+            let x = exp_moment_position(m, c);
+            let got = (c * x).exp();
+            let want = ze / z0;
+            assert!(
+                (got / want - 1.0).abs() < 1e-4,
+                "u {u} c {c}: {got} vs {want}"
+            );
         }
-        let m = mom[1] / mom[0];
-        let (y1, y2, w1) = max_entropy_gauss2(m);
-        let (x1, x2) = (m + y1, m + y2);
-        assert!((0.0..=1.0).contains(&x1) && (0.0..=1.0).contains(&x2), "u {u}");
-        for k in 1..4 {
-            let want = mom[k] / mom[0];
-            let got = w1 * x1.powi(k as i32) + (1.0 - w1) * x2.powi(k as i32);
-            assert!((got / want - 1.0).abs() < 1e-4, "u {u} moment {k}: {got} vs {want}");
+    }
+    assert!((exp_moment_position(0.3, 0.0) - 0.3).abs() < 1e-9);
+    assert!(exp_moment_position(0.5, 1e9) > 0.9999);
+    assert!(exp_moment_position(0.5, -1e9) < 1e-4);
+    for m in [0.0, 1.0, 1e-300, -3.0, 7.0] {
+        for c in [0.0, -1e300, 1e300, 3.0] {
+            let x = exp_moment_position(m, c);
+            assert!((0.0..=1.0).contains(&x), "m {m} c {c}: {x}");
         }
     }
 }
