@@ -183,7 +183,39 @@ impl V<'_> {
         self.non_negative(&format!("{f}.{name}"), x).map_err(|_| {
             self.src
                 .invalid(f, format!("{name} must be a finite number >= 0, got {x}"))
-        })
+        })?;
+        let (max, unit) = match fo {
+            FoliageDesc::Lai(_) => (MAX_LAI, "m²/m²"),
+            FoliageDesc::LeafAreaDensity(_) => (MAX_LEAF_AREA_DENSITY, "m²/m³"),
+            FoliageDesc::LeafArea(_) => (f64::MAX, "m²"),
+        };
+        if x > max {
+            return Err(self.src.invalid(
+                f,
+                format!("{name}({x}) is outside the accepted range [0, {max}] {unit} (denser foliage is optically opaque at any cell size)"),
+            ));
+        }
+        Ok(())
+    }
+
+    /// The mean leaf area density `leaf_area` m² makes over `volume` m³ must not exceed
+    /// [`MAX_LEAF_AREA_DENSITY`].
+    fn implied_density(&self, f: &str, fo: &FoliageDesc, leaf_area: f64, volume: f64) -> R {
+        let u = leaf_area / volume;
+        if !(u <= MAX_LEAF_AREA_DENSITY) {
+            let given = match fo {
+                FoliageDesc::LeafAreaDensity(x) => format!("LeafAreaDensity({x})"),
+                FoliageDesc::Lai(x) => format!("Lai({x})"),
+                FoliageDesc::LeafArea(x) => format!("LeafArea({x})"),
+            };
+            return Err(self.src.invalid(
+                f,
+                format!(
+                    "{given} puts a mean leaf area density of {u:.3e} m²/m³ in a volume of {volume:.3e} m³, outside the accepted range [0, {MAX_LEAF_AREA_DENSITY}] m²/m³"
+                ),
+            ));
+        }
+        Ok(())
     }
 
     fn weights(&self, f: &str, w: &[f64]) -> R {
@@ -279,6 +311,25 @@ impl V<'_> {
             _ => {}
         }
         self.foliage(&format!("{f}.foliage"), &c.foliage)?;
+        if let FoliageDesc::LeafArea(a) = c.foliage {
+            let rx = c.radius_x_m;
+            let geom = crate::geometry::crown::CrownGeom {
+                shape: c.shape,
+                center: (0.0, 0.0),
+                z_base: 0.0,
+                height: c.height_m,
+                radius: (rx, c.radius_y_m.unwrap_or(rx)),
+                top_fraction: match c.shape {
+                    CrownShape::Trapezoid => c.top_radius_fraction.unwrap_or(1.0),
+                    CrownShape::Cylinder => 1.0,
+                    _ => 0.0,
+                },
+                vertical: Vec::new(),
+                radial: Vec::new(),
+                u0: 1.0,
+            };
+            self.implied_density(&format!("{f}.foliage"), &c.foliage, a, geom.volume())?;
+        }
         self.weights(&format!("{f}.vertical_profile"), &c.vertical_profile)?;
         self.weights(&format!("{f}.radial_profile"), &c.radial_profile)?;
         self.optics_ref(&format!("{f}.optics"), &c.optics, OpticsRole::Turbid)
@@ -360,6 +411,25 @@ pub fn validate(desc: &SceneDesc, src: &SceneSource) -> Result<(), SceneError> {
     {
         return Err(src.invalid(format!("directions.{}", e.field), e.reason));
     }
+    // Exact directions of a scene are view directions (ground→sensor): the BRF table and the
+    // orthographic images only hold upward ones, so a downward one would vanish from every
+    // product without a word.
+    for (i, e) in desc
+        .directions
+        .iter()
+        .flat_map(|d| d.exact.iter())
+        .enumerate()
+    {
+        if !(0.0..=90.0).contains(&e.zenith_deg) {
+            return Err(src.invalid(
+                format!("directions.exact[{i}].zenith_deg"),
+                format!(
+                    "a view direction's zenith (ground→sensor) must lie in [0, 90]°, got {}: a direction below the horizon appears in no product",
+                    e.zenith_deg
+                ),
+            ));
+        }
+    }
     if let Some(r) = &desc.radiative {
         if let Some(x) = r.albedo_threshold {
             v.positive("radiative.albedo_threshold", x)?;
@@ -436,6 +506,30 @@ pub fn validate(desc: &SceneDesc, src: &SceneSource) -> Result<(), SceneError> {
     if let Some(h) = g.height_m {
         v.positive("grid.height_m", h)?;
     }
+    // Cell counts, in floating point before any integer cast: `size_m: (2.0, 1e308)` would
+    // otherwise saturate `as usize` and overflow every product of the counts downstream.
+    let columns = (g.size_m.0 / g.cell_m.0).round() * (g.size_m.1 / g.cell_m.1).round();
+    if columns > MAX_GRID_CELLS as f64 {
+        return Err(src.invalid(
+            "grid.size_m",
+            format!(
+                "{} × {} m in cells of {} × {} m make {columns:.3e} grid columns, above the limit of {MAX_GRID_CELLS} cells: use larger cells or a smaller scene",
+                g.size_m.0, g.size_m.1, g.cell_m.0, g.cell_m.1
+            ),
+        ));
+    }
+    if let Some(h) = g.height_m {
+        let cells = columns * (h / g.cell_m.2).ceil().max(1.0);
+        if cells > MAX_GRID_CELLS as f64 {
+            return Err(src.invalid(
+                "grid.height_m",
+                format!(
+                    "a height of {h} m in cells of {} m makes a grid of {cells:.3e} cells, above the limit of {MAX_GRID_CELLS}: use larger cells or a lower scene",
+                    g.cell_m.2
+                ),
+            ));
+        }
+    }
     if g.subcells == 0 || g.subcells > 16 {
         return Err(src.invalid(
             "grid.subcells",
@@ -475,7 +569,22 @@ pub fn validate(desc: &SceneDesc, src: &SceneSource) -> Result<(), SceneError> {
         super::resolve::check_band(b)
             .map_err(|(sub, m)| src.invalid(format!("bands[{i}].{sub}"), m))?;
     }
-    // Optics.
+    // Optics. A RON map keeps the last of two equal keys: find duplicates in the text.
+    if let Some(text) = src.text.as_deref()
+        && let Some((key, first, second)) = super::locate::duplicate_key(text, "optics")
+    {
+        return Err(SceneError::Invalid {
+            at: Location {
+                file: src.path.clone(),
+                line_col: Some(second),
+            },
+            field: format!("optics[\"{key}\"]"),
+            message: format!(
+                "`{key}` is defined twice (line {} and line {}); the later definition would silently replace the earlier: rename or remove one",
+                first.0, second.0
+            ),
+        });
+    }
     for (name, o) in &desc.optics {
         let f = format!("optics[\"{name}\"]");
         match o {
@@ -694,6 +803,16 @@ pub fn validate(desc: &SceneDesc, src: &SceneSource) -> Result<(), SceneError> {
                         }
                         v.positive(&format!("{tf}.spacing_m"), r.spacing_m.0)?;
                         v.positive(&format!("{tf}.spacing_m"), r.spacing_m.1)?;
+                        let max = super::terrain_input::MAX_RASTER_NODES;
+                        if r.nodes.0.checked_mul(r.nodes.1).is_none_or(|n| n > max) {
+                            return Err(src.invalid(
+                                format!("{tf}.nodes"),
+                                format!(
+                                    "{} × {} nodes are above the limit of {max} nodes",
+                                    r.nodes.0, r.nodes.1
+                                ),
+                            ));
+                        }
                         if r.altitude_m.len() != r.nodes.0 * r.nodes.1 {
                             return Err(src.invalid(
                                 format!("{tf}.altitude_m"),
@@ -816,6 +935,22 @@ pub fn validate(desc: &SceneDesc, src: &SceneSource) -> Result<(), SceneError> {
                     ));
                 }
                 v.foliage(&format!("{f}.foliage"), &p.foliage)?;
+                if let FoliageDesc::LeafArea(a) = p.foliage {
+                    let (x0, y0, x1, y1) = footprint_bounds(&p.footprint);
+                    let poly: Vec<glam::DVec2> = match &p.footprint {
+                        FootprintDesc::Box(_) => vec![
+                            glam::DVec2::new(x0, y0),
+                            glam::DVec2::new(x1, y0),
+                            glam::DVec2::new(x1, y1),
+                            glam::DVec2::new(x0, y1),
+                        ],
+                        FootprintDesc::Polygon(pts) => {
+                            pts.iter().map(|q| glam::DVec2::new(q.0, q.1)).collect()
+                        }
+                    };
+                    let volume = polygon::signed_area(&poly).abs() * (p.top_m - p.bottom_m);
+                    v.implied_density(&format!("{f}.foliage"), &p.foliage, a, volume)?;
+                }
                 v.optics_ref(&format!("{f}.optics"), &p.optics, OpticsRole::Turbid)?;
                 let (a, b, c, d) = footprint_bounds(&p.footprint);
                 v.inside(&format!("{f}.footprint"), a, b, c, d)?;
@@ -925,6 +1060,25 @@ pub fn validate(desc: &SceneDesc, src: &SceneSource) -> Result<(), SceneError> {
     Ok(())
 }
 
+/// Largest number of grid cells (x × y × z): the Maket build buffers store cell indices as
+/// `u32`, so a larger grid cannot be built (it would also need ≥ 32 GiB for the cell index
+/// alone). Checked on the scene's counts (`grid.size_m` / `grid.cell_m` / `grid.height_m`)
+/// by [`validate`] and on the planned grid (height from the objects) by the Maket plan.
+pub const MAX_GRID_CELLS: u64 = u32::MAX as u64;
+
+/// Largest leaf area index accepted (`Lai`, m² of leaf per m² of ground). The densest
+/// natural canopies measured reach LAI ≈ 15–20, and beyond ~20 a canopy is optically opaque
+/// (e^(−0.5 · 20) ≈ 5e-5 of the sun reaches the ground); 100 leaves room for synthetic tests
+/// and refuses typos such as `1e6`.
+pub const MAX_LAI: f64 = 100.0;
+
+/// Largest (mean) leaf area density accepted (`LeafAreaDensity`, and the mean density a
+/// `LeafArea` or `Lai` implies over its volume), m²/m³. Measured densities of the densest
+/// foliage (crops, hedges, conifer shoots) stay below ~10–50 m²/m³; at 100 m²/m³ the
+/// extinction length 1/(G u) is 2 cm, so anything denser is indistinguishable from an opaque
+/// volume at any usable cell size.
+pub const MAX_LEAF_AREA_DENSITY: f64 = 100.0;
+
 /// Pulses per instrument above which a scene is refused (memory for waveforms).
 pub const MAX_LIDAR_PULSES: u64 = 10_000_000;
 
@@ -941,7 +1095,7 @@ pub fn lidar_pulse_count(l: &crate::scene::desc::LidarDesc) -> u64 {
     use crate::scene::desc::{LidarPlatform, PulsePattern};
     let steps = |(a, b, s): (f64, f64, f64)| -> u64 {
         if s > 0.0 && b >= a {
-            ((b - a) / s + 1e-9).floor() as u64 + 1
+            (((b - a) / s + 1e-9).floor() as u64).saturating_add(1)
         } else {
             0
         }
@@ -959,7 +1113,9 @@ pub fn lidar_pulse_count(l: &crate::scene::desc::LidarDesc) -> u64 {
             } => {
                 let len = ((end.0 - start.0).powi(2) + (end.1 - start.1).powi(2)).sqrt();
                 if *pulse_spacing_m > 0.0 {
-                    (*lines as u64) * ((len / pulse_spacing_m + 1e-9).floor() as u64 + 1)
+                    (*lines as u64).saturating_mul(
+                        ((len / pulse_spacing_m + 1e-9).floor() as u64).saturating_add(1),
+                    )
                 } else {
                     0
                 }
@@ -969,7 +1125,7 @@ pub fn lidar_pulse_count(l: &crate::scene::desc::LidarDesc) -> u64 {
             zenith_deg,
             azimuth_deg,
             ..
-        } => steps(*zenith_deg) * steps(*azimuth_deg),
+        } => steps(*zenith_deg).saturating_mul(steps(*azimuth_deg)),
     }
 }
 
