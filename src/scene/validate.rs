@@ -901,6 +901,16 @@ pub fn validate(desc: &SceneDesc, src: &SceneSource) -> Result<(), SceneError> {
                                 ),
                             ));
                         }
+                        let total = counts.iter().try_fold(0usize, |a, &n| a.checked_add(n));
+                        if total.is_none_or(|t| t > MAX_STAND_TREES) {
+                            return Err(src.invalid(
+                                format!("{pf}.counts"),
+                                format!(
+                                    "asks for {} trees (allowed: at most {MAX_STAND_TREES} per stand)",
+                                    total.map_or("more than 2^64".to_string(), |t| t.to_string())
+                                ),
+                            ));
+                        }
                         v.non_negative(&format!("{pf}.min_spacing_m"), *min_spacing_m)?;
                         if let Some((x0, y0, x1, y1)) = region_m {
                             v.footprint(
@@ -1078,6 +1088,10 @@ pub const MAX_LAI: f64 = 100.0;
 /// extinction length 1/(G u) is 2 cm, so anything denser is indistinguishable from an opaque
 /// volume at any usable cell size.
 pub const MAX_LEAF_AREA_DENSITY: f64 = 100.0;
+
+/// Largest number of trees of a randomly placed stand (the placement tries up to 1000 times
+/// per tree; a million crowns is far beyond what the Maket grid of a scene can hold usefully).
+pub const MAX_STAND_TREES: usize = 1_000_000;
 
 /// Pulses per instrument above which a scene is refused (memory for waveforms).
 pub const MAX_LIDAR_PULSES: u64 = 10_000_000;
