@@ -1288,6 +1288,63 @@ const SECTIONS_AND_SYNTAX: &[Case] = &[
         "leaf_size_m: -0.05)",
         "leaf_size_m",
     ),
+    c(
+        "trunk_sides_huge",
+        "sides: 6, optics: \"wall\"",
+        "sides: 100000, optics: \"wall\"",
+        "objects[1].trunk.sides",
+    ),
+    c(
+        "leaves_sides_huge",
+        "sides: 8",
+        "sides: 4000000000",
+        "objects[5].sides",
+    ),
+    // Fuzzer regressions: a 1e300 m trunk overflowed the plan's cell ranges; pulses aimed
+    // 1e12 m away broke the first-flight geometry.
+    asset(
+        "urban_trunk_huge",
+        "lidar_multipulse_urban.ron",
+        "diameter_m: 0.25",
+        "diameter_m: 1e300",
+        "--max-memory",
+    ),
+    asset(
+        "als_pulse_far",
+        "lidar_als.ron",
+        "pulses: Single((2.0, 2.0))",
+        "pulses: Single((1e12, 2.0))",
+        "lidars[0].platform.pulses",
+    ),
+    asset(
+        "als_pulse_far_negative",
+        "lidar_als.ron",
+        "pulses: Single((2.0, 2.0))",
+        "pulses: Single((-1e308, 2.0))",
+        "lidars[0].platform.pulses",
+    ),
+    // Fuzzer regressions: a huge spacing looped ~forever; counts overflowed their sum.
+    asset(
+        "default_spacing_huge",
+        "default.ron",
+        "min_spacing_m: 4.0",
+        "min_spacing_m: 1e300",
+        "objects[1].placement",
+    ),
+    asset(
+        "default_counts_overflow",
+        "default.ron",
+        "counts: [5, 5]",
+        "counts: [18446744073709551615, 5]",
+        "objects[1].placement.counts",
+    ),
+    asset(
+        "default_counts_huge",
+        "default.ron",
+        "counts: [5, 5]",
+        "counts: [5000000, 5]",
+        "objects[1].placement.counts",
+    ),
     asset(
         "turbid_layer_view_down",
         "turbid_layer.ron",

@@ -660,18 +660,21 @@ fn many_cases() {
     fuzz(0..MANY_CASES);
 }
 
-/// One case of the corpus (`FUZZ_CASE=<index>`), with the panic message and backtrace shown.
+/// Cases of the corpus (`FUZZ_CASE=<index>[,<index>…]`), with the panic message and backtrace
+/// shown.
 #[test]
 #[ignore]
 fn one_case() {
-    let i: usize = std::env::var("FUZZ_CASE")
-        .ok()
-        .and_then(|s| s.parse().ok())
-        .unwrap_or(0);
+    let list = std::env::var("FUZZ_CASE").unwrap_or_else(|_| "0".into());
     let all = scenes();
-    let (k, text, what) = case(&all, i);
-    eprintln!("case {i}: {} {what:?}", all[k].path.display());
-    let r = run_case(&all[k].path, &text, &format!("case{i}"));
-    eprintln!("{r:?}");
-    assert!(r.is_ok());
+    for i in list
+        .split(',')
+        .filter_map(|s| s.trim().parse::<usize>().ok())
+    {
+        let (k, text, what) = case(&all, i);
+        eprintln!("case {i}: {} {what:?}", all[k].path.display());
+        let r = run_case(&all[k].path, &text, &format!("case{i}"));
+        eprintln!("{r:?}");
+        assert!(r.is_ok());
+    }
 }

@@ -338,10 +338,14 @@ impl V<'_> {
     fn trunk(&self, f: &str, t: &TrunkDesc) -> R {
         self.positive(&format!("{f}.height_m"), t.height_m)?;
         self.positive(&format!("{f}.diameter_m"), t.diameter_m)?;
-        if t.sides < 3 {
-            return Err(self
-                .src
-                .invalid(format!("{f}.sides"), "a trunk needs at least 3 sides"));
+        if !(3..=MAX_POLYGON_SIDES).contains(&t.sides) {
+            return Err(self.src.invalid(
+                format!("{f}.sides"),
+                format!(
+                    "a trunk needs 3 to {MAX_POLYGON_SIDES} sides, got {}",
+                    t.sides
+                ),
+            ));
         }
         self.optics_ref(&format!("{f}.optics"), &t.optics, OpticsRole::Facet)
     }
@@ -1008,10 +1012,13 @@ pub fn validate(desc: &SceneDesc, src: &SceneSource) -> Result<(), SceneError> {
                     OpticsRole::Facet
                 };
                 v.optics_ref(&format!("{f}.optics"), &l.optics, role)?;
-                if l.sides < 3 {
+                if !(3..=MAX_POLYGON_SIDES).contains(&l.sides) {
                     return Err(src.invalid(
                         format!("{f}.sides"),
-                        "a disk polygon needs at least 3 sides",
+                        format!(
+                            "a disk polygon needs 3 to {MAX_POLYGON_SIDES} sides, got {}",
+                            l.sides
+                        ),
                     ));
                 }
                 for x in [l.translation_m.0, l.translation_m.1, l.translation_m.2] {
@@ -1020,10 +1027,13 @@ pub fn validate(desc: &SceneDesc, src: &SceneSource) -> Result<(), SceneError> {
             }
             ObjectDesc::Leaves(l) => {
                 v.positive(&format!("{f}.radius_m"), l.radius_m)?;
-                if l.sides < 3 {
+                if !(3..=MAX_POLYGON_SIDES).contains(&l.sides) {
                     return Err(src.invalid(
                         format!("{f}.sides"),
-                        "a disk polygon needs at least 3 sides",
+                        format!(
+                            "a disk polygon needs 3 to {MAX_POLYGON_SIDES} sides, got {}",
+                            l.sides
+                        ),
                     ));
                 }
                 v.optics_ref(&format!("{f}.optics"), &l.optics, OpticsRole::Facet)?;
@@ -1088,6 +1098,10 @@ pub const MAX_LAI: f64 = 100.0;
 /// extinction length 1/(G u) is 2 cm, so anything denser is indistinguishable from an opaque
 /// volume at any usable cell size.
 pub const MAX_LEAF_AREA_DENSITY: f64 = 100.0;
+
+/// Most sides of a trunk prism or of a disk polygon: a 1000-gon's area is within 7e-6 of its
+/// circle's (and each side is a facet per disk, allocated before the Maket plan).
+pub const MAX_POLYGON_SIDES: u32 = 1000;
 
 /// Largest number of trees of a randomly placed stand (the placement tries up to 1000 times
 /// per tree; a million crowns is far beyond what the Maket grid of a scene can hold usefully).
@@ -1227,26 +1241,45 @@ fn validate_lidar(
             v.positive(&f("platform.altitude_m"), *altitude_m)?;
             v.in_range(&f("platform.view_zenith_deg"), *view_zenith_deg, 0.0, 80.0)?;
             v.finite(&f("platform.view_azimuth_deg"), *view_azimuth_deg)?;
-            match pulses {
-                PulsePattern::Single(p) => {
-                    v.finite(&f("platform.pulses"), p.0)?;
-                    v.finite(&f("platform.pulses"), p.1)?;
+            // Aim points within 100 scene sizes of the scene: farther, a pulse misses every
+            // object of an isolated scene, and coordinates that large lose the precision the
+            // first-flight geometry needs (1e12 m: 1e-4 m steps).
+            let (sx, sy) = desc.grid.size_m;
+            let aim = |p: (f64, f64)| -> R {
+                v.finite(&f("platform.pulses"), p.0)?;
+                v.finite(&f("platform.pulses"), p.1)?;
+                if !(-100.0 * sx..=101.0 * sx).contains(&p.0)
+                    || !(-100.0 * sy..=101.0 * sy).contains(&p.1)
+                {
+                    return Err(src.invalid(
+                        f("platform.pulses"),
+                        format!(
+                            "aim point ({}, {}) m lies more than 100 scene sizes away from the scene [0, {sx}] × [0, {sy}] m",
+                            p.0, p.1
+                        ),
+                    ));
                 }
+                Ok(())
+            };
+            match pulses {
+                PulsePattern::Single(p) => aim(*p)?,
                 PulsePattern::List(ps) => {
                     if ps.is_empty() {
                         return Err(src.invalid(f("platform.pulses"), "the pulse list is empty"));
                     }
                     for p in ps {
-                        v.finite(&f("platform.pulses"), p.0)?;
-                        v.finite(&f("platform.pulses"), p.1)?;
+                        aim(*p)?;
                     }
                 }
                 PulsePattern::Scan {
+                    start,
+                    end,
                     lines,
                     line_spacing_m,
                     pulse_spacing_m,
-                    ..
                 } => {
+                    aim(*start)?;
+                    aim(*end)?;
                     if *lines == 0 {
                         return Err(src.invalid(f("platform.pulses.lines"), "must be at least 1"));
                     }
