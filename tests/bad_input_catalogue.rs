@@ -817,7 +817,7 @@ const CROWNS: &[Case] = &[
         "leaf_area_dense",
         "LeafAreaDensity(0.8)",
         "LeafArea(1e6)",
-        "mean leaf area density",
+        "LAI 100 over the",
     ),
     c(
         "crown_radius_zero",

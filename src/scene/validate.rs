@@ -312,23 +312,21 @@ impl V<'_> {
         }
         self.foliage(&format!("{f}.foliage"), &c.foliage)?;
         if let FoliageDesc::LeafArea(a) = c.foliage {
+            // A crown holds at most LAI 100 over the scene's ground (or over its own
+            // footprint when that is larger): tiny crowns may be dense (the Maket conserves
+            // their area), but not beyond what the scene could carry.
+            let (sx, sy) = self.desc.grid.size_m;
             let rx = c.radius_x_m;
-            let geom = crate::geometry::crown::CrownGeom {
-                shape: c.shape,
-                center: (0.0, 0.0),
-                z_base: 0.0,
-                height: c.height_m,
-                radius: (rx, c.radius_y_m.unwrap_or(rx)),
-                top_fraction: match c.shape {
-                    CrownShape::Trapezoid => c.top_radius_fraction.unwrap_or(1.0),
-                    CrownShape::Cylinder => 1.0,
-                    _ => 0.0,
-                },
-                vertical: Vec::new(),
-                radial: Vec::new(),
-                u0: 1.0,
-            };
-            self.implied_density(&format!("{f}.foliage"), &c.foliage, a, geom.volume())?;
+            let footprint = std::f64::consts::PI * rx * c.radius_y_m.unwrap_or(rx);
+            let max = MAX_LAI * (sx * sy).max(footprint);
+            if !(a <= max) {
+                return Err(self.src.invalid(
+                    format!("{f}.foliage"),
+                    format!(
+                        "LeafArea({a}) is outside the accepted range [0, {max:.4e}] m² (LAI {MAX_LAI} over the {sx} × {sy} m scene)"
+                    ),
+                ));
+            }
         }
         self.weights(&format!("{f}.vertical_profile"), &c.vertical_profile)?;
         self.weights(&format!("{f}.radial_profile"), &c.radial_profile)?;
