@@ -1507,6 +1507,7 @@ fn catalogue_is_complete_and_its_bases_are_valid() {
     .iter()
     .flat_map(|s| s.iter())
     .collect();
+    eprintln!("{} catalogue cases", all.len());
     assert!(all.len() >= 100, "{} cases", all.len());
     let mut names: Vec<&str> = all.iter().map(|c| c.name).collect();
     names.sort_unstable();
