@@ -656,7 +656,11 @@ fn cases_in_ci() {
 }
 
 /// The long corpus: [`MANY_CASES`] cases, run with
-/// `cargo test --release --test scene_fuzz -- --ignored many_cases` (a few minutes).
+/// `cargo test --release --test scene_fuzz -- --ignored many_cases` (a few minutes; ~4 min in
+/// the dev profile). Known open finding (2026-11-29, dev profile only): case 9202
+/// (`lidar_photon_counting.ron` with `size_m: (65536.0, 10.0)`, a valid 65 km scene) trips
+/// the 1e-9 relative `debug_assert` "first-flight return transmittance … vs shadow ray" of
+/// `src/photon/engine.rs` (1.1e-9 off); left to the photon engine's owners.
 #[test]
 #[ignore]
 fn many_cases() {
