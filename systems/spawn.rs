@@ -113,8 +113,9 @@ fn place_random(
             attempts += 1;
             if attempts > max_attempts {
                 return Err(format!(
-                    "placed only {} of {total} trees with a minimum spacing of {min_spacing} m after {max_attempts} attempts: reduce the counts or the spacing",
-                    out.len()
+                    "placed only {} of {total} trees with a minimum spacing of {} m after {max_attempts} attempts: reduce the counts or the spacing",
+                    out.len(),
+                    crate::scene::validate::num(min_spacing)
                 ));
             }
             let x = x0 + (x1 - x0) * uniform(&mut rng);

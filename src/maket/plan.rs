@@ -11,6 +11,7 @@ use crate::resources::grid::GridSpec;
 use crate::resources::maket_report::MemoryEstimate;
 use crate::resources::scene::SceneInfo;
 use crate::scene::desc::BoundaryMode;
+use crate::scene::validate::num;
 use glam::DVec3;
 
 /// The planned grid.
@@ -123,12 +124,17 @@ pub fn plan_grid(
             "grid.cell_m"
         };
         return Err(format!(
-            "{}: {field}: the grid would have {:.0} × {:.0} × {:.0} = {:.3e} cells (objects from z = {z0:.3} to {top:.3} m in cells of {dx} × {dy} × {dz} m), above the limit of {max_cells} cells: use larger cells or a smaller scene",
+            "{}: {field}: the grid would have {} × {} × {} = {:.3e} cells (objects from z = {} to {} m in cells of {} × {} × {} m), above the limit of {max_cells} cells: use larger cells or a smaller scene",
             info.source.display(),
-            nf[0],
-            nf[1],
-            nf[2],
-            nf[0] * nf[1] * nf[2]
+            num(nf[0]),
+            num(nf[1]),
+            num(nf[2]),
+            nf[0] * nf[1] * nf[2],
+            num(z0),
+            num(top),
+            num(dx),
+            num(dy),
+            num(dz)
         ));
     }
     let n = nf.map(|x| x as usize);

@@ -58,6 +58,16 @@ impl SceneSource {
     }
 }
 
+/// A number for a message: as written for ordinary magnitudes, in scientific notation for
+/// huge or tiny ones (`1e300`, not three hundred digits).
+pub fn num(x: f64) -> String {
+    if x == 0.0 || !x.is_finite() || (1e-6..1e9).contains(&x.abs()) {
+        format!("{x}")
+    } else {
+        format!("{x:e}")
+    }
+}
+
 /// Kind of optical property expected where a name is referenced.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum OpticsRole {
@@ -84,7 +94,7 @@ impl V<'_> {
         } else {
             Err(self
                 .src
-                .invalid(f, format!("must be a finite number, got {x}")))
+                .invalid(f, format!("must be a finite number, got {}", num(x))))
         }
     }
     fn positive(&self, f: &str, x: f64) -> R {
@@ -92,7 +102,7 @@ impl V<'_> {
         if x > 0.0 {
             Ok(())
         } else {
-            Err(self.src.invalid(f, format!("must be > 0, got {x}")))
+            Err(self.src.invalid(f, format!("must be > 0, got {}", num(x))))
         }
     }
     fn non_negative(&self, f: &str, x: f64) -> R {
@@ -100,7 +110,7 @@ impl V<'_> {
         if x >= 0.0 {
             Ok(())
         } else {
-            Err(self.src.invalid(f, format!("must be >= 0, got {x}")))
+            Err(self.src.invalid(f, format!("must be >= 0, got {}", num(x))))
         }
     }
     fn in_range(&self, f: &str, x: f64, lo: f64, hi: f64) -> R {
@@ -110,7 +120,7 @@ impl V<'_> {
         } else {
             Err(self
                 .src
-                .invalid(f, format!("must lie in [{lo}, {hi}], got {x}")))
+                .invalid(f, format!("must lie in [{lo}, {hi}], got {}", num(x))))
         }
     }
     /// A per-band list: exactly one value per band (empty allowed when `optional`).
@@ -181,8 +191,10 @@ impl V<'_> {
             FoliageDesc::LeafArea(x) => ("LeafArea", *x),
         };
         self.non_negative(&format!("{f}.{name}"), x).map_err(|_| {
-            self.src
-                .invalid(f, format!("{name} must be a finite number >= 0, got {x}"))
+            self.src.invalid(
+                f,
+                format!("{name} must be a finite number >= 0, got {}", num(x)),
+            )
         })?;
         let (max, unit) = match fo {
             FoliageDesc::Lai(_) => (MAX_LAI, "m²/m²"),
@@ -192,7 +204,10 @@ impl V<'_> {
         if x > max {
             return Err(self.src.invalid(
                 f,
-                format!("{name}({x}) is outside the accepted range [0, {max}] {unit} (denser foliage is optically opaque at any cell size)"),
+                format!(
+                    "{name}({}) is outside the accepted range [0, {max}] {unit} (denser foliage is optically opaque at any cell size)",
+                    num(x)
+                ),
             ));
         }
         Ok(())
@@ -204,9 +219,9 @@ impl V<'_> {
         let u = leaf_area / volume;
         if !(u <= MAX_LEAF_AREA_DENSITY) {
             let given = match fo {
-                FoliageDesc::LeafAreaDensity(x) => format!("LeafAreaDensity({x})"),
-                FoliageDesc::Lai(x) => format!("Lai({x})"),
-                FoliageDesc::LeafArea(x) => format!("LeafArea({x})"),
+                FoliageDesc::LeafAreaDensity(x) => format!("LeafAreaDensity({})", num(*x)),
+                FoliageDesc::Lai(x) => format!("Lai({})", num(*x)),
+                FoliageDesc::LeafArea(x) => format!("LeafArea({})", num(*x)),
             };
             return Err(self.src.invalid(
                 f,
@@ -323,7 +338,8 @@ impl V<'_> {
                 return Err(self.src.invalid(
                     format!("{f}.foliage"),
                     format!(
-                        "LeafArea({a}) is outside the accepted range [0, {max:.4e}] m² (LAI {MAX_LAI} over the {sx} × {sy} m scene)"
+                        "LeafArea({}) is outside the accepted range [0, {max:.4e}] m² (LAI {MAX_LAI} over the {sx} × {sy} m scene)",
+                        num(a)
                     ),
                 ));
             }
@@ -516,7 +532,10 @@ pub fn validate(desc: &SceneDesc, src: &SceneSource) -> Result<(), SceneError> {
             "grid.size_m",
             format!(
                 "{} × {} m in cells of {} × {} m make {columns:.3e} grid columns, above the limit of {MAX_GRID_CELLS} cells: use larger cells or a smaller scene",
-                g.size_m.0, g.size_m.1, g.cell_m.0, g.cell_m.1
+                num(g.size_m.0),
+                num(g.size_m.1),
+                num(g.cell_m.0),
+                num(g.cell_m.1)
             ),
         ));
     }
@@ -526,8 +545,9 @@ pub fn validate(desc: &SceneDesc, src: &SceneSource) -> Result<(), SceneError> {
             return Err(src.invalid(
                 "grid.height_m",
                 format!(
-                    "a height of {h} m in cells of {} m makes a grid of {cells:.3e} cells, above the limit of {MAX_GRID_CELLS}: use larger cells or a lower scene",
-                    g.cell_m.2
+                    "a height of {} m in cells of {} m makes a grid of {cells:.3e} cells, above the limit of {MAX_GRID_CELLS}: use larger cells or a lower scene",
+                    num(h),
+                    num(g.cell_m.2)
                 ),
             ));
         }
@@ -1253,7 +1273,8 @@ fn validate_lidar(
                         f("platform.pulses"),
                         format!(
                             "aim point ({}, {}) m lies more than 100 scene sizes away from the scene [0, {sx}] × [0, {sy}] m",
-                            p.0, p.1
+                            num(p.0),
+                            num(p.1)
                         ),
                     ));
                 }
