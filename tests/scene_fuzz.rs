@@ -657,10 +657,13 @@ fn cases_in_ci() {
 
 /// The long corpus: [`MANY_CASES`] cases, run with
 /// `cargo test --release --test scene_fuzz -- --ignored many_cases` (a few minutes; ~4 min in
-/// the dev profile). Known open finding (2026-11-29, dev profile only): case 9202
-/// (`lidar_photon_counting.ron` with `size_m: (65536.0, 10.0)`, a valid 65 km scene) trips
-/// the 1e-9 relative `debug_assert` "first-flight return transmittance … vs shadow ray" of
-/// `src/photon/engine.rs` (1.1e-9 off); left to the photon engine's owners.
+/// the dev profile, where the engines' `debug_assert`s are checked too). Case 9202
+/// (`lidar_photon_counting.ron` with `cell_m: (1.0, 1.0, 65536.0)`, a valid scene of 65 km
+/// tall cells) tripped the 1e-9 relative `debug_assert` "first-flight return transmittance …
+/// vs shadow ray" of `src/photon/engine/peel_off.rs` (1.1e-9 off): the shadow ray's hotspot
+/// decorrelation came from a 1-ulp separation of the reversed flight, amplified by 65 km of
+/// path over 1 cm leaves; fixed by
+/// [`BACKSCATTER_ROUNDING`](lumenscape::radiative::engine::BACKSCATTER_ROUNDING).
 #[test]
 #[ignore]
 fn many_cases() {
