@@ -79,7 +79,7 @@ pub use geometry::{
     barycentre, cell_exit, entry_store, half_barycentres, half_barycentres_fast,
     half_barycentres_with, intersect,
 };
-pub use hotspot::{hotspot_integral, hotspot_terms, hotspot_terms_path};
+pub use hotspot::{BACKSCATTER_ROUNDING, hotspot_integral, hotspot_terms, hotspot_terms_path};
 pub use iterate::run;
 pub(in crate::radiative) use iterate::*;
 pub use launch::{LaunchPlan, facet_outline_m, launch_plan, remap_wrong_side};

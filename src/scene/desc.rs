@@ -180,7 +180,8 @@ pub enum BoundaryMode {
 pub struct GridDesc {
     /// Scene extent along x and y, metres; the scene spans `[0, x] × [0, y]`.
     pub size_m: (f64, f64),
-    /// Cell size (dx, dy, dz), metres; non-cubic cells are allowed.
+    /// Cell size (dx, dy, dz), metres; non-cubic cells are allowed. The grid holds at most
+    /// 2³² − 1 cells (x × y × z).
     pub cell_m: (f64, f64, f64),
     /// Scene height above the lowest ground point, metres; by default the highest object
     /// rounded up to a whole cell (plus one empty cell layer).
@@ -500,7 +501,7 @@ pub struct LeafListDesc {
     pub path: String,
     /// Name of a leaf optical property (BiLambertian, ProspectLeaf) or a facet property.
     pub optics: String,
-    /// Polygon sides per disk (default 12).
+    /// Polygon sides per disk (default 12; 3 to 1000).
     #[serde(default = "default_disk_sides")]
     pub sides: u32,
     /// Translation added to every centre, metres (z is above the ground under the leaf).
@@ -522,7 +523,7 @@ pub struct LeafListDesc {
 pub struct LeavesDesc {
     /// Disk radius, metres.
     pub radius_m: f64,
-    /// Polygon sides per disk (default 12).
+    /// Polygon sides per disk (default 12; 3 to 1000).
     #[serde(default = "default_disk_sides")]
     pub sides: u32,
     /// Name of a facet (usually BiLambertian) optical property.
@@ -576,7 +577,7 @@ pub enum TopographyDesc {
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct RasterDesc {
-    /// Number of nodes along x and y (≥ 2 each).
+    /// Number of nodes along x and y (≥ 2 each, at most 2²⁸ nodes in all).
     pub nodes: (usize, usize),
     /// Node spacing along x and y, metres.
     pub spacing_m: (f64, f64),
@@ -622,11 +623,13 @@ pub use crate::geometry::crown::CrownShape;
 /// Amount of foliage in a crown or plot.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub enum FoliageDesc {
-    /// Mean one-sided leaf area volume density, m² m⁻³.
+    /// Mean one-sided leaf area volume density, m² m⁻³ (at most 100).
     LeafAreaDensity(f64),
-    /// Leaf area index: leaf area divided by the horizontal projected area of the shape, m² m⁻².
+    /// Leaf area index: leaf area divided by the horizontal projected area of the shape, m² m⁻²
+    /// (at most 100).
     Lai(f64),
-    /// Total one-sided leaf area, m².
+    /// Total one-sided leaf area, m² (a plot's at most 100 m² m⁻³ over its volume; a crown's at
+    /// most LAI 100 over the scene or over its own footprint, whichever is larger).
     LeafArea(f64),
 }
 
@@ -670,7 +673,7 @@ pub struct TrunkDesc {
     pub height_m: f64,
     /// Trunk diameter, metres.
     pub diameter_m: f64,
-    /// Number of sides of the prism (default 8, at least 3).
+    /// Number of sides of the prism (default 8; 3 to 1000).
     #[serde(default = "default_trunk_sides")]
     pub sides: u32,
     /// Name of a facet optical property.
@@ -715,7 +718,7 @@ pub enum PlacementDesc {
     Explicit(Vec<(usize, f64, f64)>),
     /// Random uniform positions with a minimum spacing, reproducible from the scene seed.
     Random {
-        /// Number of trees per species.
+        /// Number of trees per species (at most 1 000 000 in all).
         counts: Vec<usize>,
         /// Minimum distance between trunks, metres.
         min_spacing_m: f64,
@@ -1050,7 +1053,8 @@ pub enum LidarPlatform {
     },
 }
 
-/// Footprint centres of airborne pulses (on the plane z = 0).
+/// Footprint centres of airborne pulses (on the plane z = 0), within 100 scene sizes of the
+/// scene (x in [−100 X, 101 X], y in [−100 Y, 101 Y]).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub enum PulsePattern {
