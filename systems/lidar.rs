@@ -11,13 +11,14 @@
 
 use crate::components::{Ground, ImportedMesh, TurbidCrown, TurbidPlot};
 use crate::geometry::terrain::Terrain;
+use crate::lidar::run::LidarProducts;
 use crate::lidar::simulate::{DEFAULT_CHUNK_PULSES, LidarChunks, PassiveRadiance, simulate_lidar};
 use crate::photon::engine::{PhotonInput, PhotonParams, SamplerKind};
 use crate::photon::material_optics::build_photon_optics;
 use crate::radiative::products::RadiativeProducts;
 use crate::resources::facets::{FacetKind, FacetStore};
 use crate::resources::grid::{CellGrid, GridSpec};
-use crate::resources::lidar::{LidarInstruments, LidarProducts};
+use crate::resources::lidar::LidarInstruments;
 use crate::resources::materials::Materials;
 use crate::resources::scene::{SceneInfo, StageErrors, TerrainRes};
 use crate::resources::tracking::{Directions, OpticsTables};

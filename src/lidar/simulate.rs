@@ -17,17 +17,20 @@ use crate::lidar::photon_counting::{
     Detector, mean_signal_counts, simulate_shot, solar_background_rate,
 };
 use crate::lidar::pulse::{BeamProfile, FootprintSampler, PulseShape};
+use crate::lidar::run::{CountedPhoton, LidarRun, PulseRecord, StreamedRun};
 use crate::lidar::spool::{PulseEntry, Spool, spool_counted};
 use crate::lidar::tracking::{Beam, Pulse, run_lidar_chunks};
 use crate::lidar::waveform::{Waveform, WaveformBinner};
 use crate::lidar::waveform_io::WaveformStream;
 use crate::photon::engine::PhotonInput;
 use crate::resources::directions::direction_from_deg;
-use crate::resources::lidar::{CountedPhoton, LidarRun, PulseRecord, StreamedRun};
 use crate::scene::desc::{
     DEFAULT_LIDAR_PHOTONS, DEFAULT_LIDAR_PHOTONS_PER_RAY, LidarDesc, LidarPlatform, PulsePattern,
 };
 use glam::DVec3;
+
+/// The run settings of the LiDAR chunks ([`crate::resources::scene::RunSettings`]).
+pub use crate::resources::scene::{DEFAULT_CHUNK_PULSES, FarRoulette};
 
 /// Passive spectral radiance at sensor level, per band, on the grid's columns (or one value
 /// for the whole scene), W m⁻² sr⁻¹ µm⁻¹.
@@ -255,11 +258,6 @@ fn footprint_centre(pl: &PulseRecord) -> (f64, f64) {
     (c.x, c.y)
 }
 
-/// Pulses tracked per chunk: the memory of a streamed scan is bounded by one chunk's waveforms
-/// (plus every pulse's returns and energies); 8192 pulses keep both cores busy and each
-/// chunk's parallel tail short.
-pub const DEFAULT_CHUNK_PULSES: usize = 8192;
-
 /// How an instrument's pulses are run: by chunks, the waveforms of a long scan streamed to
 /// disk while it runs when there is an output folder, with a progress bar if asked.
 #[derive(Debug, Clone)]
@@ -277,19 +275,6 @@ pub struct LidarChunks {
     /// The expected-value estimator's column quadrature of the first-order return where it
     /// applies ([`crate::lidar::tracking::Beam::first_order_columns`]; default true).
     pub first_order_columns: bool,
-}
-
-/// The expected-value estimator's far-photon roulette of multiple scattering
-/// ([`crate::lidar::tracking::Beam::far_roulette_m`]); every setting has the same expectation.
-#[derive(Debug, Clone, Copy, PartialEq, Default)]
-pub enum FarRoulette {
-    /// Distance scale ρ₀ from the scene (`far_roulette_scale_m`; the default).
-    #[default]
-    Auto,
-    /// A given distance scale ρ₀ (m, > 0): for tests and studies.
-    ScaleM(f64),
-    /// Every multiple-scattering photon goes on (for the equality tests and for measuring).
-    Off,
 }
 
 impl Default for LidarChunks {

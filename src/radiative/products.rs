@@ -110,10 +110,31 @@ pub struct RadiativeProducts {
     pub launch: Option<crate::radiative::engine::LaunchPlan>,
     /// Monte Carlo run description (Photon stage only).
     #[serde(skip_serializing_if = "Option::is_none")]
-    pub monte_carlo: Option<crate::photon::products::MonteCarloInfo>,
+    pub monte_carlo: Option<MonteCarloInfo>,
     /// Raw engine result (not serialised).
     #[serde(skip)]
     pub raw: RadiativeResult,
+}
+
+/// Description of a Monte Carlo run (in summary.json).
+#[derive(Debug, Clone, Serialize)]
+pub struct MonteCarloInfo {
+    /// Photons traced (sun + sky).
+    pub photons: u64,
+    /// Batches (standard errors come from their spread).
+    pub batches: u32,
+    /// Seed.
+    pub seed: u64,
+    /// Direction sampler (`continuous`, `alias`, `box`).
+    pub sampler: &'static str,
+    /// Scattering events.
+    pub events: u64,
+    /// Photons per second per core (wall time × threads).
+    pub photons_per_second_per_core: f64,
+    /// Russian-roulette balance relative to the source, per band (expectation 0).
+    pub roulette_balance: Vec<f64>,
+    /// Fraction of the source lost per band (isolated sides, caps).
+    pub lost: Vec<f64>,
 }
 
 impl RadiativeProducts {
