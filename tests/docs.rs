@@ -9,7 +9,7 @@
 
 mod common;
 use common::asset;
-use lumenscape::resources::directions::{DirectionParams, ExactDirection};
+use lumenscape::direction::{DirectionParams, ExactDirection};
 use lumenscape::resources::scene::{RunSettings, Solver};
 use lumenscape::scene::SceneSource;
 use lumenscape::scene::generators::turbid_layer::{TurbidLayerParams, turbid_layer};

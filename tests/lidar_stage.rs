@@ -329,10 +329,8 @@ fn lidar_products_round_trip_through_the_las_reader() {
         shots: 5,
     });
     let mut d = scene(1.5, 0.2, l);
-    d.directions = Some(lumenscape::resources::directions::DirectionParams {
-        exact: vec![lumenscape::resources::directions::ExactDirection::new(
-            0.0, 0.0,
-        )],
+    d.directions = Some(lumenscape::direction::DirectionParams {
+        exact: vec![lumenscape::direction::ExactDirection::new(0.0, 0.0)],
         ..Default::default()
     });
     let runs = run(&d, Some(&out));

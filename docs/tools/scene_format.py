@@ -154,7 +154,7 @@ def cell(s):
 
 
 def short_type(t):
-    t = t.replace("crate::resources::directions::", "").replace("crate::lidar::pulse::", "")
+    t = t.replace("crate::direction::", "").replace("crate::lidar::pulse::", "")
     t = t.replace("crate::lidar::returns::", "").replace("crate::physics::lad::", "")
     t = t.replace("serde::de::IgnoredAny", "(anything)")
     return t

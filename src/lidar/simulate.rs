@@ -13,6 +13,7 @@
 //! against the analytic waveform; multiple-scattering returns are not correlated. The passive
 //! solvers apply the same correlation to first-order sun radiation (the hotspot).
 
+use crate::direction::direction_from_deg;
 use crate::lidar::photon_counting::{
     Detector, mean_signal_counts, simulate_shot, solar_background_rate,
 };
@@ -23,7 +24,6 @@ use crate::lidar::tracking::{Beam, Pulse, run_lidar_chunks};
 use crate::lidar::waveform::{Waveform, WaveformBinner};
 use crate::lidar::waveform_io::WaveformStream;
 use crate::photon::engine::PhotonInput;
-use crate::resources::directions::direction_from_deg;
 use crate::scene::desc::{
     DEFAULT_LIDAR_PHOTONS, DEFAULT_LIDAR_PHOTONS_PER_RAY, LidarDesc, LidarPlatform, PulsePattern,
 };
@@ -598,7 +598,7 @@ pub fn simulate_lidar(
                 let signal = mean_signal_counts(&padded.total, pc.wavelength_nm, det)
                     .map_err(|e| format!("lidar `{}`: {e}", desc.name))?;
                 let bg_bin = rate * dt * 1e-9;
-                let mut rng = crate::scene::spawn::stream(
+                let mut rng = crate::random::stream(
                     input.params.seed,
                     crate::lidar::tracking::LIDAR_STREAM ^ 0x5043,
                     pl.id,

@@ -7,9 +7,9 @@
 //! 1/B of the photons, with weights normalised to the whole run).
 
 use super::engine::{PhotonParams, PhotonResult, sum_standard_error};
+use crate::direction::DirectionSet;
 use crate::radiative::engine::RadiativeResult;
 use crate::radiative::products::RadiativeProducts;
-use crate::resources::directions::DirectionSet;
 use std::f64::consts::PI;
 
 /// The run description is a field of the products ([`RadiativeProducts::monte_carlo`]).

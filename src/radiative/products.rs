@@ -3,7 +3,7 @@
 //! (physics.md §1.4, §6.7; design.md §5).
 
 use super::engine::RadiativeResult;
-use crate::resources::directions::DirectionSet;
+use crate::direction::DirectionSet;
 use bevy_ecs::prelude::Resource;
 use serde::Serialize;
 use std::f64::consts::PI;
@@ -259,12 +259,10 @@ impl RadiativeProducts {
 
     /// The BRF entry of band `b` closest to a view direction (zenith, azimuth in degrees).
     pub fn brf_at(&self, b: usize, zenith_deg: f64, azimuth_deg: f64) -> Option<&BrfEntry> {
-        let target = crate::resources::directions::direction_from_deg(zenith_deg, azimuth_deg);
+        let target = crate::direction::direction_from_deg(zenith_deg, azimuth_deg);
         self.bands.get(b)?.brf.iter().max_by(|x, y| {
-            let dx = crate::resources::directions::direction_from_deg(x.zenith_deg, x.azimuth_deg)
-                .dot(target);
-            let dy = crate::resources::directions::direction_from_deg(y.zenith_deg, y.azimuth_deg)
-                .dot(target);
+            let dx = crate::direction::direction_from_deg(x.zenith_deg, x.azimuth_deg).dot(target);
+            let dy = crate::direction::direction_from_deg(y.zenith_deg, y.azimuth_deg).dot(target);
             dx.total_cmp(&dy)
         })
     }

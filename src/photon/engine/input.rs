@@ -3,14 +3,14 @@
 //! (turbid leaves, Lambertian and BRDF surfaces, fluids), the fluid fields, the run parameters
 //! and the scene arrays of one run ([`PhotonInput`]).
 
+use crate::direction::DirectionSet;
+use crate::phase::PhaseTable;
 use crate::photon::sampling::{AliasTable, BoxTable, BrdfSampler, LeafSampler};
 use crate::physics::brdf::Brdf;
 use crate::physics::lad::{GTable, VolscattKernel};
 use crate::physics::phase::FluidPhase;
-use crate::resources::directions::DirectionSet;
 use crate::resources::facets::Facet;
 use crate::resources::grid::{CellGrid, GridSpec};
-use crate::resources::phase_tables::PhaseTable;
 use glam::DVec3;
 use rand_xoshiro::Xoshiro256PlusPlus;
 
