@@ -330,10 +330,10 @@ const WIDE_FOOTPRINT_CELLS: f64 = 2.0;
 /// ([`LidarRun::streamed`]) and only the first quick-looks' waveforms stay in memory. The
 /// products are the same bytes either way.
 ///
-/// Steps: the beam's footprint ([`beam_footprint`]), the range gate ([`range_gate`]), the
-/// tracking parameters ([`beam`]), the pulse kernel and the gate's time axis, the run's notes
-/// ([`run_notes`]), then the pulses by chunks ([`ScanOutputs::add_chunk`]: waveforms and
-/// returns, photon counting, fusion, streaming).
+/// Steps: the beam's footprint (`beam_footprint`), the range gate (`range_gate`), the tracking
+/// parameters (`beam`), the pulse kernel and the gate's time axis, the run's notes
+/// (`run_notes`), then the pulses by chunks (`ScanOutputs::add_chunk`: waveforms and returns,
+/// photon counting, fusion, streaming).
 pub fn simulate_lidar(
     desc: &LidarDesc,
     band: usize,
