@@ -25,8 +25,7 @@ SOURCES = [
     ("src/physics/lad.rs", ["Lad", "LeafSpecular"]),
     ("src/physics/prospect.rs", ["ProspectModel"]),
     ("src/direction/mod.rs", ["DirectionParams", "ExactDirection", "OversampleRegion"]),
-    ("src/lidar/pulse/mod.rs", ["BeamProfile"]),
-    ("src/lidar/returns/mod.rs", ["ReturnsMethod"]),
+    ("src/scene/desc.rs", ["BeamProfile", "ReturnsMethod"]),
 ]
 
 # Defaults that are not a literal in a `default = "fn"` function.
@@ -150,11 +149,12 @@ def parse(path):
 
 def cell(s):
     s = re.sub(r"\[`([^`]+)`\](?!\()", r"`\1`", s)  # rustdoc intra-doc links
+    s = re.sub(r"\[`([^`]+)`\]\((?:crate|super|self)::[\w:]+\)", r"`\1`", s)  # with a path
     return s.replace("|", "\\|").replace("\n", " ")
 
 
 def short_type(t):
-    t = t.replace("crate::resources::directions::", "").replace("crate::lidar::pulse::", "")
+    t = t.replace("crate::direction::", "").replace("crate::lidar::pulse::", "")
     t = t.replace("crate::lidar::returns::", "").replace("crate::physics::lad::", "")
     t = t.replace("serde::de::IgnoredAny", "(anything)")
     return t

@@ -949,12 +949,12 @@ pub struct LidarDesc {
     /// `Gaussian(edge_intensity: ..)`, `Uniform`, `Tabulated(points: [(ρ/R, I), ..])`;
     /// default: Gaussian with `edge_intensity`.
     #[serde(default)]
-    pub beam: Option<crate::lidar::pulse::BeamProfile>,
+    pub beam: Option<BeamProfile>,
     /// How discrete returns are extracted from each waveform (default: Gaussian
     /// decomposition; `PeakDetection` costs ~3 µs per waveform against 8–25 ms for the
     /// decomposition of a 1000-photon Monte Carlo waveform, and resolves returns ≥ 3σ apart).
     #[serde(default)]
-    pub returns: crate::lidar::returns::ReturnsMethod,
+    pub returns: ReturnsMethod,
     /// Scattering-direction sampling of the photon tracking: `Discrete` (DART's Ray-Carlo over
     /// the discrete directions, default) or `Continuous` (exact phase functions).
     #[serde(default)]
@@ -1020,6 +1020,89 @@ pub enum LidarSampler {
     Discrete,
     /// Exact continuous phase functions.
     Continuous,
+}
+
+/// DART's default `gaussian_sigma_illu`: relative intensity at the footprint edge (≈ 1/e).
+pub const DART_EDGE_RELATIVE_INTENSITY: f64 = 0.368;
+
+/// Default of [`BeamProfile::Gaussian`]'s `edge_intensity` in scene files (DART's
+/// `gaussian_sigma_illu`, 0.368).
+fn default_beam_edge_intensity() -> f64 {
+    DART_EDGE_RELATIVE_INTENSITY
+}
+
+/// Transverse (radial) intensity profile of the emitted beam, independent of its size.
+///
+/// DART 5 paper §4: "Photons launched within ΔΩ_footprint can have any angular distribution
+/// (e.g., Gaussian)". The profile is stated as relative intensity (irradiance on the plane normal
+/// to the beam axis at the reference range) against the **normalised radius** `x = ρ/R`, R being
+/// the nominal footprint radius at that range (from `footprint_radius_m` or the divergence,
+/// physics.md §9.1). Because packets leave the emitter along `axis·H + offset`, an off-axis angle α
+/// maps to `x = tan α / tan α_half` (α_half = half divergence). To use a table measured against
+/// the angle, `I(α)` in W sr⁻¹, take `x = tan α/tan α_half` and intensity `I(α) cos³α`; for
+/// α_half ≤ 10 mrad, `x = α/α_half` and `I(α)` unchanged are exact to < 1.5e-4 relative.
+///
+/// Serialises as a RON/serde enum like the scene `*Desc` types, e.g. `Gaussian(edge_intensity:
+/// 0.368)`, `Uniform`, `Tabulated(points: [(0.0, 1.0), (0.8, 1.0), (1.0, 0.0)])`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub enum BeamProfile {
+    /// Gaussian `I(x) = exp(−x²/(2s²))`, `s = 1/√(−2 ln edge_intensity)` (physics.md §9.1,
+    /// DART `gaussian_sigma_illu`); unbounded, so the sampler's truncation radius matters.
+    Gaussian {
+        /// Relative intensity at the footprint edge x = 1, in (0, 1) (default 0.368 ≈ 1/e).
+        #[serde(default = "default_beam_edge_intensity")]
+        edge_intensity: f64,
+    },
+    /// Top hat: constant intensity for x ≤ 1, zero beyond.
+    Uniform,
+    /// Piecewise-linear relative intensity through `points = [(x_i, I_i)]`, `x_i = ρ/R`
+    /// strictly increasing from `x_0 ≥ 0`, `I_i` finite and ≥ 0, not all zero, at least two
+    /// points. The intensity is zero for `x < x_0` (an annular beam if `x_0 > 0`) and for
+    /// `x > x_last`; the table may extend beyond x = 1. Only the shape matters (the scale of
+    /// `I_i` is irrelevant).
+    Tabulated {
+        /// `(normalised radius ρ/R, relative intensity)` nodes.
+        points: Vec<(f64, f64)>,
+    },
+}
+
+impl Default for BeamProfile {
+    /// DART's default beam: Gaussian with edge intensity 0.368.
+    fn default() -> Self {
+        BeamProfile::Gaussian {
+            edge_intensity: DART_EDGE_RELATIVE_INTENSITY,
+        }
+    }
+}
+
+impl BeamProfile {
+    /// Short name for logs: `"Gaussian"`, `"uniform"` or `"tabulated"`.
+    pub fn name(&self) -> &'static str {
+        match self {
+            BeamProfile::Gaussian { .. } => "Gaussian",
+            BeamProfile::Uniform => "uniform",
+            BeamProfile::Tabulated { .. } => "tabulated",
+        }
+    }
+}
+
+/// How discrete returns are extracted from a waveform (scene files: `GaussianDecomposition`
+/// or `PeakDetection`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+pub enum ReturnsMethod {
+    /// Levenberg–Marquardt decomposition into bin-integrated Gaussians
+    /// ([`detect_returns_with`](crate::lidar::returns::detect_returns_with)): the reference;
+    /// separates overlapping returns and adds components where the residual exceeds the floor.
+    /// ~60 µs per 400-bin waveform with 3–6 clean returns, 7–25 ms when noise makes it fit
+    /// 10–15 components.
+    #[default]
+    GaussianDecomposition,
+    /// Prominent local maxima with interpolated centre, half-maximum width and valley-split
+    /// energy ([`detect_peaks`](crate::lidar::returns::detect_peaks)): O(n_bins), 2.5–4.5 µs
+    /// per 400-bin waveform. Returns closer than 2.5σ (equal) to 3σ (1 : 0.5) are seen as one;
+    /// see [`detect_peaks`](crate::lidar::returns::detect_peaks) for the biases.
+    PeakDetection,
 }
 
 /// Platform and pulse pattern of a LiDAR.
