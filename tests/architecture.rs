@@ -63,7 +63,7 @@ const MAX_LINES: usize = 1500;
 /// to `scene::desc`) and the LiDAR results up (`LidarRun`, `LidarProducts`, … to `lidar::run`);
 /// what remains: `src/scene/validate.rs` still names `crate::lidar::pulse::BeamProfile` (the
 /// type is `crate::scene::desc::BeamProfile` now; that file was not changed with the move).
-const KNOWN_UPWARD: &[(&str, &str)] = &[("scene", "lidar")];
+const KNOWN_UPWARD: &[(&str, &str)] = &[];
 
 fn root() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR"))

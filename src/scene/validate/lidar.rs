@@ -62,7 +62,7 @@ impl V<'_> {
                     "with a `beam` profile, give the edge intensity inside it (`Gaussian(edge_intensity: ..)`)",
                 ));
             }
-            if let crate::lidar::pulse::BeamProfile::Gaussian { edge_intensity } = beam {
+            if let crate::scene::desc::BeamProfile::Gaussian { edge_intensity } = beam {
                 self.in_range(&f("beam.edge_intensity"), *edge_intensity, 1e-6, 0.999)?;
             }
             if let Err(e) = beam.validate() {
