@@ -4,13 +4,11 @@
 
 use criterion::{Criterion, criterion_group, criterion_main};
 use glam::DVec3;
+use lumenscape::direction::{DirectionParams, DirectionSet, ExactDirection};
+use lumenscape::phase::{TableParams, brdf_facet_table, bytes, fluid_table, vegetation_table};
 use lumenscape::physics::brdf::Brdf;
 use lumenscape::physics::lad::{Lad, LeafOptics};
 use lumenscape::physics::phase::FluidPhase;
-use lumenscape::resources::directions::{DirectionParams, DirectionSet, ExactDirection};
-use lumenscape::resources::phase_tables::{
-    TableParams, brdf_facet_table, bytes, fluid_table, vegetation_table,
-};
 use std::hint::black_box;
 
 fn params(n: usize) -> DirectionParams {

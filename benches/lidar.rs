@@ -42,9 +42,9 @@
 //! 64-photon Monte Carlo solver setting only matters if a scene asks for the passive run.
 
 use lumenscape::lidar::returns::{ReturnsMethod, detect_returns_method};
+use lumenscape::lidar::run::{LidarProducts, LidarRun};
 use lumenscape::lidar::waveform::Waveform;
 use lumenscape::photon::engine::SamplerKind;
-use lumenscape::resources::lidar::{LidarProducts, LidarRun};
 use lumenscape::resources::scene::{RunSettings, SceneInfo, Solver};
 use lumenscape::scene::SceneSource;
 use lumenscape::scene::desc::{

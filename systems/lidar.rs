@@ -10,20 +10,21 @@
 //! runs); writes LidarProducts.
 
 use crate::components::{Ground, ImportedMesh, TurbidCrown, TurbidPlot};
-use crate::geometry::terrain::Terrain;
+use crate::lidar::run::LidarProducts;
 use crate::lidar::simulate::{DEFAULT_CHUNK_PULSES, LidarChunks, PassiveRadiance, simulate_lidar};
-use crate::photon::engine::{PhotonInput, PhotonParams, SamplerKind};
+use crate::photon::engine::{PhotonParams, SamplerKind};
 use crate::photon::material_optics::build_photon_optics;
 use crate::radiative::products::RadiativeProducts;
-use crate::resources::facets::{FacetKind, FacetStore};
+use crate::resources::facets::FacetStore;
 use crate::resources::grid::{CellGrid, GridSpec};
-use crate::resources::lidar::{LidarInstruments, LidarProducts};
+use crate::resources::lidar::LidarInstruments;
 use crate::resources::materials::Materials;
 use crate::resources::scene::{SceneInfo, StageErrors, TerrainRes};
 use crate::resources::tracking::{Directions, OpticsTables};
 use crate::scene::desc::LidarSampler;
-use crate::systems::photon::{LadOpticsCache, used_turbid};
+use crate::systems::photon::{LadOpticsCache, photon_input};
 use crate::systems::radiative::ImageDirections;
+use crate::systems::{tracking_scene, used_turbid};
 use bevy_ecs::prelude::*;
 
 /// Passive radiance at sensor level for the LiDAR: the orthographic image of the exact view
@@ -142,15 +143,7 @@ pub fn run_lidars(
     let used = used_turbid(mats.list.len(), &crowns, &plots, &meshes);
     // Optics per sampler kind, built once for the instruments that use it.
     let mut built: [Option<Vec<crate::photon::engine::PhotonOptics>>; 2] = [None, None];
-    let flat_ground = match (&terrain.0, grounds.iter().next()) {
-        (Terrain::Flat(_), Some(g)) => Some(g.optics),
-        _ => None,
-    };
-    let ground_facet: Vec<bool> = facets
-        .facets
-        .iter()
-        .map(|f| f.kind == FacetKind::Ground)
-        .collect();
+    let scene = tracking_scene(&info, &spec, &terrain, grounds.iter().next(), &facets);
     let box_lo = spec.origin;
     let box_hi = spec.origin
         + glam::DVec3::new(
@@ -199,21 +192,7 @@ pub fn run_lidars(
         // per pulse the first-order waveform is already smooth, and each point costs a trace
         // to the receiver.
         params.fluid_peel_points = 1;
-        let input = PhotonInput {
-            spec: &spec,
-            grid: &grid,
-            facets: &facets.facets,
-            ground_facet: &ground_facet,
-            dirs: &dirs.set,
-            optics: &optics,
-            fluid: None,
-            flat_ground,
-            views: Vec::new(),
-            sun: dirs.sun,
-            e_dir: vec![0.0],
-            e_diff: vec![0.0],
-            params,
-        };
+        let input = photon_input(&spec, &grid, &facets, &dirs, &scene, &optics, params);
         let plan = crate::lidar::simulate::PulsePlan::new(l);
         let view = plan.iter().next().map_or(glam::DVec3::Z, |p| -p.axis);
         let pr = passive

@@ -55,7 +55,7 @@ pub fn write_radiative_products(
 /// returns, fusion and photon-counting clouds, quick-looks, lidar.json).
 pub fn write_lidar_products(
     out: Res<OutputDir>,
-    products: Res<crate::resources::lidar::LidarProducts>,
+    products: Res<crate::lidar::run::LidarProducts>,
     info: Res<crate::resources::scene::SceneInfo>,
     mut errors: ResMut<StageErrors>,
 ) {
@@ -89,7 +89,7 @@ pub fn add_systems(s: &mut Schedule) {
                 .run_if(no_stage_error),
             write_lidar_products
                 .run_if(resource_exists::<OutputDir>)
-                .run_if(resource_exists::<crate::resources::lidar::LidarProducts>)
+                .run_if(resource_exists::<crate::lidar::run::LidarProducts>)
                 .run_if(no_stage_error),
         )
             .in_set(OutputSystems::Write),

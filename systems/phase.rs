@@ -24,18 +24,7 @@ pub fn tabulate_phase(
     mut errors: ResMut<StageErrors>,
     mut commands: Commands,
 ) {
-    let mut used = vec![false; mats.list.len()];
-    for c in &crowns {
-        used[c.material as usize] = true;
-    }
-    for p in &plots {
-        used[p.material as usize] = true;
-    }
-    for m in &meshes {
-        for part in m.parts.iter().filter(|p| p.as_turbid) {
-            used[part.material as usize] = true;
-        }
-    }
+    let used = crate::systems::used_turbid(mats.list.len(), &crowns, &plots, &meshes);
     let mut optics = Vec::with_capacity(mats.list.len());
     let mut bytes = 0;
     let mut renorm = 0.0f64;

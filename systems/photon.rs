@@ -8,15 +8,15 @@
 //! writes RadiativeProducts.
 
 use crate::components::{Ground, ImportedMesh, TurbidCrown, TurbidPlot};
-use crate::geometry::terrain::Terrain;
-use crate::photon::engine::{PhotonInput, PhotonParams, run};
+use crate::photon::engine::{PhotonInput, PhotonOptics, PhotonParams, run};
 use crate::photon::material_optics::{LadCache, build_photon_optics};
 use crate::photon::products::photon_products;
-use crate::resources::facets::{FacetKind, FacetStore};
+use crate::resources::facets::FacetStore;
 use crate::resources::grid::{CellGrid, GridSpec};
 use crate::resources::materials::Materials;
 use crate::resources::scene::{RunSettings, SceneInfo, Solver, StageErrors, TerrainRes};
 use crate::resources::tracking::{Directions, OpticsTables};
+use crate::systems::{TrackingScene, tracking_scene, used_turbid};
 use bevy_ecs::prelude::*;
 
 /// The LAD-derived photon optics shared by the passive Monte Carlo solver and every LiDAR
@@ -59,10 +59,7 @@ pub fn track_photons(
                 return;
             }
         };
-    let flat_ground = match (&terrain.0, grounds.iter().next()) {
-        (Terrain::Flat(_), Some(g)) => Some(g.optics),
-        _ => None,
-    };
+    let scene = tracking_scene(&info, &spec, &terrain, grounds.iter().next(), &facets);
     let tiling = dirs.set.tiling();
     let view_dir: Vec<usize> = tiling
         .iter()
@@ -72,78 +69,68 @@ pub fn track_photons(
         })
         .map(|(j, _)| j)
         .collect();
-    let il = &info.illumination;
-    let e_tot: Vec<f64> = (0..nb)
-        .map(|b| il.irradiance_w_m2_um.get(b).copied().unwrap_or(1.0))
-        .collect();
-    let skyl: Vec<f64> = (0..nb)
-        .map(|b| il.skyl.get(b).copied().unwrap_or(0.0))
-        .collect();
-    let e_dir: Vec<f64> = (0..nb).map(|b| e_tot[b] * (1.0 - skyl[b])).collect();
-    let e_diff: Vec<f64> = (0..nb).map(|b| e_tot[b] * skyl[b]).collect();
-    let ground_facet: Vec<bool> = facets
-        .facets
-        .iter()
-        .map(|f| f.kind == FacetKind::Ground)
-        .collect();
     let params = PhotonParams {
         skip_empty: settings.skip_empty,
         ..PhotonParams::new(photons, info.seed, sampler)
     };
     let input = PhotonInput {
-        spec: &spec,
-        grid: &grid,
-        facets: &facets.facets,
-        ground_facet: &ground_facet,
-        dirs: &dirs.set,
-        optics: &optics,
-        fluid: None,
-        flat_ground,
         views: view_dir.iter().map(|&j| tiling[j].omega).collect(),
-        sun: dirs.sun,
-        e_dir: e_dir.clone(),
-        e_diff: e_diff.clone(),
-        params: params.clone(),
+        e_dir: scene.e_dir.clone(),
+        e_diff: scene.e_diff.clone(),
+        ..photon_input(
+            &spec,
+            &grid,
+            &facets,
+            &dirs,
+            &scene,
+            &optics,
+            params.clone(),
+        )
     };
     let t0 = std::time::Instant::now();
     let raw = run(&input);
     let secs = t0.elapsed().as_secs_f64();
-    let names: Vec<String> = info.bands.iter().map(|b| b.name.clone()).collect();
-    let area = spec.n[0] as f64 * spec.cell.x * spec.n[1] as f64 * spec.cell.y;
     commands.insert_resource(photon_products(
         raw,
         &params,
         &dirs.set,
         &view_dir,
-        &names,
-        area,
-        &e_dir,
-        &e_diff,
-        &ground_facet,
+        &scene.band_names,
+        scene.area_m2,
+        &scene.e_dir,
+        &scene.e_diff,
+        &scene.ground_facet,
         secs,
     ));
 }
 
-/// Turbid materials used by crowns, plots and turbid meshes.
-pub fn used_turbid(
-    n: usize,
-    crowns: &Query<&TurbidCrown>,
-    plots: &Query<&TurbidPlot>,
-    meshes: &Query<&ImportedMesh>,
-) -> Vec<bool> {
-    let mut used = vec![false; n];
-    for c in crowns {
-        used[c.material as usize] = true;
+/// The photon engine's input over the scene's grid, facets, directions and ground, with
+/// `optics` and `params`: no peel-off views and no sun or sky power (a LiDAR's input; the
+/// passive solver adds its views and irradiances).
+pub fn photon_input<'a>(
+    spec: &'a GridSpec,
+    grid: &'a CellGrid,
+    facets: &'a FacetStore,
+    dirs: &'a Directions,
+    scene: &'a TrackingScene,
+    optics: &'a [PhotonOptics],
+    params: PhotonParams,
+) -> PhotonInput<'a> {
+    PhotonInput {
+        spec,
+        grid,
+        facets: &facets.facets,
+        ground_facet: &scene.ground_facet,
+        dirs: &dirs.set,
+        optics,
+        fluid: None,
+        flat_ground: scene.flat_ground,
+        views: Vec::new(),
+        sun: dirs.sun,
+        e_dir: vec![0.0],
+        e_diff: vec![0.0],
+        params,
     }
-    for p in plots {
-        used[p.material as usize] = true;
-    }
-    for m in meshes {
-        for part in m.parts.iter().filter(|p| p.as_turbid) {
-            used[part.material as usize] = true;
-        }
-    }
-    used
 }
 
 /// The Photon stage's systems, in order: the passive Monte Carlo solver, then the LiDARs (whose

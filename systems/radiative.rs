@@ -5,7 +5,6 @@
 //! SceneInfo, Materials, TerrainRes, Ground; writes RadiativeProducts.
 
 use crate::components::Ground;
-use crate::geometry::terrain::Terrain;
 use crate::phase::lambertian_facet_fractions;
 use crate::radiative::engine::{RadiativeInput, TrackOptics, remap_wrong_side, run};
 use crate::radiative::products::RadiativeProducts;
@@ -14,6 +13,7 @@ use crate::resources::grid::{CellGrid, GridSpec};
 use crate::resources::materials::{MaterialKind, Materials};
 use crate::resources::scene::{SceneInfo, StageErrors, TerrainRes};
 use crate::resources::tracking::{Directions, OpticsTables, RadiativeSettings};
+use crate::systems::tracking_scene;
 use bevy_ecs::prelude::*;
 use rayon::prelude::*;
 use std::collections::HashMap;
@@ -52,18 +52,18 @@ pub fn track_flux(
                 return;
             }
         };
-    let flat_ground = match (&terrain.0, grounds.iter().next()) {
-        (Terrain::Flat(_), Some(g)) => match &mats.list[g.optics as usize].kind {
+    let scene = tracking_scene(&info, &spec, &terrain, grounds.iter().next(), &facets);
+    let flat_ground = scene
+        .flat_ground
+        .map(|g| match &mats.list[g as usize].kind {
             MaterialKind::Lambertian { reflectance, .. }
-            | MaterialKind::Leaf { reflectance, .. } => Some(reflectance.clone()),
-            _ => Some(vec![0.0; nb]),
-        },
-        _ => None,
-    };
+            | MaterialKind::Leaf { reflectance, .. } => reflectance.clone(),
+            _ => vec![0.0; nb],
+        });
     // RPV / Hapke flat ground: one facet table per band for the horizontal normal.
     let mut ground_brdf = None;
-    if let (Terrain::Flat(_), Some(g)) = (&terrain.0, grounds.iter().next()) {
-        let m = &mats.list[g.optics as usize];
+    if let Some(g) = scene.flat_ground {
+        let m = &mats.list[g as usize];
         let per_band = m.kind.brdf_models(nb);
         if let Some(models) = per_band {
             let mut tables_b = Vec::new();
@@ -137,15 +137,6 @@ pub fn track_flux(
     } else {
         Vec::new()
     };
-    let il = &info.illumination;
-    let e_tot: Vec<f64> = (0..nb)
-        .map(|b| il.irradiance_w_m2_um.get(b).copied().unwrap_or(1.0))
-        .collect();
-    let skyl: Vec<f64> = (0..nb)
-        .map(|b| il.skyl.get(b).copied().unwrap_or(0.0))
-        .collect();
-    let e_dir: Vec<f64> = (0..nb).map(|b| e_tot[b] * (1.0 - skyl[b])).collect();
-    let e_diff: Vec<f64> = (0..nb).map(|b| e_tot[b] * skyl[b]).collect();
     let optics: Vec<TrackOptics> = tables.optics.clone();
     // Orthographic images for every exact upward direction (the view directions a scene asks for).
     let mut n_img = 0u32;
@@ -178,30 +169,23 @@ pub fn track_flux(
         flat_ground,
         ground_brdf,
         sun: dirs.sun,
-        e_dir: e_dir.clone(),
-        e_diff: e_diff.clone(),
+        e_dir: scene.e_dir.clone(),
+        e_diff: scene.e_diff.clone(),
         params: settings.tracking.clone(),
         emitters: &[],
     };
     let t0 = std::time::Instant::now();
     let raw = run(&input);
     let secs = t0.elapsed().as_secs_f64();
-    let names: Vec<String> = info.bands.iter().map(|b| b.name.clone()).collect();
-    let area = spec.n[0] as f64 * spec.cell.x * spec.n[1] as f64 * spec.cell.y;
-    let ground_facet: Vec<bool> = facets
-        .facets
-        .iter()
-        .map(|f| f.kind == crate::resources::facets::FacetKind::Ground)
-        .collect();
     commands.insert_resource(ImageDirections(image_of));
     commands.insert_resource(RadiativeProducts::new(
         raw,
         &dirs.set,
-        &names,
-        area,
-        &e_dir,
-        &e_diff,
-        &ground_facet,
+        &scene.band_names,
+        scene.area_m2,
+        &scene.e_dir,
+        &scene.e_diff,
+        &scene.ground_facet,
         secs,
     ));
 }

@@ -113,16 +113,19 @@ fn place_random(
             attempts += 1;
             if attempts > max_attempts {
                 return Err(format!(
-                    "placed only {} of {total} trees with a minimum spacing of {min_spacing} m after {max_attempts} attempts: reduce the counts or the spacing",
-                    out.len()
+                    "placed only {} of {total} trees with a minimum spacing of {} m after {max_attempts} attempts: reduce the counts or the spacing",
+                    out.len(),
+                    crate::scene::validate::num(min_spacing)
                 ));
             }
             let x = x0 + (x1 - x0) * uniform(&mut rng);
             let y = y0 + (y1 - y0) * uniform(&mut rng);
             let bi = (((x - x0) / cw) as usize).min(gx - 1);
             let bj = (((y - y0) / ch) as usize).min(gy - 1);
-            let reach_i = (min_spacing / cw).ceil() as i64;
-            let reach_j = (min_spacing / ch).ceil() as i64;
+            // At most the whole bucket grid: a larger reach (a huge spacing) would only visit
+            // the same buckets again (and loop for ~forever).
+            let reach_i = ((min_spacing / cw).ceil() as i64).min(gx as i64);
+            let reach_j = ((min_spacing / ch).ceil() as i64).min(gy as i64);
             let mut ok = true;
             'scan: for dj in -reach_j..=reach_j {
                 for di in -reach_i..=reach_i {

@@ -6,20 +6,20 @@
 //! comparisons state their resolution next to the tolerance.
 
 use glam::DVec3;
+use lumenscape::direction::{
+    DirectionKind, DirectionParams, DirectionSet, ExactDirection, OversampleRegion,
+    direction_from_deg,
+};
+use lumenscape::phase::{
+    TableParams, brdf_facet_table, fluid_table, lambertian_facet_fractions, projected_solid_angle,
+    vegetation_table, vegetation_unit_tables,
+};
 use lumenscape::physics::brdf::{Brdf, LocalGeometry};
 use lumenscape::physics::lad::{
     Lad, LeafOptics, VolscattKernel, ellipsoidal_g, gamma_quadrature, gamma_spherical,
     gauss_legendre, tanh_sinh,
 };
 use lumenscape::physics::phase::FluidPhase;
-use lumenscape::resources::directions::{
-    DirectionKind, DirectionParams, DirectionSet, ExactDirection, OversampleRegion,
-    direction_from_deg,
-};
-use lumenscape::resources::phase_tables::{
-    TableParams, brdf_facet_table, fluid_table, lambertian_facet_fractions, projected_solid_angle,
-    vegetation_table, vegetation_unit_tables,
-};
 use std::f64::consts::{PI, TAU};
 
 fn dir(theta_deg: f64, phi_deg: f64) -> DVec3 {
@@ -996,7 +996,7 @@ fn lambertian_facet_projected_solid_angles_are_exact() {
 /// between the integrand's kinks is smooth inside, square-root-like at its ends).
 #[test]
 fn projected_solid_angle_coarse_rule_matches_the_fine_one() {
-    use lumenscape::resources::phase_tables::projected_solid_angle_fine;
+    use lumenscape::phase::projected_solid_angle_fine;
     let set = DirectionSet::with_count(400).unwrap();
     let mut worst: f64 = 0.0;
     for k in 0..200 {

@@ -8,9 +8,9 @@
 
 mod common;
 use common::*;
+use lumenscape::lidar::run::LidarProducts;
 use lumenscape::photon::engine::SamplerKind;
 use lumenscape::radiative::products::RadiativeProducts;
-use lumenscape::resources::lidar::LidarProducts;
 use lumenscape::resources::scene::{RunSettings, Solver};
 use lumenscape::scene::SceneSource;
 use lumenscape::scene::desc::*;

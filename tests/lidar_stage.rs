@@ -7,10 +7,10 @@ mod common;
 use common::*;
 use lumenscape::io::las_out::read_las;
 use lumenscape::lidar::returns::ReturnsMethod;
+use lumenscape::lidar::run::{LidarProducts, LidarRun};
 use lumenscape::lidar::waveform::{
     FirstOrderCanopy, GapCorrelation, Waveform, analytic_first_order,
 };
-use lumenscape::resources::lidar::{LidarProducts, LidarRun};
 use lumenscape::resources::scene::RunSettings;
 use lumenscape::scene::SceneSource;
 use lumenscape::scene::desc::*;
@@ -329,10 +329,8 @@ fn lidar_products_round_trip_through_the_las_reader() {
         shots: 5,
     });
     let mut d = scene(1.5, 0.2, l);
-    d.directions = Some(lumenscape::resources::directions::DirectionParams {
-        exact: vec![lumenscape::resources::directions::ExactDirection::new(
-            0.0, 0.0,
-        )],
+    d.directions = Some(lumenscape::direction::DirectionParams {
+        exact: vec![lumenscape::direction::ExactDirection::new(0.0, 0.0)],
         ..Default::default()
     });
     let runs = run(&d, Some(&out));
@@ -461,7 +459,7 @@ fn facet_tree_and_turbid_tree_give_similar_waveforms() {
     };
     let (ef, et) = (f.waveform.total_energy_j(), t.waveform.total_energy_j());
     let (cf, ct) = (centroid(&f.waveform), centroid(&t.waveform));
-    let first = |p: &lumenscape::resources::lidar::PulseRecord| {
+    let first = |p: &lumenscape::lidar::run::PulseRecord| {
         p.returns
             .iter()
             .map(|r| r.range_m)

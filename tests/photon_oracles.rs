@@ -10,10 +10,10 @@
 mod common;
 use common::*;
 use glam::DVec3;
+use lumenscape::direction::{DirectionParams, DirectionSet, ExactDirection};
 use lumenscape::photon::engine::*;
 use lumenscape::physics::phase::FluidPhase;
 use lumenscape::radiative::products::RadiativeProducts;
-use lumenscape::resources::directions::{DirectionParams, DirectionSet, ExactDirection};
 use lumenscape::resources::grid::{CellGrid, GridSpec};
 use lumenscape::resources::scene::{RunSettings, Solver};
 use lumenscape::scene::SceneSource;
@@ -236,7 +236,7 @@ fn slab(
         t: vec![0.0],
         t_dir: vec![0.0],
     }];
-    let sun_pos = lumenscape::resources::directions::direction_from_deg(sza, 0.0);
+    let sun_pos = lumenscape::direction::direction_from_deg(sza, 0.0);
     let input = PhotonInput {
         spec: &spec,
         grid: &grid,
@@ -248,7 +248,7 @@ fn slab(
         flat_ground: Some(0),
         views: views
             .iter()
-            .map(|&(z, a)| lumenscape::resources::directions::direction_from_deg(z, a))
+            .map(|&(z, a)| lumenscape::direction::direction_from_deg(z, a))
             .collect(),
         sun: -sun_pos,
         e_dir: vec![1.0],

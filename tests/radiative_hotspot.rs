@@ -4,8 +4,8 @@
 //! `q = l/H`, and physics.md §13 test 5 (the exact-hotspot single-scattering BRF).
 
 mod common;
+use lumenscape::direction::ExactDirection;
 use lumenscape::radiative::products::RadiativeProducts;
-use lumenscape::resources::directions::ExactDirection;
 use lumenscape::resources::scene::RunSettings;
 use lumenscape::scene::SceneSource;
 use lumenscape::scene::desc::*;

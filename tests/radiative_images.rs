@@ -7,16 +7,16 @@
 mod common;
 use common::*;
 use glam::DVec3;
+use lumenscape::direction::{
+    DirectionKind, DirectionParams, DirectionSet, ExactDirection, direction_from_deg,
+};
+use lumenscape::phase::lambertian_facet_fractions;
 use lumenscape::radiative::engine::{
     RadiativeInput, RadiativeResult, TrackOptics, TrackingParams, remap_wrong_side, run,
 };
 use lumenscape::radiative::products::RadiativeProducts;
-use lumenscape::resources::directions::{
-    DirectionKind, DirectionParams, DirectionSet, ExactDirection, direction_from_deg,
-};
 use lumenscape::resources::facets::{Facet, FacetKind};
 use lumenscape::resources::grid::{CellGrid, GridSpec, compress};
-use lumenscape::resources::phase_tables::lambertian_facet_fractions;
 use lumenscape::resources::scene::RunSettings;
 use lumenscape::resources::tracking::Directions;
 use lumenscape::scene::SceneSource;

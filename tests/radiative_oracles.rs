@@ -297,9 +297,11 @@ fn hard_cases_keep_energy_closed_without_nan() {
         }),
         ("view 89°", {
             let mut d = layer(2.0, 30.0, 0.5, vec![BandOptics::red()], LadDesc::Spherical);
-            d.directions.as_mut().unwrap().exact.push(
-                lumenscape::resources::directions::ExactDirection::new(89.0, 0.0),
-            );
+            d.directions
+                .as_mut()
+                .unwrap()
+                .exact
+                .push(lumenscape::direction::ExactDirection::new(89.0, 0.0));
             d
         }),
         (
@@ -348,10 +350,10 @@ fn facets_in_cell_faces_and_isolated_sides_keep_energy_closed() {
 fn products_are_bit_identical_on_1_2_and_8_threads() {
     // With images (three exact views, η = 2: footprints spread over 0.5 m pixels).
     let mut d = small_forest();
-    d.directions = Some(lumenscape::resources::directions::DirectionParams {
+    d.directions = Some(lumenscape::direction::DirectionParams {
         exact: [(0.0, 0.0), (30.0, 225.0), (55.0, 100.0)]
             .into_iter()
-            .map(|(z, a)| lumenscape::resources::directions::ExactDirection {
+            .map(|(z, a)| lumenscape::direction::ExactDirection {
                 zenith_deg: z,
                 azimuth_deg: a,
                 label: None,
@@ -468,7 +470,7 @@ fn rpv_and_hapke_ground_reflect_their_brf() {
                 .set
                 .clone();
             assert_closes(&p, 1e-9, "brdf ground");
-            let sun_in = -lumenscape::resources::directions::direction_from_deg(sza, 0.0);
+            let sun_in = -lumenscape::direction::direction_from_deg(sza, 0.0);
             // Albedo = directional–hemispherical reflectance (rows are renormalised to it).
             let rho_dh = model.albedo_dh(sza.to_radians().cos());
             assert!(
@@ -477,10 +479,7 @@ fn rpv_and_hapke_ground_reflect_their_brf() {
                 p.bands[0].albedo
             );
             for e in p.bands[0].brf.iter().filter(|e| e.kind == "exact") {
-                let view = lumenscape::resources::directions::direction_from_deg(
-                    e.zenith_deg,
-                    e.azimuth_deg,
-                );
+                let view = lumenscape::direction::direction_from_deg(e.zenith_deg, e.azimuth_deg);
                 // A discrete direction's BRF is the μ-weighted mean of the BRF over its sector
                 // (exact sectors are 0.001 sr): recompute that mean independently with a
                 // 64 × 64 midpoint rule over the sector bounds. Remaining difference: the row
@@ -627,7 +626,7 @@ fn rpv_and_hapke_dem_facets_reflect_their_local_albedo() {
                 let what = format!("{model:?} sza {sza} tilted {tilted}");
                 assert_closes(&p, 1e-9, &what);
                 let n = glam::DVec3::new(-s, 0.0, 1.0).normalize();
-                let sun_in = -lumenscape::resources::directions::direction_from_deg(sza, 0.0);
+                let sun_in = -lumenscape::direction::direction_from_deg(sza, 0.0);
                 let mu_local = -sun_in.dot(n);
                 let rho_dh = model.albedo_dh(mu_local).min(1.0);
                 // Per unit horizontal irradiance the plane intercepts all of it.

@@ -3,10 +3,10 @@
 //! the entry point for thermal emission, atmosphere path radiance and lamps.
 
 use glam::DVec3;
+use lumenscape::direction::{DirectionSet, direction_from_deg};
 use lumenscape::radiative::engine::{
     Emission, RadiativeInput, RadiativeResult, TrackingParams, run,
 };
-use lumenscape::resources::directions::{DirectionSet, direction_from_deg};
 use lumenscape::resources::grid::{CellGrid, GridSpec};
 use lumenscape::scene::desc::BoundaryMode;
 

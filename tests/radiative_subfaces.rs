@@ -149,11 +149,9 @@ fn every_mode_is_bit_identical_on_1_2_and_8_threads() {
         image_oversampling: 2,
         ..Default::default()
     });
-    forest.directions = Some(lumenscape::resources::directions::DirectionParams {
+    forest.directions = Some(lumenscape::direction::DirectionParams {
         count: 50,
-        exact: vec![lumenscape::resources::directions::ExactDirection::new(
-            30.0, 225.0,
-        )],
+        exact: vec![lumenscape::direction::ExactDirection::new(30.0, 225.0)],
         ..Default::default()
     });
     // The forest with the two modes that emit differently (per-store rays merged at the exit,

@@ -263,8 +263,8 @@ fn spec_n_columns(sim: &Simulation) -> usize {
 /// and the photon-counting background. `fusion: true` asks for the passive run by itself.
 #[test]
 fn lidar_only_scenes_skip_the_passive_solver_and_keep_their_waveforms() {
+    use lumenscape::lidar::run::LidarProducts;
     use lumenscape::radiative::products::RadiativeProducts;
-    use lumenscape::resources::lidar::LidarProducts;
     use lumenscape::scene::SceneSource;
     let (desc, _) = load_scene(&asset("assets/scenes/lidar_als.ron")).unwrap();
     assert!(desc.lidars.as_ref().is_some_and(|l| !l.is_empty()));
@@ -329,7 +329,7 @@ fn lidar_only_scenes_skip_the_passive_solver_and_keep_their_waveforms() {
 /// left, and a failed write leaves no partial product.
 #[test]
 fn streamed_lidar_scans_write_the_same_products_and_leave_nothing_behind() {
-    use lumenscape::resources::lidar::LidarProducts;
+    use lumenscape::lidar::run::LidarProducts;
     use lumenscape::resources::scene::RunSettings;
     use lumenscape::scene::SceneSource;
     use lumenscape::scene::desc::{LidarPlatform, PhotonCountingDesc, PulsePattern};

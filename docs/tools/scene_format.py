@@ -25,8 +25,7 @@ SOURCES = [
     ("src/physics/lad.rs", ["Lad", "LeafSpecular"]),
     ("src/physics/prospect.rs", ["ProspectModel"]),
     ("src/direction/mod.rs", ["DirectionParams", "ExactDirection", "OversampleRegion"]),
-    ("src/lidar/pulse/mod.rs", ["BeamProfile"]),
-    ("src/lidar/returns/mod.rs", ["ReturnsMethod"]),
+    ("src/scene/desc.rs", ["BeamProfile", "ReturnsMethod"]),
 ]
 
 # Defaults that are not a literal in a `default = "fn"` function.
@@ -150,11 +149,12 @@ def parse(path):
 
 def cell(s):
     s = re.sub(r"\[`([^`]+)`\](?!\()", r"`\1`", s)  # rustdoc intra-doc links
+    s = re.sub(r"\[`([^`]+)`\]\((?:crate|super|self)::[\w:]+\)", r"`\1`", s)  # with a path
     return s.replace("|", "\\|").replace("\n", " ")
 
 
 def short_type(t):
-    t = t.replace("crate::resources::directions::", "").replace("crate::lidar::pulse::", "")
+    t = t.replace("crate::direction::", "").replace("crate::lidar::pulse::", "")
     t = t.replace("crate::lidar::returns::", "").replace("crate::physics::lad::", "")
     t = t.replace("serde::de::IgnoredAny", "(anything)")
     return t
@@ -224,8 +224,13 @@ A scene is one [RON](https://github.com/ron-rs/ron) file read into `SceneDesc`
   [0, 60]); simple (non-self-crossing) polygons; objects inside the scene for `Isolated`
   boundaries; sun given either by both
   angles or by `sun_position`; `image_oversampling` in 1..=64 with at most 2²⁶ pixels per image;
-  the reserved sections `atmosphere` and `sensors` are refused (not implemented yet). Each error
-  names the file, line, column and field.
+  the reserved sections `atmosphere` and `sensors` are refused (not implemented yet). Limits
+  that refuse absurd values before any allocation: at most 2³² − 1 grid cells; `Lai` and
+  `LeafAreaDensity` at most 100 (and the density a `LeafArea` implies); trunk and disk polygons
+  of 3 to 1000 sides; at most 10⁶ trees per random stand; ground rasters of at most 2²⁸ nodes;
+  exact (view) directions with zenith in [0, 90]; airborne LiDAR aim points within 100 scene
+  sizes; at most 10⁷ pulses per LiDAR; an `optics` name defined twice is an error (RON would
+  keep the last). Each error names the file, line, column and field.
 
 Example: `assets/scenes/default.ron` uses every object kind; the other files of
 `assets/scenes/` are one example per feature.

@@ -69,20 +69,23 @@ pub struct SceneOpts {
     /// stage, products with standard errors).
     #[arg(long, value_enum, default_value = "flux-tracking")]
     pub solver: SolverArg,
-    /// Photons for the Monte Carlo solver (sun + sky).
-    #[arg(long, default_value_t = 1_000_000, value_parser = clap::value_parser!(u64).range(1..))]
-    pub photons: u64,
+    /// Photons for the Monte Carlo solver (sun + sky) [default: 1000000]; only with
+    /// `--solver monte-carlo`.
+    #[arg(long, value_parser = clap::value_parser!(u64).range(1..))]
+    pub photons: Option<u64>,
     /// Scattering-direction sampler of the Monte Carlo solver: exact continuous phase
     /// functions (unbiased reference) or DART's Ray-Carlo over the discrete directions with
-    /// alias tables or the Box method.
-    #[arg(long, value_enum, default_value = "continuous")]
-    pub sampler: SamplerArg,
-    /// Box method: largest max/min probability ratio inside a class.
-    #[arg(long, default_value_t = 2.0)]
-    pub box_gamma: f64,
-    /// Box method: boxes per incident direction (memory budget).
-    #[arg(long, default_value_t = 4096)]
-    pub box_budget: usize,
+    /// alias tables or the Box method [default: continuous]; only with `--solver monte-carlo`.
+    #[arg(long, value_enum)]
+    pub sampler: Option<SamplerArg>,
+    /// Box method: largest max/min probability ratio inside a class (> 1) [default: 2];
+    /// only with `--sampler box`.
+    #[arg(long)]
+    pub box_gamma: Option<f64>,
+    /// Box method: boxes per incident direction (memory budget) [default: 4096]; only with
+    /// `--sampler box`.
+    #[arg(long, value_parser = clap::value_parser!(u64).range(1..))]
+    pub box_budget: Option<u64>,
     /// Oversampling factor η of the orthographic images: pixels of Δx/η × Δy/η (overrides
     /// the scene's `radiative.image_oversampling`; 1..=64, and at most 2^26 pixels per image).
     #[arg(long, value_parser = clap::value_parser!(u32).range(1..=crate::scene::validate::MAX_IMAGE_OVERSAMPLING as i64))]
@@ -137,12 +140,12 @@ pub enum SamplerArg {
 impl SceneOpts {
     fn settings(&self) -> RunSettings {
         use crate::photon::engine::SamplerKind;
-        let sampler = match self.sampler {
+        let sampler = match self.sampler.unwrap_or(SamplerArg::Continuous) {
             SamplerArg::Continuous => SamplerKind::Continuous,
             SamplerArg::Alias => SamplerKind::Alias,
             SamplerArg::Box => SamplerKind::Box {
-                gamma: self.box_gamma,
-                max_boxes: self.box_budget,
+                gamma: self.box_gamma.unwrap_or(2.0),
+                max_boxes: self.box_budget.unwrap_or(4096) as usize,
             },
         };
         RunSettings {
@@ -152,7 +155,7 @@ impl SceneOpts {
             solver: match self.solver {
                 SolverArg::FluxTracking => crate::resources::scene::Solver::FluxTracking,
                 SolverArg::MonteCarlo => crate::resources::scene::Solver::MonteCarlo {
-                    photons: self.photons,
+                    photons: self.photons.unwrap_or(1_000_000),
                     sampler,
                 },
             },
@@ -171,10 +174,51 @@ impl SceneOpts {
         }
     }
 
+    /// Refuses Monte Carlo flags that the chosen solver or sampler would ignore, and a Box
+    /// ratio that is not > 1 (exit 2, like clap's own usage errors).
+    fn check_flags(&self) -> Result<(), CliError> {
+        let usage = |message: String| CliError { message, code: 2 };
+        if self.solver == SolverArg::FluxTracking {
+            for (flag, given) in [
+                ("--photons", self.photons.is_some()),
+                ("--sampler", self.sampler.is_some()),
+                ("--box-gamma", self.box_gamma.is_some()),
+                ("--box-budget", self.box_budget.is_some()),
+            ] {
+                if given {
+                    return Err(usage(format!(
+                        "{flag} is an option of the Monte Carlo solver and would be ignored by the flux-tracking solver: add `--solver monte-carlo` or remove {flag}"
+                    )));
+                }
+            }
+        }
+        if self.sampler != Some(SamplerArg::Box) {
+            for (flag, given) in [
+                ("--box-gamma", self.box_gamma.is_some()),
+                ("--box-budget", self.box_budget.is_some()),
+            ] {
+                if given {
+                    return Err(usage(format!(
+                        "{flag} is an option of the Box sampler and would be ignored: add `--sampler box` or remove {flag}"
+                    )));
+                }
+            }
+        }
+        if let Some(g) = self.box_gamma
+            && !(g.is_finite() && g > 1.0)
+        {
+            return Err(usage(format!(
+                "--box-gamma {g}: the Box method's max/min probability ratio must be a finite number > 1"
+            )));
+        }
+        Ok(())
+    }
+
     /// Loads, validates and spawns the scene with these settings; an `--image-oversampling`
     /// that would make images above the pixel limit for this scene's grid is refused here
     /// (exit 1), before any work.
     fn load(&self) -> Result<Simulation, CliError> {
+        self.check_flags()?;
         let (desc, src) = crate::scene::load_scene(&self.scene)?;
         if let Some(eta) = self.image_oversampling {
             let g = &desc.grid;
@@ -323,6 +367,32 @@ fn radiative_estimate(sim: &mut Simulation, report: &MaketReport) -> (u64, usize
         }
         crate::scene::desc::TurbidSubfaces::Blend => (1, slots),
     };
+    // The estimate's integer products overflow for absurd counts (a grid over the memory
+    // limit is still reported before its refusal): bound them in floating point first and
+    // report a saturated estimate instead.
+    {
+        let f = |x: usize| x as f64;
+        let w = f(info.bands.len()) * 2.0;
+        let (ts, tp) = (f(turbid_stores.0.max(1)), f(turbid_stores.1.max(1)));
+        let entries = report.memory.turbid_entries_max as f64;
+        let refs = report.memory.facet_refs_max as f64;
+        let cols = f(report.cells[0]) * f(report.cells[1]);
+        let pixels = f(n_images) * cols * f(eta) * f(eta);
+        let nd = f(n_dirs) + 1.0;
+        let bound = f(report.leaf_area.len()) * w * nd * nd * 16.0
+            + f(n_facets) * nd * 8.0
+            + 16.0
+                * (entries * (ts * f(slots) * w + tp * 8.0)
+                    + refs * (2.0 * w + 4.0)
+                    + cols * (w + 4.0))
+            + 8.0 * w * (3.0 * (entries + f(n_facets) + cols) + nd)
+            + f(rayon::current_num_threads()) * 8.0 * nd * ts * (w + 4.0)
+            + 24.0 * w * pixels
+            + (1u64 << 30) as f64;
+        if !(bound < (1u64 << 62) as f64) {
+            return (u64::MAX, n_dirs, slots);
+        }
+    }
     let est = crate::radiative::memory_estimate(
         n_dirs,
         slots,

@@ -354,7 +354,8 @@ pub struct DirectionParams {
     pub cos_weighted: bool,
     /// Number of zenith rings per hemisphere (DART `numberOfLayers`; `None` = automatic).
     pub layers: Option<usize>,
-    /// Directions made exact by sector splitting (propagation angles).
+    /// Directions made exact by sector splitting (propagation angles); in a scene file they are
+    /// view directions, zenith in [0, 90].
     pub exact: Vec<ExactDirection>,
     /// Oversampled regions.
     pub oversample: Vec<OversampleRegion>,

@@ -21,6 +21,8 @@
 //!   draws and sequential dead-time simulation for single-photon LiDAR — physics.md §9.5.
 //! * [`waveform_io`]: compact waveform products (little-endian f32 binary + CSV index) and SVG
 //!   quick-looks.
+//! * [`run`]: the results of an instrument ([`run::LidarRun`]) and of the stage
+//!   ([`run::LidarProducts`]).
 //! * [`spool`]: per-pulse results of a streamed scan in temporary files (memory bounded by a
 //!   chunk).
 //! * [`special`]: erf/erfc and log-factorial used by the above.
@@ -34,6 +36,7 @@ pub mod photon_counting;
 pub mod products;
 pub mod pulse;
 pub mod returns;
+pub mod run;
 pub mod simulate;
 pub mod special;
 pub mod spool;

@@ -7,9 +7,9 @@
 
 use crate::io::atomic::{write_atomic, write_atomic_with};
 use crate::io::las_out::{LasPoint, write_las_stream};
+use crate::lidar::run::LidarRun;
 use crate::lidar::spool::PulseEntry;
 use crate::lidar::waveform_io::{waveform_svg, write_waveforms};
-use crate::resources::lidar::LidarRun;
 use std::path::Path;
 
 /// Pulse repetition period used for the LAS GPS time of pulse `id` (`id × 1e-5 s`, 100 kHz):

@@ -13,21 +13,25 @@
 //! against the analytic waveform; multiple-scattering returns are not correlated. The passive
 //! solvers apply the same correlation to first-order sun radiation (the hotspot).
 
+use crate::direction::direction_from_deg;
 use crate::lidar::photon_counting::{
     Detector, mean_signal_counts, simulate_shot, solar_background_rate,
 };
-use crate::lidar::pulse::{BeamProfile, FootprintSampler, PulseShape};
+use crate::lidar::pulse::{BeamProfile, FootprintSampler, PulseKernel, PulseShape};
+use crate::lidar::run::{CountedPhoton, LidarRun, PulseRecord, StreamedRun};
 use crate::lidar::spool::{PulseEntry, Spool, spool_counted};
-use crate::lidar::tracking::{Beam, Pulse, run_lidar_chunks};
+use crate::lidar::tracking::{Beam, Pulse, PulseResult, run_lidar_chunks};
 use crate::lidar::waveform::{Waveform, WaveformBinner};
 use crate::lidar::waveform_io::WaveformStream;
 use crate::photon::engine::PhotonInput;
-use crate::resources::directions::direction_from_deg;
-use crate::resources::lidar::{CountedPhoton, LidarRun, PulseRecord, StreamedRun};
 use crate::scene::desc::{
-    DEFAULT_LIDAR_PHOTONS, DEFAULT_LIDAR_PHOTONS_PER_RAY, LidarDesc, LidarPlatform, PulsePattern,
+    DEFAULT_LIDAR_PHOTONS, DEFAULT_LIDAR_PHOTONS_PER_RAY, LidarDesc, LidarPlatform,
+    PhotonCountingDesc, PulsePattern,
 };
 use glam::DVec3;
+
+/// The run settings of the LiDAR chunks ([`crate::resources::scene::RunSettings`]).
+pub use crate::resources::scene::{DEFAULT_CHUNK_PULSES, FarRoulette};
 
 /// Passive spectral radiance at sensor level, per band, on the grid's columns (or one value
 /// for the whole scene), W m⁻² sr⁻¹ µm⁻¹.
@@ -255,11 +259,6 @@ fn footprint_centre(pl: &PulseRecord) -> (f64, f64) {
     (c.x, c.y)
 }
 
-/// Pulses tracked per chunk: the memory of a streamed scan is bounded by one chunk's waveforms
-/// (plus every pulse's returns and energies); 8192 pulses keep both cores busy and each
-/// chunk's parallel tail short.
-pub const DEFAULT_CHUNK_PULSES: usize = 8192;
-
 /// How an instrument's pulses are run: by chunks, the waveforms of a long scan streamed to
 /// disk while it runs when there is an output folder, with a progress bar if asked.
 #[derive(Debug, Clone)]
@@ -277,19 +276,6 @@ pub struct LidarChunks {
     /// The expected-value estimator's column quadrature of the first-order return where it
     /// applies ([`crate::lidar::tracking::Beam::first_order_columns`]; default true).
     pub first_order_columns: bool,
-}
-
-/// The expected-value estimator's far-photon roulette of multiple scattering
-/// ([`crate::lidar::tracking::Beam::far_roulette_m`]); every setting has the same expectation.
-#[derive(Debug, Clone, Copy, PartialEq, Default)]
-pub enum FarRoulette {
-    /// Distance scale ρ₀ from the scene (`far_roulette_scale_m`; the default).
-    #[default]
-    Auto,
-    /// A given distance scale ρ₀ (m, > 0): for tests and studies.
-    ScaleM(f64),
-    /// Every multiple-scattering photon goes on (for the equality tests and for measuring).
-    Off,
 }
 
 impl Default for LidarChunks {
@@ -343,6 +329,11 @@ const WIDE_FOOTPRINT_CELLS: f64 = 2.0;
 /// than one chunk, each chunk's waveforms are written to temporary files as soon as it is done
 /// ([`LidarRun::streamed`]) and only the first quick-looks' waveforms stay in memory. The
 /// products are the same bytes either way.
+///
+/// Steps: the beam's footprint (`beam_footprint`), the range gate (`range_gate`), the tracking
+/// parameters (`beam`), the pulse kernel and the gate's time axis, the run's notes
+/// (`run_notes`), then the pulses by chunks (`ScanOutputs::add_chunk`: waveforms and returns,
+/// photon counting, fusion, streaming).
 pub fn simulate_lidar(
     desc: &LidarDesc,
     band: usize,
@@ -356,6 +347,100 @@ pub fn simulate_lidar(
     // Generated on demand: a scan's pulse list is not held in memory.
     let plan = PulsePlan::new(desc);
     let ref_range = plan.reference_range_m;
+    let (shape, footprint) = beam_footprint(desc, ref_range)?;
+    let gate = range_gate(desc, &plan, box_lo, box_hi, &shape);
+    let beam = beam(desc, input, chunks, &shape, footprint, ref_range, gate);
+    let pulse = PulseShape::from_fwhm_ns(desc.pulse_fwhm_ns, 3.0)
+        .map_err(|e| format!("lidar `{}`: {e}", desc.name))?;
+    // The full time axis of the convolved waveforms (range gate widened by the pulse kernel):
+    // stored waveforms are trimmed to their non-zero bins, photon counting needs the whole gate.
+    // The pulse kernel on the digitiser's bins: the same for every pulse, computed once (it
+    // cost ~3.5k instructions per pulse, as much again as the convolution itself).
+    let kernel = pulse
+        .kernel(desc.bin_ns)
+        .map_err(|e| format!("lidar `{}`: {e}", desc.name))?;
+    let gate_axis = {
+        let b = WaveformBinner::new(gate.0, gate.1, desc.bin_ns)
+            .map_err(|e| format!("lidar `{}`: {e}", desc.name))?;
+        let w = b.waveform();
+        (
+            w.t0_ns - kernel.centre as f64 * w.dt_ns,
+            w.n_bins() + kernel.weights.len() - 1,
+        )
+    };
+    let notes = run_notes(desc, input, passive, chunks, &shape, &beam);
+    // Photon counting: the detector, once.
+    let detector = desc.photon_counting.as_ref().map(|pc| Detector {
+        quantum_efficiency: pc.quantum_efficiency,
+        dead_time_ns: pc.dead_time_ns,
+        dark_count_hz: pc.dark_count_hz,
+        ..Detector::dart_default()
+    });
+    let chunk = chunks.chunk_pulses.max(1);
+    let err = |e: crate::lidar::LidarError| format!("lidar `{}`: {e}", desc.name);
+    let cx = ChunkContext {
+        desc,
+        band,
+        seed: input.params.seed,
+        passive,
+        fov_half: shape.fov_half,
+        kernel,
+        gate_axis,
+        detector,
+        fusion: desc.fusion && passive.is_some(),
+    };
+    // Streamed: waveforms and spools of the pulses' entries and detections.
+    let writers = match &chunks.stream_dir {
+        Some(dir) if plan.len() > chunk => Some((
+            WaveformStream::create(dir).map_err(err)?,
+            WaveformStream::create(&dir.join("raw")).map_err(err)?,
+            Spool::create(dir, "pulses")?,
+            Spool::create(dir, "counted")?,
+        )),
+        _ => None,
+    };
+    let bar = crate::io::progress::progress_bar(chunks.progress, plan.len() as u64, "LiDAR pulses");
+    let mut outs = ScanOutputs {
+        records: Vec::with_capacity(if writers.is_some() {
+            crate::lidar::products::QUICKLOOKS
+        } else {
+            plan.len()
+        }),
+        counted: Vec::new(),
+        background_rate_hz: Vec::new(),
+        fusion_radiance: Vec::new(),
+        noise: 0,
+        writers,
+    };
+    run_lidar_chunks(input, &beam, plan.iter(), chunk, |part, results| {
+        outs.add_chunk(&cx, part, results)?;
+        bar.inc(part.len() as u64);
+        Ok(())
+    })?;
+    bar.finish_and_clear();
+    outs.finish(desc, cx.fusion, notes, t0)
+}
+
+/// The beam's transverse profile and extent ([`beam_footprint`]).
+struct BeamShape {
+    /// Nominal footprint radius at the reference range, m.
+    radius: f64,
+    /// Transverse profile (the scene's `beam`, else Gaussian with `edge_intensity`).
+    profile: BeamProfile,
+    /// Truncation of the profile, in footprint radii.
+    reach: f64,
+    /// Half-angle of the receiver's field of view, rad.
+    fov_half: f64,
+}
+
+/// The beam's footprint at the reference range `ref_range` (DART 5 paper §4; physics.md
+/// §9.1): the radius (given, or from the divergence), the profile truncated at 3 radii or at
+/// the end of a longer table (the lost fraction is reported), its sampler, and the receiver's
+/// field of view (`fov_radius_m`, else the truncated footprint).
+fn beam_footprint(
+    desc: &LidarDesc,
+    ref_range: f64,
+) -> Result<(BeamShape, FootprintSampler), String> {
     let radius = match (desc.footprint_radius_m, desc.divergence_mrad) {
         (Some(r), _) => r,
         (None, Some(d)) => ref_range * (0.5e-3 * d).tan(),
@@ -374,13 +459,30 @@ pub fn simulate_lidar(
         .map_err(|e| format!("lidar `{}`: {e}", desc.name))?;
     let fov_r = desc.fov_radius_m.unwrap_or(reach * radius);
     let fov_half = (fov_r / ref_range).atan();
-    // Range gate from the grid box (two-way), plus the margin for multiple scattering.
-    // Airborne: from the top plane to the bottom one over the beam's cone (half-angle α of the
-    // truncated footprint at the reference range): the footprint's edge rays reach the bottom
-    // plane later than the axis by the factor cos θ/cos(θ + α) (θ the axis zenith; 1 + α²/2 at
-    // nadir), which a wide beam at long range makes larger than the margin (footprint 900 m at
-    // 30 km: 13.5 m).
-    let alpha = (reach * radius / ref_range).atan();
+    let shape = BeamShape {
+        radius,
+        profile,
+        reach,
+        fov_half,
+    };
+    Ok((shape, footprint))
+}
+
+/// The range gate (two-way path lengths, m) from the grid box over every pulse of the plan,
+/// plus the margin for multiple scattering. Airborne: from the top plane to the bottom one
+/// over the beam's cone (half-angle α of the truncated footprint at the reference range): the
+/// footprint's edge rays reach the bottom plane later than the axis by the factor
+/// cos θ/cos(θ + α) (θ the axis zenith; 1 + α²/2 at nadir), which a wide beam at long range
+/// makes larger than the margin (footprint 900 m at 30 km: 13.5 m). An emitter inside the
+/// box: from 0 to its farthest corner.
+fn range_gate(
+    desc: &LidarDesc,
+    plan: &PulsePlan,
+    box_lo: DVec3,
+    box_hi: DVec3,
+    shape: &BeamShape,
+) -> (f64, f64) {
+    let alpha = (shape.reach * shape.radius / plan.reference_range_m).atan();
     let mut d_min = f64::INFINITY;
     let mut d_max: f64 = 0.0;
     for pl in plan.iter() {
@@ -414,14 +516,28 @@ pub fn simulate_lidar(
             }
         }
     }
-    let gate = (
+    (
         (2.0 * d_min - 1.0).max(0.0),
         2.0 * d_max + 2.0 * desc.gate_margin_m + 1.0,
-    );
-    let beam = Beam {
+    )
+}
+
+/// The tracking parameters of the instrument's pulses ([`Beam`]): footprint, field of view,
+/// receiver, energy, beam-ray counts, range gate and estimator settings (the far-photon
+/// roulette's scale from the scene unless given, [`far_roulette_scale_m`]).
+fn beam(
+    desc: &LidarDesc,
+    input: &PhotonInput,
+    chunks: &LidarChunks,
+    shape: &BeamShape,
+    footprint: FootprintSampler,
+    ref_range: f64,
+    gate: (f64, f64),
+) -> Beam {
+    Beam {
         footprint,
         reference_range_m: ref_range,
-        cos_fov: fov_half.cos(),
+        cos_fov: shape.fov_half.cos(),
         aperture_m2: desc.aperture_m2,
         energy_j: desc.pulse_energy_j,
         photons: desc.photons_per_pulse.unwrap_or(DEFAULT_LIDAR_PHOTONS),
@@ -438,29 +554,29 @@ pub fn simulate_lidar(
             _ => 0.0,
         },
         first_order_columns: chunks.first_order_columns,
-    };
-    let shape = PulseShape::from_fwhm_ns(desc.pulse_fwhm_ns, 3.0)
-        .map_err(|e| format!("lidar `{}`: {e}", desc.name))?;
-    // The full time axis of the convolved waveforms (range gate widened by the pulse kernel):
-    // stored waveforms are trimmed to their non-zero bins, photon counting needs the whole gate.
-    // The pulse kernel on the digitiser's bins: the same for every pulse, computed once (it
-    // cost ~3.5k instructions per pulse, as much again as the convolution itself).
-    let kernel = shape
-        .kernel(desc.bin_ns)
-        .map_err(|e| format!("lidar `{}`: {e}", desc.name))?;
-    let gate_axis = {
-        let b = WaveformBinner::new(gate.0, gate.1, desc.bin_ns)
-            .map_err(|e| format!("lidar `{}`: {e}", desc.name))?;
-        let w = b.waveform();
-        (
-            w.t0_ns - kernel.centre as f64 * w.dt_ns,
-            w.n_bins() + kernel.weights.len() - 1,
-        )
-    };
+    }
+}
+
+/// The run's notes (in lidar.json): the footprint, field of view, gate, returns method and
+/// sampler; the return-path correlation of turbid cells; the first-order estimator; the beam
+/// rays per pulse (with a warning for a wide footprint at the default count); the photon
+/// counting's background source.
+fn run_notes(
+    desc: &LidarDesc,
+    input: &PhotonInput,
+    passive: Option<&PassiveRadiance>,
+    chunks: &LidarChunks,
+    shape: &BeamShape,
+    beam: &Beam,
+) -> Vec<String> {
+    let (radius, profile, reach, fov_half) =
+        (shape.radius, &shape.profile, shape.reach, shape.fov_half);
+    let ref_range = beam.reference_range_m;
+    let gate = beam.gate_m;
     let mut notes = vec![format!(
         "footprint: {} profile{}, radius {radius:.4} m at {ref_range:.1} m, truncated at {reach} radii (energy outside: {:.2e}); receiver FOV half-angle {:.3e} rad; gate {:.3}–{:.3} m of path; returns: {:?}; sampler: {:?}",
         profile.name(),
-        match &profile {
+        match profile {
             BeamProfile::Gaussian { edge_intensity } =>
                 format!(" (edge intensity {edge_intensity})"),
             _ => String::new(),
@@ -495,13 +611,7 @@ pub fn simulate_lidar(
             std::f64::consts::PI * (reach * radius / cell).powi(2)
         ));
     }
-    // Photon counting: the detector and the note on the background source, once.
-    let detector = desc.photon_counting.as_ref().map(|pc| Detector {
-        quantum_efficiency: pc.quantum_efficiency,
-        dead_time_ns: pc.dead_time_ns,
-        dark_count_hz: pc.dark_count_hz,
-        ..Detector::dart_default()
-    });
+    // Photon counting: the note on the background source.
     if desc.photon_counting.is_some() {
         if let Some(pr) = passive {
             notes.push(format!(
@@ -512,178 +622,255 @@ pub fn simulate_lidar(
             notes.push("photon counting: no passive radiance available (run the flux-tracking solver): solar background omitted, dark counts only".into());
         }
     }
-    let mut counted = Vec::new();
-    let mut background_rate_hz = Vec::new();
-    let chunk = chunks.chunk_pulses.max(1);
-    let err = |e: crate::lidar::LidarError| format!("lidar `{}`: {e}", desc.name);
-    let fusion = desc.fusion && passive.is_some();
-    // Streamed: waveforms and spools of the pulses' entries and detections.
-    let mut writers = match &chunks.stream_dir {
-        Some(dir) if plan.len() > chunk => Some((
-            WaveformStream::create(dir).map_err(err)?,
-            WaveformStream::create(&dir.join("raw")).map_err(err)?,
-            Spool::create(dir, "pulses")?,
-            Spool::create(dir, "counted")?,
-        )),
-        _ => None,
-    };
-    let mut noise = 0;
-    // Fusion (`fusion: true`): passive radiance at each footprint centre (every band).
-    let mut fusion_radiance: Vec<Vec<f64>> = Vec::new();
-    let bar = crate::io::progress::progress_bar(chunks.progress, plan.len() as u64, "LiDAR pulses");
-    let mut records: Vec<PulseRecord> = Vec::with_capacity(if writers.is_some() {
-        crate::lidar::products::QUICKLOOKS
-    } else {
-        plan.len()
-    });
-    run_lidar_chunks(input, &beam, plan.iter(), chunk, |part, results| {
-        // Convolution and returns per pulse, in parallel (each pulse is independent; the
-        // order of the records is the order of the pulses).
-        use rayon::prelude::*;
-        let mut recs = results
-            .into_par_iter()
-            .zip(part.par_iter())
-            .map_init(
-                // The convolved waveform on the whole gate axis, reused by the pulses of a
-                // rayon task: zero outside the bins a pulse reached, which are cleared after
-                // it (no allocation and zeroing of the gate per pulse).
-                || Waveform::zeros(gate_axis.0, desc.bin_ns, gate_axis.1),
-                |padded, (r, pl)| -> Result<PulseRecord, String> {
-                    // Returns are detected on the whole gate (the decomposition's fit sees the
-                    // zero bins around the returns); the stored waveform is trimmed.
-                    let reached = r
-                        .waveform
-                        .convolve_into(&kernel, padded)
-                        .map_err(|e| format!("lidar `{}` pulse {}: {e}", desc.name, r.id))?;
-                    // (Zero outside the reached bins.)
-                    let peak = padded.total[reached.clone()]
-                        .iter()
-                        .cloned()
-                        .fold(0.0, f64::max);
-                    let returns = if peak > 0.0 {
-                        crate::lidar::returns::detect_returns_method_within(
-                            padded,
-                            1e-3 * peak,
-                            desc.returns,
-                            &pipeline_decomposition_settings(),
-                            reached.clone(),
-                        )
-                        .map_err(|e| format!("lidar `{}` pulse {}: {e}", desc.name, r.id))
-                    } else {
-                        Ok(Vec::new())
-                    };
-                    let waveform = padded.trimmed_within(reached.clone());
-                    padded.total[reached.clone()].fill(0.0);
-                    padded.first_order[reached].fill(0.0);
-                    let returns = returns?;
-                    Ok(PulseRecord {
-                        id: r.id,
-                        emitter: pl.emitter,
-                        axis: pl.axis,
-                        received_j: r.waveform.total_energy_j(),
-                        first_order_j: r.waveform.first_order_energy_j(),
-                        raw: r.waveform,
-                        waveform,
-                        out_of_gate_j: r.out_of_gate_j,
-                        missed_j: r.missed_j,
-                        returns,
-                    })
-                },
-            )
-            .collect::<Result<Vec<_>, String>>()?;
-        if let (Some(pc), Some(det)) = (&desc.photon_counting, &detector) {
-            for pl in &recs {
-                let (x, y) = footprint_centre(pl);
-                let radiance = passive.map_or(0.0, |pr| pr.at(x, y, band));
-                let rate = solar_background_rate(
-                    radiance,
-                    pc.filter_bandwidth_nm * 1e-3,
-                    desc.aperture_m2,
-                    fov_half,
-                    det,
-                    pc.wavelength_nm,
-                )
-                .map_err(|e| format!("lidar `{}`: {e}", desc.name))?;
-                background_rate_hz.push(rate);
-                // The mean signal over the whole gate (zero outside the stored bins), so that
-                // background and dark counts and the dead time cover the full range gate.
-                let (t0_gate, n_gate) = gate_axis;
-                let dt = pl.waveform.dt_ns;
-                let padded = pl.waveform.padded_to(t0_gate, n_gate);
-                let signal = mean_signal_counts(&padded.total, pc.wavelength_nm, det)
-                    .map_err(|e| format!("lidar `{}`: {e}", desc.name))?;
-                let bg_bin = rate * dt * 1e-9;
-                let mut rng = crate::scene::spawn::stream(
-                    input.params.seed,
-                    crate::lidar::tracking::LIDAR_STREAM ^ 0x5043,
-                    pl.id,
-                );
-                for shot in 0..pc.shots {
-                    let dets = simulate_shot(&signal, bg_bin, t0_gate, dt, det, &mut rng)
-                        .map_err(|e| format!("lidar `{}`: {e}", desc.name))?;
-                    for d in dets {
-                        let range = 0.5 * d.time_ns * 1e-9 * crate::lidar::SPEED_OF_LIGHT_M_PER_S;
-                        counted.push(CountedPhoton {
-                            pulse: pl.id,
-                            shot,
-                            position: pl.emitter + pl.axis * range,
-                            time_ns: d.time_ns,
-                            is_noise: d.is_noise,
-                        });
-                    }
-                }
-            }
+    notes
+}
+
+/// What every chunk of an instrument run uses ([`simulate_lidar`]).
+struct ChunkContext<'a> {
+    /// The instrument.
+    desc: &'a LidarDesc,
+    /// Scene band of the laser (for the passive radiance).
+    band: usize,
+    /// Scene seed (photon-counting streams).
+    seed: u64,
+    /// Passive radiance (photon-counting background, fusion).
+    passive: Option<&'a PassiveRadiance>,
+    /// Half-angle of the receiver's field of view, rad.
+    fov_half: f64,
+    /// The emitted pulse on the digitiser's bins.
+    kernel: PulseKernel,
+    /// Time axis of the convolved waveforms over the whole gate: (t0, ns; bins).
+    gate_axis: (f64, usize),
+    /// Photon-counting detector, when the instrument has one.
+    detector: Option<Detector>,
+    /// Fusion product: passive radiance at each footprint centre.
+    fusion: bool,
+}
+
+/// What an instrument run accumulates chunk by chunk ([`ScanOutputs::add_chunk`]): in memory,
+/// or, for a streamed scan, in the temporary files of `writers` (the records of the
+/// quick-looks only).
+struct ScanOutputs {
+    records: Vec<PulseRecord>,
+    counted: Vec<CountedPhoton>,
+    background_rate_hz: Vec<f64>,
+    fusion_radiance: Vec<Vec<f64>>,
+    /// Noise detections (solar background, dark counts) spooled so far.
+    noise: usize,
+    /// Convolved and raw waveforms, pulse entries and detections of a streamed scan.
+    writers: Option<(WaveformStream, WaveformStream, Spool, Spool)>,
+}
+
+impl ScanOutputs {
+    /// One chunk's tracked pulses (`results`, in the order of `part`): their records
+    /// ([`pulse_records`]), photon counting, fusion radiance, and for a streamed scan the
+    /// chunk written out.
+    fn add_chunk(
+        &mut self,
+        cx: &ChunkContext,
+        part: &[Pulse],
+        results: Vec<PulseResult>,
+    ) -> Result<(), String> {
+        let mut recs = pulse_records(cx, part, results)?;
+        if let (Some(pc), Some(det)) = (&cx.desc.photon_counting, &cx.detector) {
+            self.count_photons(cx, pc, det, &recs)?;
         }
-        if let Some(pr) = passive.filter(|_| fusion) {
-            fusion_radiance.extend(recs.iter().map(|pl| {
+        if let Some(pr) = cx.passive.filter(|_| cx.fusion) {
+            self.fusion_radiance.extend(recs.iter().map(|pl| {
                 let (x, y) = footprint_centre(pl);
                 (0..pr.per_band.len()).map(|b| pr.at(x, y, b)).collect()
             }));
         }
-        if let Some((wf, raw, pulse_spool, counted_spool)) = &mut writers {
+        self.stream_chunk(cx, &mut recs)?;
+        self.records.extend(recs);
+        Ok(())
+    }
+
+    /// Photon counting of a chunk's pulses (physics.md §9.5): the solar background rate at
+    /// each footprint centre, then every shot drawn from the mean signal over the whole gate
+    /// (each pulse with its own stream), detections placed along the beam axis.
+    fn count_photons(
+        &mut self,
+        cx: &ChunkContext,
+        pc: &PhotonCountingDesc,
+        det: &Detector,
+        recs: &[PulseRecord],
+    ) -> Result<(), String> {
+        let desc = cx.desc;
+        for pl in recs {
+            let (x, y) = footprint_centre(pl);
+            let radiance = cx.passive.map_or(0.0, |pr| pr.at(x, y, cx.band));
+            let rate = solar_background_rate(
+                radiance,
+                pc.filter_bandwidth_nm * 1e-3,
+                desc.aperture_m2,
+                cx.fov_half,
+                det,
+                pc.wavelength_nm,
+            )
+            .map_err(|e| format!("lidar `{}`: {e}", desc.name))?;
+            self.background_rate_hz.push(rate);
+            // The mean signal over the whole gate (zero outside the stored bins), so that
+            // background and dark counts and the dead time cover the full range gate.
+            let (t0_gate, n_gate) = cx.gate_axis;
+            let dt = pl.waveform.dt_ns;
+            let padded = pl.waveform.padded_to(t0_gate, n_gate);
+            let signal = mean_signal_counts(&padded.total, pc.wavelength_nm, det)
+                .map_err(|e| format!("lidar `{}`: {e}", desc.name))?;
+            let bg_bin = rate * dt * 1e-9;
+            let mut rng = crate::random::stream(
+                cx.seed,
+                crate::lidar::tracking::LIDAR_STREAM ^ 0x5043,
+                pl.id,
+            );
+            for shot in 0..pc.shots {
+                let dets = simulate_shot(&signal, bg_bin, t0_gate, dt, det, &mut rng)
+                    .map_err(|e| format!("lidar `{}`: {e}", desc.name))?;
+                for d in dets {
+                    let range = 0.5 * d.time_ns * 1e-9 * crate::lidar::SPEED_OF_LIGHT_M_PER_S;
+                    self.counted.push(CountedPhoton {
+                        pulse: pl.id,
+                        shot,
+                        position: pl.emitter + pl.axis * range,
+                        time_ns: d.time_ns,
+                        is_noise: d.is_noise,
+                    });
+                }
+            }
+        }
+        Ok(())
+    }
+
+    /// A streamed scan: the chunk's waveforms (convolved and raw) appended to their files, its
+    /// pulse entries (with background rates and fused radiances) and detections to the spools,
+    /// and of its records only those the quick-looks still need kept. Without writers:
+    /// nothing.
+    fn stream_chunk(
+        &mut self,
+        cx: &ChunkContext,
+        recs: &mut Vec<PulseRecord>,
+    ) -> Result<(), String> {
+        let err = |e: crate::lidar::LidarError| format!("lidar `{}`: {e}", cx.desc.name);
+        if let Some((wf, raw, pulse_spool, counted_spool)) = &mut self.writers {
             wf.append(&recs.iter().map(|p| (p.id, &p.waveform)).collect::<Vec<_>>())
                 .map_err(err)?;
             raw.append(&recs.iter().map(|p| (p.id, &p.raw)).collect::<Vec<_>>())
                 .map_err(err)?;
             // Everything else of the chunk goes to the spools: memory stays bounded by a chunk.
-            let mut rates = background_rate_hz.drain(..);
-            let mut radiances = fusion_radiance.drain(..);
-            for p in &recs {
+            let mut rates = self.background_rate_hz.drain(..);
+            let mut radiances = self.fusion_radiance.drain(..);
+            for p in recs.iter() {
                 PulseEntry::of(p, rates.next(), radiances.next()).spool(pulse_spool)?;
             }
             drop((rates, radiances));
-            for c in counted.drain(..) {
-                noise += usize::from(c.is_noise);
+            for c in self.counted.drain(..) {
+                self.noise += usize::from(c.is_noise);
                 spool_counted(&c, counted_spool)?;
             }
             // Keep the quick-looks' pulses (with their waveforms) only.
-            let keep = crate::lidar::products::QUICKLOOKS.saturating_sub(records.len());
+            let keep = crate::lidar::products::QUICKLOOKS.saturating_sub(self.records.len());
             recs.truncate(keep);
         }
-        records.extend(recs);
-        bar.inc(part.len() as u64);
         Ok(())
-    })?;
-    bar.finish_and_clear();
-    let streamed = match writers {
-        Some((wf, raw, pulse_spool, counted_spool)) => Some(std::sync::Arc::new(StreamedRun {
-            waveforms: wf.finish().map_err(err)?,
-            raw: raw.finish().map_err(err)?,
-            pulses: pulse_spool.finish()?,
-            counted: counted_spool.finish()?,
-            noise,
-            fusion,
-        })),
-        None => None,
-    };
-    Ok(LidarRun {
-        desc: desc.clone(),
-        pulses: records,
-        counted,
-        background_rate_hz,
-        fusion_radiance: (fusion && streamed.is_none()).then_some(fusion_radiance),
-        notes,
-        seconds: t0.elapsed().as_secs_f64(),
-        streamed,
-    })
+    }
+
+    /// The instrument's [`LidarRun`]: a streamed scan's files closed ([`StreamedRun`]), the
+    /// wall time since `t0`.
+    fn finish(
+        self,
+        desc: &LidarDesc,
+        fusion: bool,
+        notes: Vec<String>,
+        t0: std::time::Instant,
+    ) -> Result<LidarRun, String> {
+        let err = |e: crate::lidar::LidarError| format!("lidar `{}`: {e}", desc.name);
+        let streamed = match self.writers {
+            Some((wf, raw, pulse_spool, counted_spool)) => Some(std::sync::Arc::new(StreamedRun {
+                waveforms: wf.finish().map_err(err)?,
+                raw: raw.finish().map_err(err)?,
+                pulses: pulse_spool.finish()?,
+                counted: counted_spool.finish()?,
+                noise: self.noise,
+                fusion,
+            })),
+            None => None,
+        };
+        Ok(LidarRun {
+            desc: desc.clone(),
+            pulses: self.records,
+            counted: self.counted,
+            background_rate_hz: self.background_rate_hz,
+            fusion_radiance: (fusion && streamed.is_none()).then_some(self.fusion_radiance),
+            notes,
+            seconds: t0.elapsed().as_secs_f64(),
+            streamed,
+        })
+    }
+}
+
+/// A chunk's pulse records: each pulse's received waveform convolved with the pulse kernel on
+/// the whole gate axis, its returns detected there (the decomposition's fit sees the zero bins
+/// around the returns), the stored waveforms trimmed. In parallel; records in pulse order.
+fn pulse_records(
+    cx: &ChunkContext,
+    part: &[Pulse],
+    results: Vec<PulseResult>,
+) -> Result<Vec<PulseRecord>, String> {
+    let desc = cx.desc;
+    let kernel = &cx.kernel;
+    let gate_axis = cx.gate_axis;
+    // Convolution and returns per pulse, in parallel (each pulse is independent; the
+    // order of the records is the order of the pulses).
+    use rayon::prelude::*;
+    results
+        .into_par_iter()
+        .zip(part.par_iter())
+        .map_init(
+            // The convolved waveform on the whole gate axis, reused by the pulses of a
+            // rayon task: zero outside the bins a pulse reached, which are cleared after
+            // it (no allocation and zeroing of the gate per pulse).
+            || Waveform::zeros(gate_axis.0, desc.bin_ns, gate_axis.1),
+            |padded, (r, pl)| -> Result<PulseRecord, String> {
+                // Returns are detected on the whole gate (the decomposition's fit sees the
+                // zero bins around the returns); the stored waveform is trimmed.
+                let reached = r
+                    .waveform
+                    .convolve_into(kernel, padded)
+                    .map_err(|e| format!("lidar `{}` pulse {}: {e}", desc.name, r.id))?;
+                // (Zero outside the reached bins.)
+                let peak = padded.total[reached.clone()]
+                    .iter()
+                    .cloned()
+                    .fold(0.0, f64::max);
+                let returns = if peak > 0.0 {
+                    crate::lidar::returns::detect_returns_method_within(
+                        padded,
+                        1e-3 * peak,
+                        desc.returns,
+                        &pipeline_decomposition_settings(),
+                        reached.clone(),
+                    )
+                    .map_err(|e| format!("lidar `{}` pulse {}: {e}", desc.name, r.id))
+                } else {
+                    Ok(Vec::new())
+                };
+                let waveform = padded.trimmed_within(reached.clone());
+                padded.total[reached.clone()].fill(0.0);
+                padded.first_order[reached].fill(0.0);
+                let returns = returns?;
+                Ok(PulseRecord {
+                    id: r.id,
+                    emitter: pl.emitter,
+                    axis: pl.axis,
+                    received_j: r.waveform.total_energy_j(),
+                    first_order_j: r.waveform.first_order_energy_j(),
+                    raw: r.waveform,
+                    waveform,
+                    out_of_gate_j: r.out_of_gate_j,
+                    missed_j: r.missed_j,
+                    returns,
+                })
+            },
+        )
+        .collect::<Result<Vec<_>, String>>()
 }

@@ -11,7 +11,7 @@
 //! removed when its [`ClosedSpool`] is dropped (after the run, or after an error).
 
 use crate::lidar::returns::Return;
-use crate::resources::lidar::{CountedPhoton, PulseRecord};
+use crate::lidar::run::{CountedPhoton, PulseRecord};
 use glam::DVec3;
 use std::fs::File;
 use std::io::{BufReader, BufWriter, Read, Write};

@@ -11,6 +11,7 @@ use crate::resources::grid::GridSpec;
 use crate::resources::maket_report::MemoryEstimate;
 use crate::resources::scene::SceneInfo;
 use crate::scene::desc::BoundaryMode;
+use crate::scene::validate::num;
 use glam::DVec3;
 
 /// The planned grid.
@@ -93,19 +94,50 @@ pub fn plan_grid(
     let z0 = ground_lo.min(tl).min(fl);
     let z0 = if z0.is_finite() { z0 } else { 0.0 };
     let top = th.max(fh).max(z0 + dz);
+    if !top.is_finite() {
+        return Err(format!(
+            "{}: the objects reach z = {top} m: no grid can hold them (check heights, altitudes and mesh scales)",
+            info.source.display()
+        ));
+    }
+    // Cell counts in floating point first: an `as usize` cast saturates, and the products of
+    // saturated counts overflow (a 2 × 1e308 m scene planned "5.8 KiB").
     let nz = match info.height {
         Some(h) => {
             if top > z0 + h + 1e-9 {
                 return Err(format!(
-                    "grid.height_m: objects reach {:.3} m above the lowest point, above the scene height {h} m",
+                    "{}: grid.height_m: objects reach {:.3} m above the lowest point, above the scene height {h} m",
+                    info.source.display(),
                     top - z0
                 ));
             }
-            (h / dz).ceil().max(1.0) as usize
+            (h / dz).ceil().max(1.0)
         }
-        None => (((top - z0) / dz) - 1e-9).ceil().max(1.0) as usize,
+        None => (((top - z0) / dz) - 1e-9).ceil().max(1.0),
     };
-    let n = [(sx / dx).round() as usize, (sy / dy).round() as usize, nz];
+    let nf = [(sx / dx).round().max(1.0), (sy / dy).round().max(1.0), nz];
+    let max_cells = crate::scene::validate::MAX_GRID_CELLS;
+    if nf[0] * nf[1] * nf[2] > max_cells as f64 {
+        let field = if info.height.is_some() {
+            "grid.height_m"
+        } else {
+            "grid.cell_m"
+        };
+        return Err(format!(
+            "{}: {field}: the grid would have {} × {} × {} = {:.3e} cells (objects from z = {} to {} m in cells of {} × {} × {} m), above the limit of {max_cells} cells: use larger cells or a smaller scene",
+            info.source.display(),
+            num(nf[0]),
+            num(nf[1]),
+            num(nf[2]),
+            nf[0] * nf[1] * nf[2],
+            num(z0),
+            num(top),
+            num(dx),
+            num(dy),
+            num(dz)
+        ));
+    }
+    let n = nf.map(|x| x as usize);
     let topography_offset = if info.boundary == BoundaryMode::RepetitiveContinuousTopography {
         terrain.edge_offsets(sx, sy)
     } else {
@@ -120,21 +152,29 @@ pub fn plan_grid(
         topography_offset,
     };
     // Memory estimate (upper bounds from bounding boxes), before any allocation.
+    // Saturating arithmetic: an estimate that saturates exceeds any memory limit and is
+    // refused below, instead of wrapping to a small number.
     let n_cells = spec.n_cells() as u64;
     let bbox_cells = |lo: DVec3, hi: DVec3| -> u64 {
         let (a, b) = cell_range(lo.x, hi.x, 0.0, dx);
         let (c, d) = cell_range(lo.y, hi.y, 0.0, dy);
         let (e, f) = cell_range(lo.z, hi.z, z0, dz);
-        ((b - a) * (d - c) * (f - e)) as u64
+        let span = |a: i64, b: i64| b.saturating_sub(a).max(0) as u64;
+        span(a, b)
+            .saturating_mul(span(c, d))
+            .saturating_mul(span(e, f))
     };
     let mut turbid_max = 0u64;
     for c in crowns.iter() {
         let b = c.geom.bounds();
-        turbid_max += bbox_cells(DVec3::new(b[0], b[1], b[2]), DVec3::new(b[3], b[4], b[5]));
+        turbid_max = turbid_max.saturating_add(bbox_cells(
+            DVec3::new(b[0], b[1], b[2]),
+            DVec3::new(b[3], b[4], b[5]),
+        ));
     }
     for p in plots.iter() {
         let (lo, hi) = p.footprint_bounds();
-        turbid_max += bbox_cells(lo.extend(z0), hi.extend(top));
+        turbid_max = turbid_max.saturating_add(bbox_cells(lo.extend(z0), hi.extend(top)));
     }
     for m in meshes.iter() {
         for t in m
@@ -143,7 +183,10 @@ pub fn plan_grid(
             .filter(|p| p.as_turbid)
             .flat_map(|p| &p.triangles)
         {
-            turbid_max += bbox_cells(t[0].min(t[1]).min(t[2]), t[0].max(t[1]).max(t[2]));
+            turbid_max = turbid_max.saturating_add(bbox_cells(
+                t[0].min(t[1]).min(t[2]),
+                t[0].max(t[1]).max(t[2]),
+            ));
         }
     }
     let refs_max: u64 = facets
@@ -155,12 +198,15 @@ pub fn plan_grid(
                 f.v[0].max(f.v[1]).max(f.v[2]),
             )
         })
-        .sum();
-    let nf = facets.facets.len() as u64;
+        .fold(0u64, u64::saturating_add);
+    let n_facets = facets.facets.len() as u64;
     let cell_index_bytes = 8 * (n_cells + 1);
-    let facet_bytes = nf * (std::mem::size_of::<Facet>() as u64 + 36 + 64);
+    let facet_bytes = n_facets.saturating_mul(std::mem::size_of::<Facet>() as u64 + 36 + 64);
     // Build buffers: (cell, material, area) triples of 16 B and (cell, facet) pairs of 8 B.
-    let peak = cell_index_bytes + turbid_max * (8 + 16) + refs_max * (4 + 8) + facet_bytes;
+    let peak = cell_index_bytes
+        .saturating_add(turbid_max.saturating_mul(8 + 16))
+        .saturating_add(refs_max.saturating_mul(4 + 8))
+        .saturating_add(facet_bytes);
     let est = MemoryEstimate {
         cell_index_bytes,
         turbid_entries_max: turbid_max,
@@ -171,7 +217,8 @@ pub fn plan_grid(
     };
     let over_limit = (peak > max_memory_bytes).then(|| {
         format!(
-            "the grid of {} × {} × {} cells needs an estimated {:.2} GiB, above the limit of {:.2} GiB (--max-memory): use larger cells or a smaller scene",
+            "{}: the grid of {} × {} × {} cells needs an estimated {:.2} GiB, above the limit of {:.2} GiB (--max-memory): use larger cells or a smaller scene",
+            info.source.display(),
             n[0],
             n[1],
             n[2],

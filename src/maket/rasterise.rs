@@ -42,7 +42,9 @@ pub fn wrap_triangle(t: [DVec3; 3], sx: f64, sy: f64, out: &mut Vec<[DVec3; 3]>)
 pub fn cell_range(lo: f64, hi: f64, origin: f64, d: f64) -> (i64, i64) {
     let a = ((lo - origin) / d).floor() as i64;
     let b = ((hi - origin) / d).ceil() as i64;
-    (a, b.max(a + 1))
+    // Saturating: a coordinate beyond ±9.2e18 cells saturates the casts (the plan then
+    // refuses the grid as over the memory limit).
+    (a, b.max(a.saturating_add(1)))
 }
 
 /// Leaf area (m²) of one turbid object per cell, as (cell index, material, leaf area) triples.

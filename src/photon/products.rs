@@ -7,32 +7,13 @@
 //! 1/B of the photons, with weights normalised to the whole run).
 
 use super::engine::{PhotonParams, PhotonResult, sum_standard_error};
+use crate::direction::DirectionSet;
 use crate::radiative::engine::RadiativeResult;
 use crate::radiative::products::RadiativeProducts;
-use crate::resources::directions::DirectionSet;
-use serde::Serialize;
 use std::f64::consts::PI;
 
-/// Description of a Monte Carlo run (in summary.json).
-#[derive(Debug, Clone, Serialize)]
-pub struct MonteCarloInfo {
-    /// Photons traced (sun + sky).
-    pub photons: u64,
-    /// Batches (standard errors come from their spread).
-    pub batches: u32,
-    /// Seed.
-    pub seed: u64,
-    /// Direction sampler (`continuous`, `alias`, `box`).
-    pub sampler: &'static str,
-    /// Scattering events.
-    pub events: u64,
-    /// Photons per second per core (wall time × threads).
-    pub photons_per_second_per_core: f64,
-    /// Russian-roulette balance relative to the source, per band (expectation 0).
-    pub roulette_balance: Vec<f64>,
-    /// Fraction of the source lost per band (isolated sides, caps).
-    pub lost: Vec<f64>,
-}
+/// The run description is a field of the products ([`RadiativeProducts::monte_carlo`]).
+pub use crate::radiative::products::MonteCarloInfo;
 
 /// SE of a linear functional of the batch summaries.
 fn se_of(batches: &[Vec<f64>], f: impl Fn(&[f64]) -> f64) -> f64 {

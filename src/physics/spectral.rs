@@ -54,7 +54,7 @@ pub enum SpectralError {
         source: std::io::Error,
     },
     /// A file is malformed; `line` is 1-based (0 = the file as a whole).
-    #[error("{source_name}:{line}: {message}")]
+    #[error("{source_name}{}: {message}", if *line > 0 { format!(":{line}") } else { String::new() })]
     Parse {
         /// File path or name of a compiled-in table.
         source_name: String,

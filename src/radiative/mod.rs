@@ -38,8 +38,7 @@ pub fn memory_estimate(
     image_pixels: usize,
 ) -> u64 {
     let w = n_bands * if sky { 2 } else { 1 };
-    let tables =
-        turbid_materials * n_bands * crate::resources::phase_tables::bytes(n_dirs + 1, n_dirs, 1);
+    let tables = turbid_materials * n_bands * crate::phase::bytes(n_dirs + 1, n_dirs, 1);
     let fractions = if n_facets * n_dirs <= EXACT_FRACTIONS_LIMIT {
         n_facets * 2 * n_dirs * 4
     } else {

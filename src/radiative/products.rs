@@ -3,7 +3,7 @@
 //! (physics.md §1.4, §6.7; design.md §5).
 
 use super::engine::RadiativeResult;
-use crate::resources::directions::DirectionSet;
+use crate::direction::DirectionSet;
 use bevy_ecs::prelude::Resource;
 use serde::Serialize;
 use std::f64::consts::PI;
@@ -110,10 +110,31 @@ pub struct RadiativeProducts {
     pub launch: Option<crate::radiative::engine::LaunchPlan>,
     /// Monte Carlo run description (Photon stage only).
     #[serde(skip_serializing_if = "Option::is_none")]
-    pub monte_carlo: Option<crate::photon::products::MonteCarloInfo>,
+    pub monte_carlo: Option<MonteCarloInfo>,
     /// Raw engine result (not serialised).
     #[serde(skip)]
     pub raw: RadiativeResult,
+}
+
+/// Description of a Monte Carlo run (in summary.json).
+#[derive(Debug, Clone, Serialize)]
+pub struct MonteCarloInfo {
+    /// Photons traced (sun + sky).
+    pub photons: u64,
+    /// Batches (standard errors come from their spread).
+    pub batches: u32,
+    /// Seed.
+    pub seed: u64,
+    /// Direction sampler (`continuous`, `alias`, `box`).
+    pub sampler: &'static str,
+    /// Scattering events.
+    pub events: u64,
+    /// Photons per second per core (wall time × threads).
+    pub photons_per_second_per_core: f64,
+    /// Russian-roulette balance relative to the source, per band (expectation 0).
+    pub roulette_balance: Vec<f64>,
+    /// Fraction of the source lost per band (isolated sides, caps).
+    pub lost: Vec<f64>,
 }
 
 impl RadiativeProducts {
@@ -238,12 +259,10 @@ impl RadiativeProducts {
 
     /// The BRF entry of band `b` closest to a view direction (zenith, azimuth in degrees).
     pub fn brf_at(&self, b: usize, zenith_deg: f64, azimuth_deg: f64) -> Option<&BrfEntry> {
-        let target = crate::resources::directions::direction_from_deg(zenith_deg, azimuth_deg);
+        let target = crate::direction::direction_from_deg(zenith_deg, azimuth_deg);
         self.bands.get(b)?.brf.iter().max_by(|x, y| {
-            let dx = crate::resources::directions::direction_from_deg(x.zenith_deg, x.azimuth_deg)
-                .dot(target);
-            let dy = crate::resources::directions::direction_from_deg(y.zenith_deg, y.azimuth_deg)
-                .dot(target);
+            let dx = crate::direction::direction_from_deg(x.zenith_deg, x.azimuth_deg).dot(target);
+            let dy = crate::direction::direction_from_deg(y.zenith_deg, y.azimuth_deg).dot(target);
             dx.total_cmp(&dy)
         })
     }

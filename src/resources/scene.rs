@@ -1,4 +1,6 @@
-//! Scene-wide resources set by the spawn step: scene info, terrain, run settings, stage errors.
+//! Scene-wide resources set by the spawn step: scene info, terrain, run settings (with the
+//! setting types the engines read: the Monte Carlo [`SamplerKind`], the LiDAR chunk size and
+//! [`FarRoulette`]), stage errors.
 
 use crate::geometry::terrain::Terrain;
 use crate::physics::spectral::SpectralBand;
@@ -76,7 +78,7 @@ pub struct RunSettings {
     /// Most capable instruction set of the flux-tracking walks (default: the best this CPU
     /// has; products equal to rounding on each, see
     /// [`crate::radiative::engine::TrackingParams::kernel_isa`]).
-    pub kernel_isa: crate::radiative::engine::KernelIsa,
+    pub kernel_isa: crate::resources::tracking::KernelIsa,
     /// The batched walk in single-precision geometry on 16 lanes on AVX-512 CPUs (default on;
     /// see [`crate::radiative::engine::TrackingParams::batch_f32`]). Off: the double-precision
     /// batched walk on 8 lanes, whose products agree with the one-ray walk's to rounding.
@@ -87,8 +89,8 @@ pub struct RunSettings {
     pub lidar_chunk_pulses: usize,
     /// The LiDAR expected-value estimator's far-photon roulette (default: its distance scale
     /// from the scene; every setting has the same expectation,
-    /// [`crate::lidar::simulate::FarRoulette`]).
-    pub lidar_far_roulette: crate::lidar::simulate::FarRoulette,
+    /// [`FarRoulette`]).
+    pub lidar_far_roulette: FarRoulette,
     /// The LiDAR expected-value estimator's column quadrature of the first-order return
     /// (default on; off: every beam ray scores its own first order, the same expectation,
     /// [`crate::lidar::tracking::Beam::first_order_columns`]).
@@ -106,7 +108,7 @@ pub enum Solver {
         /// Photons (sun + sky).
         photons: u64,
         /// Direction sampler.
-        sampler: crate::photon::engine::SamplerKind,
+        sampler: SamplerKind,
     },
 }
 
@@ -124,6 +126,55 @@ impl Solver {
     }
 }
 
+/// How the photon engine draws scattering directions (`photon::engine` re-exports it).
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+pub enum SamplerKind {
+    /// Exact continuous phase functions: the unbiased reference.
+    Continuous,
+    /// DART Ray-Carlo over the discrete directions, Walker/Vose alias tables.
+    Alias,
+    /// DART Ray-Carlo over the discrete directions, DART's Box method.
+    Box {
+        /// Largest max/min probability ratio inside a class.
+        gamma: f64,
+        /// Box budget per incident row.
+        max_boxes: usize,
+    },
+}
+
+impl SamplerKind {
+    /// True for the discrete (Ray-Carlo) modes.
+    pub fn is_discrete(&self) -> bool {
+        !matches!(self, SamplerKind::Continuous)
+    }
+    /// Name used in products.
+    pub fn name(&self) -> &'static str {
+        match self {
+            SamplerKind::Continuous => "continuous",
+            SamplerKind::Alias => "alias",
+            SamplerKind::Box { .. } => "box",
+        }
+    }
+}
+
+/// Pulses tracked per chunk: the memory of a streamed scan is bounded by one chunk's waveforms
+/// (plus every pulse's returns and energies); 8192 pulses keep both cores busy and each
+/// chunk's parallel tail short.
+pub const DEFAULT_CHUNK_PULSES: usize = 8192;
+
+/// The expected-value estimator's far-photon roulette of multiple scattering
+/// ([`crate::lidar::tracking::Beam::far_roulette_m`]); every setting has the same expectation.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub enum FarRoulette {
+    /// Distance scale ρ₀ from the scene (`far_roulette_scale_m`; the default).
+    #[default]
+    Auto,
+    /// A given distance scale ρ₀ (m, > 0): for tests and studies.
+    ScaleM(f64),
+    /// Every multiple-scattering photon goes on (for the equality tests and for measuring).
+    Off,
+}
+
 impl Default for RunSettings {
     fn default() -> Self {
         Self {
@@ -136,7 +187,7 @@ impl Default for RunSettings {
             batch_walk: true,
             kernel_isa: Default::default(),
             batch_f32: true,
-            lidar_chunk_pulses: crate::lidar::simulate::DEFAULT_CHUNK_PULSES,
+            lidar_chunk_pulses: DEFAULT_CHUNK_PULSES,
             lidar_far_roulette: Default::default(),
             lidar_first_order_columns: true,
         }

@@ -180,7 +180,8 @@ pub enum BoundaryMode {
 pub struct GridDesc {
     /// Scene extent along x and y, metres; the scene spans `[0, x] × [0, y]`.
     pub size_m: (f64, f64),
-    /// Cell size (dx, dy, dz), metres; non-cubic cells are allowed.
+    /// Cell size (dx, dy, dz), metres; non-cubic cells are allowed. The grid holds at most
+    /// 2³² − 1 cells (x × y × z).
     pub cell_m: (f64, f64, f64),
     /// Scene height above the lowest ground point, metres; by default the highest object
     /// rounded up to a whole cell (plus one empty cell layer).
@@ -500,7 +501,7 @@ pub struct LeafListDesc {
     pub path: String,
     /// Name of a leaf optical property (BiLambertian, ProspectLeaf) or a facet property.
     pub optics: String,
-    /// Polygon sides per disk (default 12).
+    /// Polygon sides per disk (default 12; 3 to 1000).
     #[serde(default = "default_disk_sides")]
     pub sides: u32,
     /// Translation added to every centre, metres (z is above the ground under the leaf).
@@ -522,7 +523,7 @@ pub struct LeafListDesc {
 pub struct LeavesDesc {
     /// Disk radius, metres.
     pub radius_m: f64,
-    /// Polygon sides per disk (default 12).
+    /// Polygon sides per disk (default 12; 3 to 1000).
     #[serde(default = "default_disk_sides")]
     pub sides: u32,
     /// Name of a facet (usually BiLambertian) optical property.
@@ -576,7 +577,7 @@ pub enum TopographyDesc {
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct RasterDesc {
-    /// Number of nodes along x and y (≥ 2 each).
+    /// Number of nodes along x and y (≥ 2 each, at most 2²⁸ nodes in all).
     pub nodes: (usize, usize),
     /// Node spacing along x and y, metres.
     pub spacing_m: (f64, f64),
@@ -622,11 +623,13 @@ pub use crate::geometry::crown::CrownShape;
 /// Amount of foliage in a crown or plot.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub enum FoliageDesc {
-    /// Mean one-sided leaf area volume density, m² m⁻³.
+    /// Mean one-sided leaf area volume density, m² m⁻³ (at most 100).
     LeafAreaDensity(f64),
-    /// Leaf area index: leaf area divided by the horizontal projected area of the shape, m² m⁻².
+    /// Leaf area index: leaf area divided by the horizontal projected area of the shape, m² m⁻²
+    /// (at most 100).
     Lai(f64),
-    /// Total one-sided leaf area, m².
+    /// Total one-sided leaf area, m² (a plot's at most 100 m² m⁻³ over its volume; a crown's at
+    /// most LAI 100 over the scene or over its own footprint, whichever is larger).
     LeafArea(f64),
 }
 
@@ -670,7 +673,7 @@ pub struct TrunkDesc {
     pub height_m: f64,
     /// Trunk diameter, metres.
     pub diameter_m: f64,
-    /// Number of sides of the prism (default 8, at least 3).
+    /// Number of sides of the prism (default 8; 3 to 1000).
     #[serde(default = "default_trunk_sides")]
     pub sides: u32,
     /// Name of a facet optical property.
@@ -715,7 +718,7 @@ pub enum PlacementDesc {
     Explicit(Vec<(usize, f64, f64)>),
     /// Random uniform positions with a minimum spacing, reproducible from the scene seed.
     Random {
-        /// Number of trees per species.
+        /// Number of trees per species (at most 1 000 000 in all).
         counts: Vec<usize>,
         /// Minimum distance between trunks, metres.
         min_spacing_m: f64,
@@ -946,12 +949,12 @@ pub struct LidarDesc {
     /// `Gaussian(edge_intensity: ..)`, `Uniform`, `Tabulated(points: [(ρ/R, I), ..])`;
     /// default: Gaussian with `edge_intensity`.
     #[serde(default)]
-    pub beam: Option<crate::lidar::pulse::BeamProfile>,
+    pub beam: Option<BeamProfile>,
     /// How discrete returns are extracted from each waveform (default: Gaussian
     /// decomposition; `PeakDetection` costs ~3 µs per waveform against 8–25 ms for the
     /// decomposition of a 1000-photon Monte Carlo waveform, and resolves returns ≥ 3σ apart).
     #[serde(default)]
-    pub returns: crate::lidar::returns::ReturnsMethod,
+    pub returns: ReturnsMethod,
     /// Scattering-direction sampling of the photon tracking: `Discrete` (DART's Ray-Carlo over
     /// the discrete directions, default) or `Continuous` (exact phase functions).
     #[serde(default)]
@@ -1019,6 +1022,89 @@ pub enum LidarSampler {
     Continuous,
 }
 
+/// DART's default `gaussian_sigma_illu`: relative intensity at the footprint edge (≈ 1/e).
+pub const DART_EDGE_RELATIVE_INTENSITY: f64 = 0.368;
+
+/// Default of [`BeamProfile::Gaussian`]'s `edge_intensity` in scene files (DART's
+/// `gaussian_sigma_illu`, 0.368).
+fn default_beam_edge_intensity() -> f64 {
+    DART_EDGE_RELATIVE_INTENSITY
+}
+
+/// Transverse (radial) intensity profile of the emitted beam, independent of its size.
+///
+/// DART 5 paper §4: "Photons launched within ΔΩ_footprint can have any angular distribution
+/// (e.g., Gaussian)". The profile is stated as relative intensity (irradiance on the plane normal
+/// to the beam axis at the reference range) against the **normalised radius** `x = ρ/R`, R being
+/// the nominal footprint radius at that range (from `footprint_radius_m` or the divergence,
+/// physics.md §9.1). Because packets leave the emitter along `axis·H + offset`, an off-axis angle α
+/// maps to `x = tan α / tan α_half` (α_half = half divergence). To use a table measured against
+/// the angle, `I(α)` in W sr⁻¹, take `x = tan α/tan α_half` and intensity `I(α) cos³α`; for
+/// α_half ≤ 10 mrad, `x = α/α_half` and `I(α)` unchanged are exact to < 1.5e-4 relative.
+///
+/// Serialises as a RON/serde enum like the scene `*Desc` types, e.g. `Gaussian(edge_intensity:
+/// 0.368)`, `Uniform`, `Tabulated(points: [(0.0, 1.0), (0.8, 1.0), (1.0, 0.0)])`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub enum BeamProfile {
+    /// Gaussian `I(x) = exp(−x²/(2s²))`, `s = 1/√(−2 ln edge_intensity)` (physics.md §9.1,
+    /// DART `gaussian_sigma_illu`); unbounded, so the sampler's truncation radius matters.
+    Gaussian {
+        /// Relative intensity at the footprint edge x = 1, in (0, 1) (default 0.368 ≈ 1/e).
+        #[serde(default = "default_beam_edge_intensity")]
+        edge_intensity: f64,
+    },
+    /// Top hat: constant intensity for x ≤ 1, zero beyond.
+    Uniform,
+    /// Piecewise-linear relative intensity through `points = [(x_i, I_i)]`, `x_i = ρ/R`
+    /// strictly increasing from `x_0 ≥ 0`, `I_i` finite and ≥ 0, not all zero, at least two
+    /// points. The intensity is zero for `x < x_0` (an annular beam if `x_0 > 0`) and for
+    /// `x > x_last`; the table may extend beyond x = 1. Only the shape matters (the scale of
+    /// `I_i` is irrelevant).
+    Tabulated {
+        /// `(normalised radius ρ/R, relative intensity)` nodes.
+        points: Vec<(f64, f64)>,
+    },
+}
+
+impl Default for BeamProfile {
+    /// DART's default beam: Gaussian with edge intensity 0.368.
+    fn default() -> Self {
+        BeamProfile::Gaussian {
+            edge_intensity: DART_EDGE_RELATIVE_INTENSITY,
+        }
+    }
+}
+
+impl BeamProfile {
+    /// Short name for logs: `"Gaussian"`, `"uniform"` or `"tabulated"`.
+    pub fn name(&self) -> &'static str {
+        match self {
+            BeamProfile::Gaussian { .. } => "Gaussian",
+            BeamProfile::Uniform => "uniform",
+            BeamProfile::Tabulated { .. } => "tabulated",
+        }
+    }
+}
+
+/// How discrete returns are extracted from a waveform (scene files: `GaussianDecomposition`
+/// or `PeakDetection`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+pub enum ReturnsMethod {
+    /// Levenberg–Marquardt decomposition into bin-integrated Gaussians
+    /// ([`detect_returns_with`](crate::lidar::returns::detect_returns_with)): the reference;
+    /// separates overlapping returns and adds components where the residual exceeds the floor.
+    /// ~60 µs per 400-bin waveform with 3–6 clean returns, 7–25 ms when noise makes it fit
+    /// 10–15 components.
+    #[default]
+    GaussianDecomposition,
+    /// Prominent local maxima with interpolated centre, half-maximum width and valley-split
+    /// energy ([`detect_peaks`](crate::lidar::returns::detect_peaks)): O(n_bins), 2.5–4.5 µs
+    /// per 400-bin waveform. Returns closer than 2.5σ (equal) to 3σ (1 : 0.5) are seen as one;
+    /// see [`detect_peaks`](crate::lidar::returns::detect_peaks) for the biases.
+    PeakDetection,
+}
+
 /// Platform and pulse pattern of a LiDAR.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
@@ -1050,7 +1136,8 @@ pub enum LidarPlatform {
     },
 }
 
-/// Footprint centres of airborne pulses (on the plane z = 0).
+/// Footprint centres of airborne pulses (on the plane z = 0), within 100 scene sizes of the
+/// scene (x in [−100 X, 101 X], y in [−100 Y, 101 Y]).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub enum PulsePattern {

@@ -237,6 +237,66 @@ pub fn locate(src: &str, path: &str) -> Option<(usize, usize)> {
     best.map(|p| line_col(src, p))
 }
 
+/// The first key that appears twice in the map of the top-level field `field` (e.g.
+/// `optics`), with the line/column of both occurrences; `None` when every key is unique or the
+/// field is not found. (Serde keeps the last of two equal map keys without a word.)
+pub fn duplicate_key(src: &str, field: &str) -> Option<(String, (usize, usize), (usize, usize))> {
+    let toks = tokenize(src);
+    // The outermost value: skip a struct name, enter its bracket.
+    let open = toks.iter().position(|t| t.kind == TokKind::Open)?;
+    let close = matching_close(&toks, open).unwrap_or(toks.len());
+    let mut depth = 0i32;
+    let mut map_open = None;
+    for k in open + 1..close {
+        match toks[k].kind {
+            TokKind::Open => depth += 1,
+            TokKind::Close => depth -= 1,
+            TokKind::Word(s, e)
+                if depth == 0
+                    && &src[s..e] == field
+                    && toks.get(k + 1).map(|t| t.kind) == Some(TokKind::Colon) =>
+            {
+                map_open = (k + 2..close).find(|&j| toks[j].kind == TokKind::Open);
+                break;
+            }
+            _ => {}
+        }
+    }
+    let m = map_open?;
+    let m_close = matching_close(&toks, m).unwrap_or(toks.len());
+    let mut seen: Vec<(&str, usize)> = Vec::new();
+    let mut depth = 0i32;
+    let mut at_start = true;
+    for k in m + 1..m_close {
+        match toks[k].kind {
+            TokKind::Open => depth += 1,
+            TokKind::Close => depth -= 1,
+            TokKind::Comma if depth == 0 => {
+                at_start = true;
+                continue;
+            }
+            TokKind::Str(s, e) | TokKind::Word(s, e)
+                if depth == 0
+                    && at_start
+                    && toks.get(k + 1).map(|t| t.kind) == Some(TokKind::Colon) =>
+            {
+                let key = &src[s..e];
+                if let Some(&(_, first)) = seen.iter().find(|(n, _)| *n == key) {
+                    return Some((
+                        key.to_string(),
+                        line_col(src, first),
+                        line_col(src, toks[k].pos),
+                    ));
+                }
+                seen.push((key, toks[k].pos));
+            }
+            _ => {}
+        }
+        at_start = false;
+    }
+    None
+}
+
 fn matching_close(toks: &[Tok], open: usize) -> Option<usize> {
     let mut depth = 0;
     for (i, t) in toks.iter().enumerate().skip(open) {
@@ -265,5 +325,16 @@ mod tests {
         assert_eq!(locate(src, "objects[1].crown.radius_x_m"), Some((10, 15)));
         assert_eq!(locate(src, "optics[\"leaf\"].reflectance"), Some((14, 26)));
         assert_eq!(locate(src, "objects[0].optics"), Some((7, 13)));
+    }
+
+    #[test]
+    fn finds_duplicate_map_keys() {
+        let src = "(\n  name: \"optics\",\n  optics: {\n    \"a\": L(x: [1]),\n    \"b\": L(x: {\"a\": 1}),\n    \"a\": L(x: [2]),\n  },\n)";
+        assert_eq!(
+            duplicate_key(src, "optics"),
+            Some(("a".to_string(), (4, 5), (6, 5)))
+        );
+        let ok = "(\n  optics: {\n    \"a\": L(x: [1]),\n    \"b\": L(),\n  },\n)";
+        assert_eq!(duplicate_key(ok, "optics"), None);
     }
 }

@@ -53,8 +53,3 @@ pub fn to_ron(desc: &SceneDesc) -> String {
         .compact_arrays(true);
     ron::ser::to_string_pretty(desc, cfg).expect("scene descriptions always serialise")
 }
-
-/// Transitional path of the seeded streams (now [`crate::random`]).
-pub mod spawn {
-    pub use crate::random::{stream, uniform};
-}

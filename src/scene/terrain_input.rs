@@ -80,6 +80,14 @@ pub fn read_esri_ascii(path: &Path, text: &str, offset: (f64, f64)) -> Result<Ra
         }
     };
     let nodata = get("nodata_value");
+    if ncols * nrows > MAX_RASTER_NODES as f64 {
+        return Err(err(
+            path,
+            header.get("ncols").map(|v| v.1),
+            "ncols/nrows",
+            format!("{ncols} × {nrows} nodes are above the limit of {MAX_RASTER_NODES} nodes"),
+        ));
+    }
     let (nx, ny) = (ncols as usize, nrows as usize);
     let mut z = vec![0.0; nx * ny];
     let mut count = 0usize;
@@ -130,6 +138,10 @@ pub fn read_esri_ascii(path: &Path, text: &str, offset: (f64, f64)) -> Result<Ra
     })
 }
 
+/// Largest number of nodes of a ground raster (2²⁸: 2 GiB of f64 altitudes), checked before
+/// the altitudes are allocated.
+pub const MAX_RASTER_NODES: usize = 1 << 28;
+
 /// Builds the terrain of a scene; `base_dir` resolves raster file paths; `field` names the
 /// topography in errors.
 pub fn build_terrain(
@@ -179,7 +191,21 @@ pub fn build_terrain(
                         path: p.clone(),
                         source: e,
                     })?;
-                    let n = nodes.0 * nodes.1;
+                    let n = nodes
+                        .0
+                        .checked_mul(nodes.1)
+                        .filter(|&n| n <= MAX_RASTER_NODES)
+                        .ok_or_else(|| {
+                            err(
+                                &p,
+                                None,
+                                "nodes",
+                                format!(
+                                    "{} × {} nodes are above the limit of {MAX_RASTER_NODES} nodes",
+                                    nodes.0, nodes.1
+                                ),
+                            )
+                        })?;
                     if nodes.0 < 2 || nodes.1 < 2 || bytes.len() != 4 * n {
                         return Err(err(
                             &p,

@@ -8,7 +8,6 @@
 
 use super::special::normal_interval;
 use super::{LidarError, check_non_negative, check_positive};
-use serde::{Deserialize, Serialize};
 use std::f64::consts::PI;
 
 mod moments;
@@ -23,8 +22,8 @@ use sampler::RadialTable;
 /// `FWHM = 2√(2 ln 2) σ` for a Gaussian.
 pub const FWHM_PER_SIGMA: f64 = 2.354_820_045_030_949_3;
 
-/// DART's default `gaussian_sigma_illu`: relative intensity at the footprint edge (≈ 1/e).
-pub const DART_EDGE_RELATIVE_INTENSITY: f64 = 0.368;
+/// DART's default `gaussian_sigma_illu` (a scene default, [`crate::scene::desc`]).
+pub use crate::scene::desc::DART_EDGE_RELATIVE_INTENSITY;
 
 /// DART's default `gaussian_pulse_cut`: the pulse is truncated at ±3σ_t.
 pub const DART_PULSE_CUT_SIGMA: f64 = 3.0;
@@ -315,67 +314,11 @@ impl FootprintProfile {
     }
 }
 
-/// Default of [`BeamProfile::Gaussian`]'s `edge_intensity` in scene files (DART's
-/// `gaussian_sigma_illu`, 0.368).
-fn default_beam_edge_intensity() -> f64 {
-    DART_EDGE_RELATIVE_INTENSITY
-}
-
-/// Transverse (radial) intensity profile of the emitted beam, independent of its size.
-///
-/// DART 5 paper §4: "Photons launched within ΔΩ_footprint can have any angular distribution
-/// (e.g., Gaussian)". The profile is stated as relative intensity (irradiance on the plane normal
-/// to the beam axis at the reference range) against the **normalised radius** `x = ρ/R`, R being
-/// the nominal footprint radius at that range (from `footprint_radius_m` or the divergence,
-/// physics.md §9.1). Because packets leave the emitter along `axis·H + offset`, an off-axis angle α
-/// maps to `x = tan α / tan α_half` (α_half = half divergence). To use a table measured against
-/// the angle, `I(α)` in W sr⁻¹, take `x = tan α/tan α_half` and intensity `I(α) cos³α`; for
-/// α_half ≤ 10 mrad, `x = α/α_half` and `I(α)` unchanged are exact to < 1.5e-4 relative.
-///
-/// Serialises as a RON/serde enum like the scene `*Desc` types, e.g. `Gaussian(edge_intensity:
-/// 0.368)`, `Uniform`, `Tabulated(points: [(0.0, 1.0), (0.8, 1.0), (1.0, 0.0)])`.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
-pub enum BeamProfile {
-    /// Gaussian `I(x) = exp(−x²/(2s²))`, `s = 1/√(−2 ln edge_intensity)` (physics.md §9.1,
-    /// DART `gaussian_sigma_illu`); unbounded, so the sampler's truncation radius matters.
-    Gaussian {
-        /// Relative intensity at the footprint edge x = 1, in (0, 1) (default 0.368 ≈ 1/e).
-        #[serde(default = "default_beam_edge_intensity")]
-        edge_intensity: f64,
-    },
-    /// Top hat: constant intensity for x ≤ 1, zero beyond.
-    Uniform,
-    /// Piecewise-linear relative intensity through `points = [(x_i, I_i)]`, `x_i = ρ/R`
-    /// strictly increasing from `x_0 ≥ 0`, `I_i` finite and ≥ 0, not all zero, at least two
-    /// points. The intensity is zero for `x < x_0` (an annular beam if `x_0 > 0`) and for
-    /// `x > x_last`; the table may extend beyond x = 1. Only the shape matters (the scale of
-    /// `I_i` is irrelevant).
-    Tabulated {
-        /// `(normalised radius ρ/R, relative intensity)` nodes.
-        points: Vec<(f64, f64)>,
-    },
-}
-
-impl Default for BeamProfile {
-    /// DART's default beam: Gaussian with edge intensity 0.368.
-    fn default() -> Self {
-        BeamProfile::Gaussian {
-            edge_intensity: DART_EDGE_RELATIVE_INTENSITY,
-        }
-    }
-}
+/// The beam profile is a scene field ([`crate::scene::desc::BeamProfile`]); its checks against
+/// the footprint model stay here.
+pub use crate::scene::desc::BeamProfile;
 
 impl BeamProfile {
-    /// Short name for logs: `"Gaussian"`, `"uniform"` or `"tabulated"`.
-    pub fn name(&self) -> &'static str {
-        match self {
-            BeamProfile::Gaussian { .. } => "Gaussian",
-            BeamProfile::Uniform => "uniform",
-            BeamProfile::Tabulated { .. } => "tabulated",
-        }
-    }
-
     /// Checks the parameters (edge intensity in (0, 1); table rules of
     /// [`BeamProfile::Tabulated`]); the error names the offending parameter or table point.
     pub fn validate(&self) -> Result<(), LidarError> {

@@ -44,7 +44,6 @@
 
 use super::waveform::Waveform;
 use super::{LidarError, check_non_negative};
-use serde::{Deserialize, Serialize};
 
 mod decompose;
 mod fit;
@@ -73,21 +72,8 @@ pub struct Return {
     pub energy_j: f64,
 }
 
-/// How discrete returns are extracted from a waveform (scene files: `GaussianDecomposition`
-/// or `PeakDetection`).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
-pub enum ReturnsMethod {
-    /// Levenberg–Marquardt decomposition into bin-integrated Gaussians ([`detect_returns_with`]):
-    /// the reference; separates overlapping returns and adds components where the residual
-    /// exceeds the floor. ~60 µs per 400-bin waveform with 3–6 clean returns, 7–25 ms when
-    /// noise makes it fit 10–15 components.
-    #[default]
-    GaussianDecomposition,
-    /// Prominent local maxima with interpolated centre, half-maximum width and valley-split
-    /// energy ([`detect_peaks`]): O(n_bins), 2.5–4.5 µs per 400-bin waveform. Returns closer than
-    /// 2.5σ (equal) to 3σ (1 : 0.5) are seen as one; see [`detect_peaks`] for the biases.
-    PeakDetection,
-}
+/// The returns method is a scene field ([`crate::scene::desc::ReturnsMethod`]).
+pub use crate::scene::desc::ReturnsMethod;
 
 /// Tuning of [`detect_returns_with`] and [`detect_peaks`].
 #[derive(Debug, Clone, Copy, PartialEq)]

@@ -206,6 +206,7 @@ fn single_bin_spike_gives_narrow_return() {
 #[test]
 fn method_names_in_scene_files() {
     // The crate's scene-file convention: variant names as written in Rust.
+    use serde::Deserialize;
     use serde::de::IntoDeserializer;
     use serde::de::value::{Error, StrDeserializer};
     let de: StrDeserializer<Error> = "PeakDetection".into_deserializer();

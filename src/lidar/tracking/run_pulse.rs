@@ -70,7 +70,7 @@ pub(crate) fn run_pulse(st: &mut PulseState, beam: &Beam, pl: &Pulse) -> PulseRe
     ctx.continue_prob = continue_prob(beam, n_rays);
     let ctx = &*ctx;
     let inp = ctx.inp;
-    let mut rng = crate::scene::spawn::stream(inp.params.seed, LIDAR_STREAM, pl.id);
+    let mut rng = crate::random::stream(inp.params.seed, LIDAR_STREAM, pl.id);
     let (e1, e2) = crate::photon::sampling::orthonormal_basis(pl.axis);
     let w0 = beam.energy_j / n_rays.max(1) as f64;
     let mut missed = 0.0;

@@ -17,6 +17,7 @@ use crate::scene::desc::BoundaryMode;
 use glam::DVec3;
 use rand_xoshiro::Xoshiro256PlusPlus;
 use std::f64::consts::PI;
+use std::ops::ControlFlow;
 
 impl Ctx<'_> {
     /// The LiDAR first flight from the emitter in one walk (receiver mode, `ph.order == 0`,
@@ -192,24 +193,23 @@ impl Ctx<'_> {
         score: &mut S,
     ) -> (Hit, Option<f64>) {
         let spec = self.inp.spec;
-        let d = ph.d;
-        let path0 = ph.path;
-        let mut left = tau_star;
-        let mut tau = 0.0;
+        let mut w = FlightWalk {
+            d: ph.d,
+            path0: ph.path,
+            left: tau_star,
+            tau: 0.0,
+            skip: ph.skip_facet,
+            shift: ph.shift,
+            crossings: 0,
+            travelled: 0.0,
+            coll: None,
+            ret: None,
+        };
         let p = ph.p;
-        let mut skip = ph.skip_facet;
-        let mut shift = ph.shift;
-        let mut crossings = 0u32;
-        let mut travelled = 0.0;
-        // The sampled collision: (cell, point, path, shift).
-        let mut coll: Option<(usize, DVec3, f64, DVec3)> = None;
         // How the walk ended when no collision came first (None: stopped, fly again).
-        let end: Option<Hit>;
-        let mut ret = None;
-        'walk: {
-            let Some(mut dda) = Dda::new_inline(spec, p, d) else {
-                end = Some(Hit::Lost);
-                break 'walk;
+        let end: Option<Hit> = 'walk: {
+            let Some(mut dda) = Dda::new_inline(spec, p, w.d) else {
+                break 'walk Some(Hit::Lost);
             };
             loop {
                 io.out.crossings += 1;
@@ -222,136 +222,172 @@ impl Ctx<'_> {
                         cross_empty(&mut dda, &self.empty, &mut io.out.crossings)
                     }
                 } else {
-                    let t0 = dda.t;
-                    let mut t1 = dda.t_exit();
-                    let has_facets =
-                        self.inp.grid.facet_start[c] < self.inp.grid.facet_start[c + 1];
-                    let fhit = if has_facets {
-                        self.facet_hit(c, dda.point(0.0), d, t0, t1, skip)
-                    } else {
-                        None
-                    };
-                    if let Some((_, th)) = fhit {
-                        t1 = th.max(t0);
+                    match self.flight_cell(ph, &mut w, &mut dda, io, score) {
+                        ControlFlow::Continue(exit) => exit,
+                        ControlFlow::Break(end) => break 'walk end,
                     }
-                    let kv = score.cell(self, c, &dda, (t0, t1), has_facets);
-                    let ell = t1 - t0;
-                    if ell > 0.0 && kv > 0.0 {
-                        let dt = ell * kv;
-                        if coll.is_none() {
-                            if dt >= left {
-                                let t = t0 + left / kv;
-                                coll = Some((c, dda.point(t), path0 + travelled + t, shift));
-                            } else {
-                                left -= dt;
-                            }
-                        }
-                        let seg = Segment {
-                            c,
-                            dda: &dda,
-                            t0,
-                            ell,
-                            kv,
-                            tau,
-                            l0: path0 + travelled + t0,
-                            shift,
-                        };
-                        score.segment(self, ph, io, &seg);
-                        tau += dt;
-                    }
-                    if let Some((f, th)) = fhit {
-                        let at = (dda.point(th), shift, path0 + travelled + th);
-                        if score.facet(self, ph, io, f, at, tau) {
-                            ph.surface_scored = true;
-                        }
-                        if coll.is_none() {
-                            ph.path = at.2;
-                            ph.shift = shift;
-                            ret = score.surface_ret();
-                        }
-                        end = Some(Hit::Facet { f, p: at.0 });
-                        break 'walk;
-                    }
-                    if score.stop(tau, coll.is_some()) {
-                        end = None;
-                        break 'walk;
-                    }
-                    dda.advance()
                 };
-                match exit {
-                    Exit::Inside => {}
-                    Exit::Top => {
-                        if coll.is_none() {
-                            ph.path = path0 + travelled + dda.t;
-                            ph.p = dda.point(dda.t);
-                            ph.shift = shift;
-                        }
-                        end = Some(Hit::Escape);
-                        break 'walk;
-                    }
-                    Exit::Bottom => {
-                        let at = (dda.point(dda.t), shift, path0 + travelled + dda.t);
-                        if score.ground(self, ph, io, at, tau) {
-                            ph.surface_scored = true;
-                        }
-                        if coll.is_none() {
-                            ph.path = at.2;
-                            ph.shift = shift;
-                        }
-                        end = Some(if self.inp.flat_ground.is_some() {
-                            ret = score.surface_ret();
-                            Hit::Ground { p: at.0 }
-                        } else {
-                            Hit::Lost
-                        });
-                        break 'walk;
-                    }
-                    Exit::Side(axis, s) => {
-                        if spec.boundary == BoundaryMode::Isolated {
-                            end = Some(Hit::Lost);
-                            break 'walk;
-                        }
-                        crossings += 1;
-                        if crossings > self.inp.params.max_crossings
-                            || path0 + travelled + dda.t > self.max_path
-                        {
-                            end = Some(Hit::Lost);
-                            break 'walk;
-                        }
-                        let e = dda.point(dda.t);
-                        match self.wrap(e, axis, s) {
-                            Some(q) => {
-                                travelled += dda.t;
-                                shift += e - q;
-                                skip = None;
-                                // The same direction from q: restarted in place.
-                                if dda.restart(spec, q) {
-                                    continue;
-                                }
-                                end = Some(Hit::Lost);
-                                break 'walk;
-                            }
-                            None => {
-                                end = Some(if d.z > 0.0 { Hit::Escape } else { Hit::Lost });
-                                break 'walk;
-                            }
-                        }
-                    }
+                if let ControlFlow::Break(end) =
+                    self.flight_exit(ph, &mut w, &mut dda, exit, io, score)
+                {
+                    break 'walk end;
                 }
             }
-        }
-        if let Some((c, q, path, sh)) = coll {
+        };
+        if let Some((c, q, path, sh)) = w.coll {
             ph.path = path;
             ph.shift = sh;
             return (Hit::Volume { c, p: q }, None);
         }
         match end {
-            Some(hit) => (hit, ret),
+            Some(hit) => (hit, w.ret),
             // A walk with no collision to sample (τ* = ∞: a column ray of `FirstOrderColumns`).
             None if tau_star == f64::INFINITY => (Hit::Lost, None),
             // Stopped before the free path ran out (the first flight's forced walk at τ > 30,
             // probability e^{−30}): the flight goes on from its start with the same free path.
             None => (self.fly_to(ph, g_cur, tau_star, io.rng, io.out), None),
+        }
+    }
+
+    /// One non-empty cell of a flight's walk ([`Ctx::walk_flight`]): the segment to the cell's
+    /// exit or its first facet hit, the collision sampled in it when the free path runs out
+    /// there, the segment scored ([`FlightScore::segment`]) and its optical depth added. Breaks
+    /// with the walk's end when a facet ends it (scored, [`FlightScore::facet`]) or `score`
+    /// stops it (`None`); else advances the DDA and continues with its exit.
+    #[inline(always)]
+    fn flight_cell<S: FlightScore>(
+        &self,
+        ph: &mut Photon,
+        w: &mut FlightWalk,
+        dda: &mut Dda,
+        io: &mut FlightIo,
+        score: &mut S,
+    ) -> ControlFlow<Option<Hit>, Exit> {
+        let c = dda.index();
+        let t0 = dda.t;
+        let mut t1 = dda.t_exit();
+        let has_facets = self.inp.grid.facet_start[c] < self.inp.grid.facet_start[c + 1];
+        let fhit = if has_facets {
+            self.facet_hit(c, dda.point(0.0), w.d, t0, t1, w.skip)
+        } else {
+            None
+        };
+        if let Some((_, th)) = fhit {
+            t1 = th.max(t0);
+        }
+        let kv = score.cell(self, c, dda, (t0, t1), has_facets);
+        let ell = t1 - t0;
+        if ell > 0.0 && kv > 0.0 {
+            let dt = ell * kv;
+            if w.coll.is_none() {
+                if dt >= w.left {
+                    let t = t0 + w.left / kv;
+                    w.coll = Some((c, dda.point(t), w.path0 + w.travelled + t, w.shift));
+                } else {
+                    w.left -= dt;
+                }
+            }
+            let seg = Segment {
+                c,
+                dda,
+                t0,
+                ell,
+                kv,
+                tau: w.tau,
+                l0: w.path0 + w.travelled + t0,
+                shift: w.shift,
+            };
+            score.segment(self, ph, io, &seg);
+            w.tau += dt;
+        }
+        if let Some((f, th)) = fhit {
+            let at = (dda.point(th), w.shift, w.path0 + w.travelled + th);
+            if score.facet(self, ph, io, f, at, w.tau) {
+                ph.surface_scored = true;
+            }
+            if w.coll.is_none() {
+                ph.path = at.2;
+                ph.shift = w.shift;
+                w.ret = score.surface_ret();
+            }
+            return ControlFlow::Break(Some(Hit::Facet { f, p: at.0 }));
+        }
+        if score.stop(w.tau, w.coll.is_some()) {
+            return ControlFlow::Break(None);
+        }
+        ControlFlow::Continue(dda.advance())
+    }
+
+    /// Where a flight's walk goes after the DDA left a cell through `exit`: on inside, or
+    /// through a repetitive side into the wrapped point (the DDA restarted in place); else it
+    /// breaks with its end: an escape through the top, the flat ground or bottom (scored,
+    /// [`FlightScore::ground`]), or a loss (isolated side, crossings or path limit, failed
+    /// re-entry). Without a collision before it, the photon's path, position and shift are
+    /// those of the end.
+    #[inline(always)]
+    fn flight_exit<S: FlightScore>(
+        &self,
+        ph: &mut Photon,
+        w: &mut FlightWalk,
+        dda: &mut Dda,
+        exit: Exit,
+        io: &mut FlightIo,
+        score: &mut S,
+    ) -> ControlFlow<Option<Hit>> {
+        let spec = self.inp.spec;
+        match exit {
+            Exit::Inside => ControlFlow::Continue(()),
+            Exit::Top => {
+                if w.coll.is_none() {
+                    ph.path = w.path0 + w.travelled + dda.t;
+                    ph.p = dda.point(dda.t);
+                    ph.shift = w.shift;
+                }
+                ControlFlow::Break(Some(Hit::Escape))
+            }
+            Exit::Bottom => {
+                let at = (dda.point(dda.t), w.shift, w.path0 + w.travelled + dda.t);
+                if score.ground(self, ph, io, at, w.tau) {
+                    ph.surface_scored = true;
+                }
+                if w.coll.is_none() {
+                    ph.path = at.2;
+                    ph.shift = w.shift;
+                }
+                ControlFlow::Break(Some(if self.inp.flat_ground.is_some() {
+                    w.ret = score.surface_ret();
+                    Hit::Ground { p: at.0 }
+                } else {
+                    Hit::Lost
+                }))
+            }
+            Exit::Side(axis, s) => {
+                if spec.boundary == BoundaryMode::Isolated {
+                    return ControlFlow::Break(Some(Hit::Lost));
+                }
+                w.crossings += 1;
+                if w.crossings > self.inp.params.max_crossings
+                    || w.path0 + w.travelled + dda.t > self.max_path
+                {
+                    return ControlFlow::Break(Some(Hit::Lost));
+                }
+                let e = dda.point(dda.t);
+                match self.wrap(e, axis, s) {
+                    Some(q) => {
+                        w.travelled += dda.t;
+                        w.shift += e - q;
+                        w.skip = None;
+                        // The same direction from q: restarted in place.
+                        if dda.restart(spec, q) {
+                            return ControlFlow::Continue(());
+                        }
+                        ControlFlow::Break(Some(Hit::Lost))
+                    }
+                    None => {
+                        ControlFlow::Break(Some(if w.d.z > 0.0 { Hit::Escape } else { Hit::Lost }))
+                    }
+                }
+            }
         }
     }
 
@@ -471,6 +507,31 @@ impl FlightIo<'_> {
             s[0] > 0.0
         });
     }
+}
+
+/// State of a flight's walk ([`Ctx::walk_flight`]) carried from cell to cell.
+struct FlightWalk {
+    /// Flight direction.
+    d: DVec3,
+    /// Path length from the emitter at the walk's start, m.
+    path0: f64,
+    /// Free optical path left before the collision.
+    left: f64,
+    /// Optical depth walked.
+    tau: f64,
+    /// Facet not to hit (the one the flight starts on).
+    skip: Option<u32>,
+    /// Unwrapped minus wrapped position, m.
+    shift: DVec3,
+    /// Side crossings (repetitive scenes).
+    crossings: u32,
+    /// Path length walked before the last re-entry through a side, m.
+    travelled: f64,
+    /// The sampled collision: (cell, point, path, shift).
+    coll: Option<(usize, DVec3, f64, DVec3)>,
+    /// The surface's return optical depth when the flight ends on it with no collision before
+    /// ([`FlightScore::surface_ret`]).
+    ret: Option<f64>,
 }
 
 /// One vegetation segment of a flight's walk ([`Ctx::walk_flight`]): the part

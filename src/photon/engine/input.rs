@@ -3,47 +3,19 @@
 //! (turbid leaves, Lambertian and BRDF surfaces, fluids), the fluid fields, the run parameters
 //! and the scene arrays of one run ([`PhotonInput`]).
 
+use crate::direction::DirectionSet;
+use crate::phase::PhaseTable;
 use crate::photon::sampling::{AliasTable, BoxTable, BrdfSampler, LeafSampler};
 use crate::physics::brdf::Brdf;
 use crate::physics::lad::{GTable, VolscattKernel};
 use crate::physics::phase::FluidPhase;
-use crate::resources::directions::DirectionSet;
 use crate::resources::facets::Facet;
 use crate::resources::grid::{CellGrid, GridSpec};
-use crate::resources::phase_tables::PhaseTable;
 use glam::DVec3;
 use rand_xoshiro::Xoshiro256PlusPlus;
 
-/// How scattering directions are drawn.
-#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
-pub enum SamplerKind {
-    /// Exact continuous phase functions: the unbiased reference.
-    Continuous,
-    /// DART Ray-Carlo over the discrete directions, Walker/Vose alias tables.
-    Alias,
-    /// DART Ray-Carlo over the discrete directions, DART's Box method.
-    Box {
-        /// Largest max/min probability ratio inside a class.
-        gamma: f64,
-        /// Box budget per incident row.
-        max_boxes: usize,
-    },
-}
-
-impl SamplerKind {
-    /// True for the discrete (Ray-Carlo) modes.
-    pub fn is_discrete(&self) -> bool {
-        !matches!(self, SamplerKind::Continuous)
-    }
-    /// Name used in products.
-    pub fn name(&self) -> &'static str {
-        match self {
-            SamplerKind::Continuous => "continuous",
-            SamplerKind::Alias => "alias",
-            SamplerKind::Box { .. } => "box",
-        }
-    }
-}
+/// The direction sampler is a run setting ([`crate::resources::scene::SamplerKind`]).
+pub use crate::resources::scene::SamplerKind;
 
 /// Discrete outgoing-direction sampler of one incident row.
 #[derive(Debug, Clone)]

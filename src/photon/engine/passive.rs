@@ -107,7 +107,7 @@ pub fn run(inp: &PhotonInput) -> PhotonResult {
     res
 }
 
-/// Photon stream purpose tag (see `scene::spawn::stream`).
+/// Photon stream purpose tag (see `random::stream`).
 pub const PHOTON_STREAM: u64 = 0x5048_4f54_4f4e; // "PHOTON"
 
 pub(crate) fn run_batch(ctx: &Ctx, batch: u64, n: u64, source: &[f64]) -> BatchOut {
@@ -132,7 +132,7 @@ pub(crate) fn run_batch(ctx: &Ctx, batch: u64, n: u64, source: &[f64]) -> BatchO
         skipped: 0,
         wave: None,
     };
-    let mut rng = crate::scene::spawn::stream(inp.params.seed, PHOTON_STREAM, batch);
+    let mut rng = crate::random::stream(inp.params.seed, PHOTON_STREAM, batch);
     let has_sky = w > nb;
     let n_total = n * inp.params.batches.max(1) as u64;
     // Sun and sky photons alternate inside the batch.

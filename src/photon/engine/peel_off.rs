@@ -4,7 +4,7 @@
 //! the turbid peel-off phase.
 
 use super::context::{Bands, Ctx, PerMaterial, Photon, Receiver};
-use super::input::PhotonOptics;
+use super::input::{FluidMaterial, PhotonOptics};
 use super::tally::BatchOut;
 use super::walk::return_transmittance;
 use crate::photon::sampling::Uniform01;
@@ -15,6 +15,51 @@ use crate::scene::desc::BoundaryMode;
 use glam::DVec3;
 use rand_xoshiro::Xoshiro256PlusPlus;
 use std::f64::consts::PI;
+use std::ops::ControlFlow;
+
+/// State of a forced peel-off walk ([`Ctx::forced_peel`]) carried from cell to cell.
+struct ForcedWalk {
+    /// Forced points per segment (K ≥ 1).
+    k_pts: u32,
+    /// Flight direction.
+    d_in: DVec3,
+    /// Optical depth per band from the walk's start.
+    tau: Bands,
+    /// Return optical depth per band from the walk's start (the emitter side), when `exact`.
+    tau_ret: Bands,
+    /// Receiver mode on the straight flight from the emitter: the return transmittance of a
+    /// point is the walk's own (until a one-sided facet is crossed from behind).
+    exact: bool,
+    /// Per-band weight factors of the point being emitted.
+    fac: Bands,
+    /// Path length walked before the last re-entry through a side, m.
+    travelled: f64,
+    /// Unwrapped minus wrapped position (repetitive scenes), m.
+    shift: DVec3,
+}
+
+/// One cell segment `[t0, t0 + ell]` of a forced walk (distances along the DDA's ray, m).
+struct ForcedSegment<'a> {
+    /// Cell index.
+    c: usize,
+    /// Segment start.
+    t0: f64,
+    /// Segment length.
+    ell: f64,
+    /// Vegetation extinction `Σ G_m u_m`, m⁻¹.
+    kv: f64,
+    /// Return extinction of the exact mode, m⁻¹ (0 otherwise).
+    kr: f64,
+    /// The cell's fluid, if any.
+    fl: Option<&'a FluidMaterial>,
+}
+
+impl ForcedSegment<'_> {
+    /// Fluid extinction σ_b of band `b` (0 without a fluid), m⁻¹.
+    fn sig(&self, b: usize) -> f64 {
+        self.fl.map_or(0.0, |f| f.sigma_e[b])
+    }
+}
 
 impl Ctx<'_> {
     /// Forced (expected-value) peel-off along the whole coming flight (Ray-Carlo K points per
@@ -50,189 +95,47 @@ impl Ctx<'_> {
     ) -> Option<(Option<u32>, Bands)> {
         let spec = self.inp.spec;
         let nb = self.nb;
-        let receiver = self.receiver;
-        let k_pts = self.inp.params.fluid_peel_points.max(1);
-        let mut tau = Bands::from_elem(0.0, nb);
+        let mut walk = ForcedWalk {
+            k_pts: self.inp.params.fluid_peel_points.max(1),
+            d_in: ph.d,
+            tau: Bands::from_elem(0.0, nb),
+            tau_ret: Bands::from_elem(0.0, nb),
+            exact: self.receiver.is_some() && ph.order == 0 && ph.direct,
+            fac: Bands::from_elem(0.0, nb),
+            travelled: 0.0,
+            shift: ph.shift,
+        };
         let mut p = ph.p;
         let mut skip = ph.skip_facet;
         let mut crossings = 0u32;
-        let mut travelled = 0.0;
-        let mut shift = ph.shift;
-        let d_in = ph.d;
-        let mut fac = Bands::from_elem(0.0, nb);
-        // Return optical depth per band from the walk's start (the emitter side), and whether it
-        // is used (see above).
-        let mut tau_ret = Bands::from_elem(0.0, nb);
-        let mut exact = receiver.is_some() && ph.order == 0 && ph.direct;
         'restart: loop {
             let mut dda = Dda::new(spec, p, ph.d)?;
             loop {
                 let c = dda.index();
                 let r = self.empty[c];
-                if r == 0 {
-                    let t0 = dda.t;
-                    let mut t1 = dda.t_exit();
-                    let fhit = if self.inp.grid.facet_start[c] < self.inp.grid.facet_start[c + 1] {
-                        self.facet_hit(c, dda.point(0.0), ph.d, t0, t1, skip)
-                    } else {
-                        None
-                    };
-                    if let Some((_, th)) = fhit {
-                        t1 = th.max(t0);
-                    }
-                    if exact
-                        && self.inp.grid.facet_start[c] < self.inp.grid.facet_start[c + 1]
-                        && self.facet_behind(c, dda.point(0.0), ph.d, t0, t1)
-                    {
-                        exact = false;
-                    }
-                    let ell = t1 - t0;
-                    let kv = self.k_veg(c, g_cur);
-                    // Return extinction: turbid materials without a leaf size (with one, the return
-                    // goes back through the same gaps).
-                    let kr = if exact { self.k_return(c, g_cur) } else { 0.0 };
-                    let fl = self.fluid_of(c);
-                    let sig = |b: usize| fl.map_or(0.0, |f| f.sigma_e[b]);
-                    // Emits one forced point: `fac` holds the per-band weight factors.
-                    let emit = |at: DVec3,
-                                u: f64,
-                                fac: &[f64],
-                                phase: &mut dyn FnMut(DVec3, &mut [f64]) -> bool,
-                                out: &mut BatchOut,
-                                scratch: &mut [f64],
-                                tr: &mut [f64]| {
-                        let mut t_ret = Bands::from_elem(0.0, nb);
-                        if exact {
-                            for (b, t) in t_ret.iter_mut().enumerate() {
-                                *t = return_transmittance(tau_ret[b] + (kr + sig(b)) * u);
-                            }
-                        }
-                        let mut g = |_: usize, ov: DVec3, s: &mut [f64]| {
-                            if !phase(ov, s) {
-                                return false;
-                            }
-                            for b in 0..nb {
-                                s[b] *= fac[b];
-                            }
-                            true
-                        };
-                        match &receiver {
-                            Some(rx) => self.peel_receiver(
-                                rx,
-                                ph,
-                                (at, shift, ph.path + travelled + t0 + u),
-                                None,
-                                exact.then_some(&t_ret[..]),
-                                out,
-                                scratch,
-                                tr,
-                                &mut g,
-                            ),
-                            None => self.peel(ph, at, None, false, out, scratch, tr, &mut g),
-                        }
-                    };
-                    if ell > 0.0 {
-                        if let Some(f) = fl {
-                            let km = kv + f.sigma_e.iter().cloned().fold(0.0, f64::max);
-                            let norm = -(-km * ell).exp_m1(); // 1 − e^{−k_m ℓ}
-                            if km > 0.0 && norm > 0.0 {
-                                for _ in 0..k_pts {
-                                    let u = -(1.0 - rng.next_f64() * norm).ln() / km;
-                                    let q = km * (-km * u).exp() / norm;
-                                    for (b, x) in fac.iter_mut().enumerate() {
-                                        *x = (-tau[b]).exp()
-                                            * f.sigma_e[b]
-                                            * (-(kv + f.sigma_e[b]) * u).exp()
-                                            / (q * k_pts as f64);
-                                    }
-                                    let mut phase = |ov: DVec3, s: &mut [f64]| {
-                                        let pv = f.phase.eval_dirs(d_in, ov) / (4.0 * PI);
-                                        for b in 0..nb {
-                                            s[b] = f.ssa[b] * pv;
-                                        }
-                                        true
-                                    };
-                                    emit(dda.point(t0 + u), u, &fac, &mut phase, out, scratch, tr);
-                                }
-                            }
-                        }
-                        if receiver.is_some() && kv > 0.0 {
-                            let norm = -(-kv * ell).exp_m1();
-                            for _ in 0..k_pts {
-                                let u = -(1.0 - rng.next_f64() * norm).ln() / kv;
-                                // Density kv e^{−kv u}/norm; per-band weight e^{−τ_b − σ_b u}·norm/K.
-                                for (b, x) in fac.iter_mut().enumerate() {
-                                    *x = (-tau[b] - sig(b) * u).exp() * norm / k_pts as f64;
-                                }
-                                // Material in proportion to its extinction.
-                                let mid = self.pick_turbid(c, g_cur, rng.next_f64() * kv);
-                                let Some((mid, tm)) = mid else { continue };
-                                let PhotonOptics::Turbid {
-                                    sampler,
-                                    kernel,
-                                    rho,
-                                    tau: tl,
-                                    ..
-                                } = &self.inp.optics[mid]
-                                else {
-                                    continue;
-                                };
-                                let g_in = g_cur[tm].max(1e-12);
-                                let closed = kernel.is_closed_form();
-                                let n = if closed {
-                                    DVec3::Z
-                                } else {
-                                    sampler.sample_normal(d_in, rng)
-                                };
-                                let mut phase = |ov: DVec3, s: &mut [f64]| {
-                                    turbid_peel_phase(
-                                        kernel,
-                                        closed,
-                                        n,
-                                        d_in,
-                                        ov,
-                                        g_in,
-                                        rho,
-                                        tl,
-                                        &mut s[..nb],
-                                    )
-                                };
-                                emit(dda.point(t0 + u), u, &fac, &mut phase, out, scratch, tr);
-                            }
-                        }
-                        for (b, t) in tau.iter_mut().enumerate() {
-                            *t += (kv + sig(b)) * ell;
-                        }
-                        if exact {
-                            for (b, t) in tau_ret.iter_mut().enumerate() {
-                                *t += (kr + sig(b)) * ell;
-                            }
-                        }
-                    }
-                    if let Some((f, _)) = fhit {
-                        return exact.then_some((Some(f), tau_ret));
-                    }
-                    if tau.iter().cloned().fold(f64::INFINITY, f64::min) > 30.0 {
-                        return None;
-                    }
+                if r == 0
+                    && let ControlFlow::Break(end) =
+                        self.forced_cell(ph, &mut walk, &dda, skip, g_cur, rng, out, scratch, tr)
+                {
+                    return end;
                 }
                 match dda.advance() {
                     Exit::Inside => {}
                     Exit::Top => return None,
-                    Exit::Bottom => return exact.then_some((None, tau_ret)),
+                    Exit::Bottom => return walk.exact.then_some((None, walk.tau_ret)),
                     Exit::Side(axis, s) => {
                         crossings += 1;
                         if spec.boundary == BoundaryMode::Isolated
                             || crossings > self.inp.params.max_crossings
-                            || ph.path + travelled > self.max_path
+                            || ph.path + walk.travelled > self.max_path
                         {
                             return None;
                         }
                         let e = dda.point(dda.t);
                         match self.wrap(e, axis, s) {
                             Some(q) => {
-                                travelled += dda.t;
-                                shift += e - q;
+                                walk.travelled += dda.t;
+                                walk.shift += e - q;
                                 p = q;
                                 skip = None;
                                 continue 'restart;
@@ -242,6 +145,232 @@ impl Ctx<'_> {
                     }
                 }
             }
+        }
+    }
+
+    /// One cell crossing of the forced walk ([`Ctx::forced_peel`]) in the non-empty cell the
+    /// DDA is in: the segment to the cell's exit or to its first facet hit, its forced points
+    /// (fluid, and turbid vegetation in receiver mode), then the optical depths grow by the
+    /// segment's. Breaks with the walk's result when the segment ends on a facet or the walk
+    /// has become opaque (min_b τ_b > 30).
+    #[allow(clippy::too_many_arguments)]
+    fn forced_cell(
+        &self,
+        ph: &Photon,
+        walk: &mut ForcedWalk,
+        dda: &Dda,
+        skip: Option<u32>,
+        g_cur: &[f64],
+        rng: &mut Xoshiro256PlusPlus,
+        out: &mut BatchOut,
+        scratch: &mut [f64],
+        tr: &mut [f64],
+    ) -> ControlFlow<Option<(Option<u32>, Bands)>> {
+        let c = dda.index();
+        let t0 = dda.t;
+        let mut t1 = dda.t_exit();
+        let fhit = if self.inp.grid.facet_start[c] < self.inp.grid.facet_start[c + 1] {
+            self.facet_hit(c, dda.point(0.0), ph.d, t0, t1, skip)
+        } else {
+            None
+        };
+        if let Some((_, th)) = fhit {
+            t1 = th.max(t0);
+        }
+        if walk.exact
+            && self.inp.grid.facet_start[c] < self.inp.grid.facet_start[c + 1]
+            && self.facet_behind(c, dda.point(0.0), ph.d, t0, t1)
+        {
+            walk.exact = false;
+        }
+        let ell = t1 - t0;
+        let kv = self.k_veg(c, g_cur);
+        // Return extinction: turbid materials without a leaf size (with one, the return
+        // goes back through the same gaps).
+        let kr = if walk.exact {
+            self.k_return(c, g_cur)
+        } else {
+            0.0
+        };
+        let seg = ForcedSegment {
+            c,
+            t0,
+            ell,
+            kv,
+            kr,
+            fl: self.fluid_of(c),
+        };
+        if ell > 0.0 {
+            if let Some(f) = seg.fl {
+                self.forced_fluid_points(ph, walk, &seg, f, dda, rng, out, scratch, tr);
+            }
+            if self.receiver.is_some() && kv > 0.0 {
+                self.forced_turbid_points(ph, walk, &seg, dda, g_cur, rng, out, scratch, tr);
+            }
+            for (b, t) in walk.tau.iter_mut().enumerate() {
+                *t += (kv + seg.sig(b)) * ell;
+            }
+            if walk.exact {
+                for (b, t) in walk.tau_ret.iter_mut().enumerate() {
+                    *t += (kr + seg.sig(b)) * ell;
+                }
+            }
+        }
+        if let Some((f, _)) = fhit {
+            return ControlFlow::Break(walk.exact.then_some((Some(f), walk.tau_ret.clone())));
+        }
+        if walk.tau.iter().cloned().fold(f64::INFINITY, f64::min) > 30.0 {
+            return ControlFlow::Break(None);
+        }
+        ControlFlow::Continue(())
+    }
+
+    /// The K forced points of a fluid segment: u from the truncated exponential of the
+    /// majorant `k_m = k_v + max_b σ_b` over the segment, each weighted
+    /// `e^{−τ_b} σ_b e^{−(k_v+σ_b)u}/(K q(u))` with the fluid's intensity `ω P(Θ)/(4π)`.
+    #[allow(clippy::too_many_arguments)]
+    fn forced_fluid_points(
+        &self,
+        ph: &Photon,
+        walk: &mut ForcedWalk,
+        seg: &ForcedSegment,
+        f: &FluidMaterial,
+        dda: &Dda,
+        rng: &mut Xoshiro256PlusPlus,
+        out: &mut BatchOut,
+        scratch: &mut [f64],
+        tr: &mut [f64],
+    ) {
+        let nb = self.nb;
+        let k_pts = walk.k_pts;
+        let d_in = walk.d_in;
+        let (kv, ell) = (seg.kv, seg.ell);
+        let km = kv + f.sigma_e.iter().cloned().fold(0.0, f64::max);
+        let norm = -(-km * ell).exp_m1(); // 1 − e^{−k_m ℓ}
+        if km > 0.0 && norm > 0.0 {
+            for _ in 0..k_pts {
+                let u = -(1.0 - rng.next_f64() * norm).ln() / km;
+                let q = km * (-km * u).exp() / norm;
+                for (b, x) in walk.fac.iter_mut().enumerate() {
+                    *x = (-walk.tau[b]).exp() * f.sigma_e[b] * (-(kv + f.sigma_e[b]) * u).exp()
+                        / (q * k_pts as f64);
+                }
+                let mut phase = |ov: DVec3, s: &mut [f64]| {
+                    let pv = f.phase.eval_dirs(d_in, ov) / (4.0 * PI);
+                    for b in 0..nb {
+                        s[b] = f.ssa[b] * pv;
+                    }
+                    true
+                };
+                let at = dda.point(seg.t0 + u);
+                self.forced_point(ph, walk, seg, at, u, &mut phase, out, scratch, tr);
+            }
+        }
+    }
+
+    /// The K forced points of a turbid segment in receiver mode: u with density
+    /// `k_v e^{−k_v u}/(1 − e^{−k_v ℓ})`, per-band weight `e^{−τ_b − σ_b u}(1 − e^{−k_v ℓ})/K`, a
+    /// material in proportion to its extinction and its leaf intensity `Γ/(πG)` (closed form,
+    /// or the one-leaf estimate with a sampled normal).
+    #[allow(clippy::too_many_arguments)]
+    fn forced_turbid_points(
+        &self,
+        ph: &Photon,
+        walk: &mut ForcedWalk,
+        seg: &ForcedSegment,
+        dda: &Dda,
+        g_cur: &[f64],
+        rng: &mut Xoshiro256PlusPlus,
+        out: &mut BatchOut,
+        scratch: &mut [f64],
+        tr: &mut [f64],
+    ) {
+        let nb = self.nb;
+        let k_pts = walk.k_pts;
+        let d_in = walk.d_in;
+        let (kv, ell) = (seg.kv, seg.ell);
+        let norm = -(-kv * ell).exp_m1();
+        for _ in 0..k_pts {
+            let u = -(1.0 - rng.next_f64() * norm).ln() / kv;
+            // Density kv e^{−kv u}/norm; per-band weight e^{−τ_b − σ_b u}·norm/K.
+            for (b, x) in walk.fac.iter_mut().enumerate() {
+                *x = (-walk.tau[b] - seg.sig(b) * u).exp() * norm / k_pts as f64;
+            }
+            // Material in proportion to its extinction.
+            let mid = self.pick_turbid(seg.c, g_cur, rng.next_f64() * kv);
+            let Some((mid, tm)) = mid else { continue };
+            let PhotonOptics::Turbid {
+                sampler,
+                kernel,
+                rho,
+                tau: tl,
+                ..
+            } = &self.inp.optics[mid]
+            else {
+                continue;
+            };
+            let g_in = g_cur[tm].max(1e-12);
+            let closed = kernel.is_closed_form();
+            let n = if closed {
+                DVec3::Z
+            } else {
+                sampler.sample_normal(d_in, rng)
+            };
+            let mut phase = |ov: DVec3, s: &mut [f64]| {
+                turbid_peel_phase(kernel, closed, n, d_in, ov, g_in, rho, tl, &mut s[..nb])
+            };
+            let at = dda.point(seg.t0 + u);
+            self.forced_point(ph, walk, seg, at, u, &mut phase, out, scratch, tr);
+        }
+    }
+
+    /// Emits one forced point at `at`, a distance `u` into the segment: `phase` gives the
+    /// intensity per unit weight toward the receiver or a view, times the weight factors
+    /// `walk.fac`; in receiver mode the return transmittance is the walk's own (exact) or a
+    /// return ray's.
+    #[allow(clippy::too_many_arguments)]
+    fn forced_point(
+        &self,
+        ph: &Photon,
+        walk: &ForcedWalk,
+        seg: &ForcedSegment,
+        at: DVec3,
+        u: f64,
+        phase: &mut dyn FnMut(DVec3, &mut [f64]) -> bool,
+        out: &mut BatchOut,
+        scratch: &mut [f64],
+        tr: &mut [f64],
+    ) {
+        let nb = self.nb;
+        let fac = &walk.fac;
+        let mut t_ret = Bands::from_elem(0.0, nb);
+        if walk.exact {
+            for (b, t) in t_ret.iter_mut().enumerate() {
+                *t = return_transmittance(walk.tau_ret[b] + (seg.kr + seg.sig(b)) * u);
+            }
+        }
+        let mut g = |_: usize, ov: DVec3, s: &mut [f64]| {
+            if !phase(ov, s) {
+                return false;
+            }
+            for b in 0..nb {
+                s[b] *= fac[b];
+            }
+            true
+        };
+        match &self.receiver {
+            Some(rx) => self.peel_receiver(
+                rx,
+                ph,
+                (at, walk.shift, ph.path + walk.travelled + seg.t0 + u),
+                None,
+                walk.exact.then_some(&t_ret[..]),
+                out,
+                scratch,
+                tr,
+                &mut g,
+            ),
+            None => self.peel(ph, at, None, false, out, scratch, tr, &mut g),
         }
     }
 

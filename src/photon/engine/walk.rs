@@ -17,7 +17,7 @@ impl Ctx<'_> {
     /// The direction of a photon reflected by the Lambertian flat ground (cosine-weighted
     /// about +z). Discrete sampler: the upward tiling direction whose sector holds a
     /// cosine-weighted direction, drawn with its probability `∫_sector μ dΩ / π` (the projected
-    /// solid angle of its (μ, φ) rectangle, [`crate::resources::directions::Direction::projected_sr`])
+    /// solid angle of its (μ, φ) rectangle, [`crate::direction::Direction::projected_sr`])
     /// from an alias table: the same distribution as drawing the direction and looking up its
     /// sector, in one draw instead of two, a sine, a cosine and the sector search.
     #[inline]

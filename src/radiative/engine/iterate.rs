@@ -312,7 +312,7 @@ fn cell_records(inp: &RadiativeInput, tur_mat: &[u32]) -> (Vec<Ent>, Vec<CellRec
 
 /// Factor on the power threshold per direction (sun last, 1): DART's threshold is per
 /// steradian × the ray's ΔΩ (physics.md §6.4), relative to the largest tile.
-fn ray_factors(tiling: &[crate::resources::directions::Direction]) -> Vec<f64> {
+fn ray_factors(tiling: &[crate::direction::Direction]) -> Vec<f64> {
     let d_omega_max = tiling
         .iter()
         .map(|d| d.solid_angle_sr)
@@ -451,7 +451,7 @@ fn facet_rows(inp: &RadiativeInput, n_sec: usize) -> (Vec<u32>, usize, Vec<f64>)
         let dir_omega: Vec<DVec3> = tiling.iter().map(|d| d.omega).collect();
         let dir_regular: Vec<bool> = tiling
             .iter()
-            .map(|d| d.kind == crate::resources::directions::DirectionKind::Regular)
+            .map(|d| d.kind == crate::direction::DirectionKind::Regular)
             .collect();
         for (s, set) in inp.facet_tables.iter().enumerate() {
             let weights: Vec<f64> = tiling

@@ -317,3 +317,30 @@ fn exp_moment_position_matches_the_exponential_moment() {
         }
     }
 }
+
+/// The return of a monostatic LiDAR: a separation at rounding level (the reversed flight
+/// recomputed from positions, 1 ulp off) is an exact backscatter (`c = 0`, one-way
+/// transmittance), while a true separation keeps its decorrelation `2|d_out + d_in|/(l ΣG)`.
+#[test]
+fn hotspot_path_rounding_is_exact_backscatter() {
+    let d_in = DVec3::new(
+        -1.3833974432568404e-7,
+        1.2666272291392999e-8,
+        -0.9999999999999905,
+    );
+    let d_out = DVec3::new(
+        1.3833974432568264e-7,
+        -1.2666272291392266e-8,
+        0.9999999999999903,
+    );
+    let sep = (d_out + d_in).length();
+    assert!(sep > 0.0 && sep <= BACKSCATTER_ROUNDING, "{sep:e}");
+    assert_eq!(hotspot_terms_path(d_in, d_out, 0.5, 0.5, 0.01), [0.5, 0.0]);
+    assert_eq!(hotspot_terms_path(d_in, -d_in, 0.5, 0.5, 0.01), [0.5, 0.0]);
+    // 1e-6 rad off the reversed flight: c = 2e-6 / (0.01 × 1) m⁻¹.
+    let tilted = (-d_in + DVec3::new(1e-6, 0.0, 0.0)).normalize();
+    let [b, c] = hotspot_terms_path(d_in, tilted, 0.5, 0.5, 0.01);
+    assert_eq!(b, 0.5);
+    assert!((c - 2.0 * (tilted + d_in).length() / 0.01).abs() <= 1e-12 * c && c > 1.9e-4);
+    assert_eq!(hotspot_terms_path(d_in, d_out, 0.5, 0.5, 0.0), [0.0, 0.0]);
+}
