@@ -16,17 +16,14 @@
 //!   stored per (cell, material, incident angular sector); the exact sun direction is its own
 //!   sector. Each crossing books the barycentres of the first and second halves of its
 //!   intercepted energy (DART stores two points per crossing; physics.md §3.6); their sum gives
-//!   the cell's barycentre p̄ of intercepted energy. Scattered power leaves two points, half
-//!   from each, at `p̄ ± v` with `v = (±σx, ±σy, σz)` the within-cell spread of the intercepted
-//!   energy per axis: the standard deviation of the maximum-entropy density with p̄'s position
-//!   in the cell as mean (the truncated exponential, which is exactly Beer's-law interception
-//!   along an axis; [`max_entropy_sigma`]); the horizontal signs alternate over directions.
-//!   The two points thus match the source's first and second moments along every axis, the
-//!   nonlinearity of `e^{−kℓ}` along the rays being the quadratic term: on the DISORT layer the
-//!   worst BRF error no longer depends on the cell size (100 directions: 1.83 % at 1 m, 1.76 %
-//!   at 0.5 m, 1.73 % at 0.2 m, the rest being the angular discretisation; the half-barycentre
-//!   pair itself gave 4.8 % at 0.5 m because averaging it over every crossing of a cell
-//!   shrinks its spread; docs/performance.md). Rays scattered by a cell start *inside* it, so
+//!   the cell's barycentre p̄ of intercepted energy. The power a cell scatters into direction
+//!   j leaves two rays, half each, from `(x̄ ± σx, ȳ ± σy, z*_j)`: per axis the source is the
+//!   maximum-entropy density with p̄'s position in the cell as mean (the truncated
+//!   exponential, which is exactly Beer's-law interception along an axis), σ its horizontal
+//!   spread ([`max_entropy_sigma`]) and z*_j the height at which one ray carries the exact
+//!   expectation of its vertical profile through a homogeneous medium along j
+//!   ([`exp_moment_position`]). On the DISORT layer the worst BRF error then no longer depends
+//!   on the cell size (docs/performance.md). Rays scattered by a cell start *inside* it, so
 //!   within-cell re-interception is tracked, not approximated.
 //! * **Turbid sub-faces** (`TrackingParams::turbid_subfaces`, DART 5 paper §3.2 and Figure 7;
 //!   physics.md §3.6, §6.3, §6.6): DART stores a turbid cell's interception per *incident cell

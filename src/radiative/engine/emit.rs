@@ -455,8 +455,9 @@ fn ground_emitter<'s>(
     }
 }
 
-/// Sends an emitter's `outgoing` power along every tiling direction: from both half-barycentres
-/// (turbid, `split`: the two-point quadrature) or from each scattering point; first-order sun
+/// Sends an emitter's `outgoing` power along every tiling direction: from the cell's two
+/// emission points per direction (turbid, `split`: [`TurbidPair`]) or from each scattering
+/// point; first-order sun
 /// rays (`first`) with the hotspot correlation.
 fn send_emitter(
     ctx: &Ctx,
@@ -581,10 +582,9 @@ pub(in crate::radiative) struct ExitGroups {
 /// paper §3.2, Figure 7; physics.md §3.6, §6.3): `recs` are the entry's records (see
 /// [`TurRecords`]). Each record's power per slot goes along every direction j with the slot's
 /// phase row (the sun's row for the sun slot), as in `Off`. `Faces`/`Subfaces`: each non-empty
-/// incident store sends its own power from its own two points (half from the barycentre of the
-/// first half of its intercepted energy, half from the second's). `Blend`: one pair of rays per
-/// direction j, from the barycentres of the per-slot points weighted by the power each slot
-/// sends into j. With `turbid_exit_grouping` (cells without facets) the rays of all the
+/// incident store sends its own power from its own two points ([`TurbidPair`] about the
+/// store's barycentre). `Blend`: one pair of rays per direction j, about the barycentre of the
+/// per-slot points weighted by the power each slot sends into j. With `turbid_exit_grouping` (cells without facets) the rays of all the
 /// entry's stores are first followed to the cell's exit by [`Ctx::to_exit`] and then traced
 /// merged, one per (direction, exit face or sub-face) from the power-weighted barycentre of the
 /// exit points (Figure 7c); first-order sun rays with the hotspot correlation are traced from
