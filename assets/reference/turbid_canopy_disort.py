@@ -45,8 +45,9 @@ Outputs (per unit horizontal incident flux mu0 * fbeam):
     T_diff    = rfldn(BOA) / mu0   (diffuse downward flux at the soil)
     A_canopy  = 1 - albedo - (T_dir + T_diff) (1 - soil)
 
-Run:  /tmp/pyd/bin/python turbid_canopy_disort.py
-It (1) reproduces /work/main/assets/reference/turbid_canopy_disort.csv with the 'original' and
+Run (in a Python environment with `pip install pydisort==1.8.13 numpy`):
+      python turbid_canopy_disort.py
+It (1) reproduces turbid_canopy_disort.csv (next to this script) with the 'original' and
 the 'primary' settings and stops if any value differs by more than 2e-6 relative, (2) computes
 the extended table with 'primary' and writes turbid_canopy_disort_ext.csv next to this script,
 (3) compares it with 96 streams, with a converged 160-stream run, with delta-M off, and
@@ -72,7 +73,7 @@ for _n in ("libc10_cuda.so", "libtorch_cuda.so"):
 import pydisort  # noqa: E402
 
 HERE = os.path.dirname(os.path.abspath(__file__))
-OLD_CSV = "/work/main/assets/reference/turbid_canopy_disort.csv"
+OLD_CSV = os.path.join(HERE, "turbid_canopy_disort.csv")
 EXT_CSV = os.path.join(HERE, "turbid_canopy_disort_ext.csv")
 
 BANDS = {  # leaf r, leaf t, soil
