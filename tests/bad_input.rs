@@ -716,3 +716,21 @@ fn an_output_folder_that_cannot_be_created_is_reported_first() {
     assert!(err.contains("out-blocker-file"), "{err}");
     assert!(!String::from_utf8_lossy(&out.stdout).contains("products written"));
 }
+
+#[test]
+fn cli_generate_leaf_size_sets_every_turbid_material_and_refuses_negative_sizes() {
+    // `--leaf-size 0`: the pure turbid medium of the oracles (no hotspot) in every turbid
+    // material of the generated scene; a negative size is refused with a non-zero exit.
+    for kind in ["turbid-layer", "forest", "urban"] {
+        let out = cli(&["generate", kind, "--leaf-size", "0"]);
+        assert!(out.status.success(), "{kind}: {out:?}");
+        let text = String::from_utf8(out.stdout).unwrap();
+        let n = text.matches("leaf_size_m:").count();
+        assert!(n > 0, "{kind}: no turbid material");
+        assert_eq!(n, text.matches("leaf_size_m: 0.0,").count(), "{kind}");
+        let out = cli(&["generate", kind, "--leaf-size=-0.01"]);
+        assert!(!out.status.success(), "{kind}: negative leaf size accepted");
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(err.contains("--leaf-size"), "{kind}: {err}");
+    }
+}

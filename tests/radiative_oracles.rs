@@ -61,25 +61,24 @@ fn brf_pp(p: &RadiativeProducts, b: usize, vz: f64, sun_az: f64) -> f64 {
     e.brf
 }
 
-#[test]
-fn turbid_canopy_matches_disort_with_the_reference_preset() {
-    let rows = disort_rows();
-    let mut worst_brf: f64 = 0.0;
-    let mut worst_alb: f64 = 0.0;
-    for lai in [1.0, 3.0] {
-        for sza in [0.0, 20.0] {
-            // 0.2 m cells (optical depth 0.15 per cell at LAI 3): the spatial discretisation error
-            // is below 0.4 % here; 400 directions (reference preset minimum) for the angular part.
-            let p = run(
-                &layer(
-                    lai,
-                    sza,
-                    0.2,
-                    vec![BandOptics::red(), BandOptics::nir()],
-                    LadDesc::Spherical,
-                ),
-                Some(Preset::Reference),
+/// Worst relative errors (BRF over the principal plane −75…75°, albedo, soil irradiance
+/// `ftran`) of the turbid layer against the extended DISORT table (LAI 1, 3, 5; sun zenith 0,
+/// 20, 35, 50°; red and NIR) with `preset`, `dirs` directions and `cell` m cells; energy must
+/// close in every run.
+fn disort_worst(preset: Preset, dirs: usize, cell: f64) -> (f64, f64, f64) {
+    let rows = disort_ext_rows();
+    let (mut wb, mut wa, mut wt) = (0.0f64, 0.0f64, 0.0f64);
+    for lai in [1.0, 3.0, 5.0] {
+        for sza in [0.0, 20.0, 35.0, 50.0] {
+            let mut d = layer(
+                lai,
+                sza,
+                cell,
+                vec![BandOptics::red(), BandOptics::nir()],
+                LadDesc::Spherical,
             );
+            d.directions.as_mut().unwrap().count = dirs;
+            let p = run(&d, Some(preset));
             assert_closes(&p, 1e-9, "disort case");
             for (b, band) in ["red", "nir"].iter().enumerate() {
                 for r in rows.iter().filter(|r| {
@@ -89,37 +88,54 @@ fn turbid_canopy_matches_disort_with_the_reference_preset() {
                 }) {
                     let vz: f64 = r[3].parse().unwrap();
                     let want: f64 = r[4].parse().unwrap();
-                    let got = brf_pp(&p, b, vz, 0.0);
-                    let err = (got / want - 1.0).abs();
-                    worst_brf = worst_brf.max(err);
-                    assert!(
-                        err < 0.01,
-                        "LAI {lai} sza {sza} {band} vz {vz}: BRF {got} vs DISORT {want} ({:.2} %)",
-                        100.0 * err
-                    );
+                    wb = wb.max((brf_pp(&p, b, vz, 0.0) / want - 1.0).abs());
                     let alb: f64 = r[5].parse().unwrap();
-                    let e = (p.bands[b].albedo / alb - 1.0).abs();
-                    worst_alb = worst_alb.max(e);
-                    assert!(
-                        e < 0.005,
-                        "LAI {lai} sza {sza} {band}: albedo {} vs DISORT {alb}",
-                        p.bands[b].albedo
-                    );
+                    wa = wa.max((p.bands[b].albedo / alb - 1.0).abs());
                     let tran: f64 = r[6].parse::<f64>().unwrap() + r[7].parse::<f64>().unwrap();
-                    assert!(
-                        (p.bands[b].ftran - tran).abs() < 0.005 * tran,
-                        "ftran {} vs {tran}",
-                        p.bands[b].ftran
-                    );
+                    wt = wt.max((p.bands[b].ftran / tran - 1.0).abs());
                 }
             }
         }
     }
     eprintln!(
-        "DISORT, reference preset: worst BRF error {:.3} %, worst albedo error {:.3} %",
-        100.0 * worst_brf,
-        100.0 * worst_alb
+        "DISORT, {preset:?} preset, {dirs} directions, {cell} m cells: worst BRF error {:.3} %, albedo {:.3} %, ftran {:.3} %",
+        100.0 * wb,
+        100.0 * wa,
+        100.0 * wt
     );
+    (wb, wa, wt)
+}
+
+#[test]
+fn turbid_canopy_matches_disort_with_the_reference_preset() {
+    // 0.5 m cells (optical depth up to 0.6 per cell at LAI 5): the moment-matched emission
+    // (physics.md §3.6) leaves no cell-size error worth a finer grid here; 400 directions
+    // (the reference preset's minimum) for the angular part. Measured: BRF 0.48 %, albedo
+    // 0.29 %, ftran 0.37 % (docs/performance.md); bounds: BRF 1 % (the goal), albedo
+    // and ftran 0.5 %.
+    let (b, a, t) = disort_worst(Preset::Reference, 400, 0.5);
+    assert!(b < 0.01, "worst BRF error {b}");
+    assert!(a < 0.005, "worst albedo error {a}");
+    assert!(t < 0.005, "worst ftran error {t}");
+}
+
+#[test]
+fn turbid_canopy_matches_disort_at_coarse_cells_with_the_default_preset() {
+    // The generator's default 0.5 m cells and DART's default 100 directions: the error is the
+    // angular discretisation's (the same at 0.25 m; docs/performance.md). Measured: BRF
+    // 2.10 %, albedo 1.06 %, ftran 0.28 %; bounds 2.5 %, 1.25 %, 0.5 %.
+    let (b, a, t) = disort_worst(Preset::Default, 100, 0.5);
+    assert!(b < 0.025, "worst BRF error {b}");
+    assert!(a < 0.0125, "worst albedo error {a}");
+    assert!(t < 0.005, "worst ftran error {t}");
+    // 1 m cells (two cells over the 2 m canopy, optical depth 1.25 per cell at LAI 5): the
+    // BRF stays within 2.5 % (measured 2.13 %); the soil irradiance of the densest NIR cases
+    // is 3.3 % high (one barycentre per cell cannot describe light entering a thick cell from
+    // above and below at once; bound 4 %).
+    let (b, a, t) = disort_worst(Preset::Default, 100, 1.0);
+    assert!(b < 0.025, "worst BRF error {b}");
+    assert!(a < 0.0125, "worst albedo error {a}");
+    assert!(t < 0.04, "worst ftran error {t}");
 }
 
 #[test]
@@ -192,7 +208,7 @@ fn black_leaves_transmit_the_direct_beam_by_beers_law_for_every_lad() {
 }
 
 #[test]
-fn single_scattering_over_black_soil_converges_to_the_closed_form() {
+fn single_scattering_over_black_soil_matches_the_closed_form() {
     // physics.md §13 test 4: spherical LAD, ρ = τ = 0.45, sun (30°, φ = 0); first order only.
     let cases = [
         (1.0, 0.0, 0.0, 0.09497),
@@ -235,8 +251,10 @@ fn single_scattering_over_black_soil_converges_to_the_closed_form() {
         100.0 * errs[0],
         100.0 * errs[1]
     );
-    // Discretisation-limited: the error shrinks with the cell size and is below 0.5 % at 0.1 m.
-    assert!(errs[1] < errs[0] && errs[1] < 0.005, "{errs:?}");
+    // Below 0.5 % at both cell sizes: the moment-matched emission (physics.md §3.6) makes the
+    // first order independent of the cell size (measured 0.227 % at 0.5 m and 0.1 m: the
+    // remainder does not depend on the cell size).
+    assert!(errs[0] < 0.005 && errs[1] < 0.005, "{errs:?}");
 }
 
 #[test]

@@ -1,6 +1,7 @@
 //! Shared helpers of the benches.
 
 /// Peak resident set size of this process, MiB (VmHWM from /proc/self/status; NaN elsewhere).
+#[allow(dead_code)]
 pub fn peak_rss_mib() -> f64 {
     std::fs::read_to_string("/proc/self/status")
         .ok()

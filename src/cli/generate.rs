@@ -98,6 +98,10 @@ pub enum Kind {
         /// Scene side, metres.
         #[arg(long, default_value_t = 2.0)]
         size: f64,
+        /// Leaf size of every turbid material, metres (DART `dimFoliar`, the hotspot's leaf
+        /// dimension); 0 = no hotspot, the pure turbid medium that DISORT-type oracles solve.
+        #[arg(long)]
+        leaf_size: Option<f64>,
         #[command(flatten)]
         /// Optics and sun.
         optics: OpticsFlags,
@@ -165,6 +169,10 @@ pub enum Kind {
         /// Sun azimuth, degrees.
         #[arg(long, default_value_t = 225.0)]
         sun_azimuth: f64,
+        /// Leaf size of every turbid material, metres (DART `dimFoliar`, the hotspot's leaf
+        /// dimension); 0 = no hotspot, the pure turbid medium that DISORT-type oracles solve.
+        #[arg(long)]
+        leaf_size: Option<f64>,
     },
     /// A RAMI-3 benchmark case from its experiment identifier (HOM turbid/discrete layers,
     /// HET01/HET02 floating spheres), with the RAMI measurement directions as exact views.
@@ -206,6 +214,10 @@ pub enum Kind {
         /// Random seed.
         #[arg(long, default_value_t = 3)]
         seed: u64,
+        /// Leaf size of every turbid material, metres (DART `dimFoliar`, the hotspot's leaf
+        /// dimension); 0 = no hotspot, the pure turbid medium that DISORT-type oracles solve.
+        #[arg(long)]
+        leaf_size: Option<f64>,
     },
 }
 
@@ -219,7 +231,18 @@ pub struct Args {
 
 /// Runs `generate`: prints the scene as RON.
 pub fn run(args: &Args, out: &mut dyn Write) -> Result<(), CliError> {
-    let desc = match &args.kind {
+    let leaf_size = match &args.kind {
+        Kind::TurbidLayer { leaf_size, .. }
+        | Kind::Forest { leaf_size, .. }
+        | Kind::Urban { leaf_size, .. } => *leaf_size,
+        _ => None,
+    };
+    if let Some(x) = leaf_size
+        && !(x.is_finite() && x >= 0.0)
+    {
+        return Err(format!("--leaf-size: {x} is not a length ≥ 0 m").into());
+    }
+    let mut desc = match &args.kind {
         Kind::TurbidLayer {
             lai,
             lad,
@@ -227,6 +250,7 @@ pub fn run(args: &Args, out: &mut dyn Write) -> Result<(), CliError> {
             cell_size,
             size,
             optics,
+            ..
         } => turbid_layer::turbid_layer(&turbid_layer::TurbidLayerParams {
             lai: *lai,
             lad: lad.clone(),
@@ -284,6 +308,7 @@ pub fn run(args: &Args, out: &mut dyn Write) -> Result<(), CliError> {
             seed,
             sun_zenith,
             sun_azimuth,
+            ..
         } => forest::forest(&forest::ForestParams {
             size_m: *size,
             cell_m: *cell_size,
@@ -334,6 +359,7 @@ pub fn run(args: &Args, out: &mut dyn Write) -> Result<(), CliError> {
             street,
             cell_size,
             seed,
+            ..
         } => urban::urban(&urban::UrbanParams {
             blocks: *blocks,
             building_m: *building,
@@ -343,6 +369,13 @@ pub fn run(args: &Args, out: &mut dyn Write) -> Result<(), CliError> {
             ..Default::default()
         }),
     };
+    if let Some(x) = leaf_size {
+        for o in desc.optics.values_mut() {
+            if let crate::scene::desc::OpticsDesc::Turbid { leaf_size_m, .. } = o {
+                *leaf_size_m = x;
+            }
+        }
+    }
     // Refuse to print a scene that would not load.
     crate::scene::validate::validate(&desc, &crate::scene::SceneSource::generated())?;
     out.write_all(crate::scene::to_ron(&desc).as_bytes())?;

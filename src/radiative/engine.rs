@@ -14,14 +14,17 @@
 //! * **Turbid cells** attenuate exactly, `W_out = W e^{−kℓ}`, `k = Σ_m G_m(Ω) u_m`; the intercepted
 //!   power is split among the cell's materials in proportion to `G_m u_m` (physics.md §3.6) and
 //!   stored per (cell, material, incident angular sector); the exact sun direction is its own
-//!   sector. Two interception points per crossing, the barycentres of the first and second halves
-//!   of the intercepted energy (DART stores two points per crossing; physics.md §3.6). Scattered
-//!   power leaves *both* points, half from each — a two-point quadrature of the interception
-//!   distribution. (physics.md's \[rec\] of sending backward scattering from the first point and
-//!   forward from the second biases the exitance by O(cell optical depth): +6 % BRF at 0.25 m
-//!   cells on the LAI-3 DISORT case, against −0.96 % … +0 % for the two-point quadrature and
-//!   −2 % for a single barycentre.) Rays scattered by a cell start *inside* it, so within-cell
-//!   re-interception is tracked, not approximated.
+//!   sector. Each crossing books the barycentres of the first and second halves of its
+//!   intercepted energy (DART stores two points per crossing; physics.md §3.6); their sum gives
+//!   the cell's barycentre p̄ of intercepted energy. The power a cell scatters into direction
+//!   j leaves two rays, half each, from `(x̄ ± σx, ȳ ± σy, z*_j)`: per axis the source is the
+//!   maximum-entropy density with p̄'s position in the cell as mean (the truncated
+//!   exponential, which is exactly Beer's-law interception along an axis), σ its horizontal
+//!   spread ([`max_entropy_sigma`]) and z*_j the height at which one ray carries the exact
+//!   expectation of its vertical profile through a homogeneous medium along j
+//!   ([`exp_moment_position`]). On the DISORT layer the worst BRF error then no longer depends
+//!   on the cell size (docs/performance.md). Rays scattered by a cell start *inside* it, so
+//!   within-cell re-interception is tracked, not approximated.
 //! * **Turbid sub-faces** (`TrackingParams::turbid_subfaces`, DART 5 paper §3.2 and Figure 7;
 //!   physics.md §3.6, §6.3, §6.6): DART stores a turbid cell's interception per *incident cell
 //!   sub-face* (the one the ray entered through, D × D per face) and per incident sector, with
@@ -79,8 +82,8 @@ pub(in crate::radiative) use ctx::*;
 pub(in crate::radiative) use emit::*;
 pub(in crate::radiative) use geometry::*;
 pub use geometry::{
-    barycentre, cell_exit, entry_store, half_barycentres, half_barycentres_fast,
-    half_barycentres_with, intersect,
+    barycentre, cell_exit, entry_store, exp_moment_position, half_barycentres,
+    half_barycentres_fast, half_barycentres_with, intersect, max_entropy_sigma,
 };
 pub use hotspot::{BACKSCATTER_ROUNDING, hotspot_integral, hotspot_terms, hotspot_terms_path};
 pub use iterate::run;

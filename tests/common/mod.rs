@@ -41,6 +41,17 @@ pub fn disort_rows() -> Vec<Vec<String>> {
         .collect()
 }
 
+/// Rows of the extended DISORT oracle (`assets/reference/turbid_canopy_disort_ext.csv`: LAI 1,
+/// 3, 5; sun zenith 0, 20, 35, 50°), header skipped, fields as strings as in [`disort_rows`].
+pub fn disort_ext_rows() -> Vec<Vec<String>> {
+    std::fs::read_to_string(asset("assets/reference/turbid_canopy_disort_ext.csv"))
+        .unwrap()
+        .lines()
+        .skip(1)
+        .map(|l| l.split(',').map(String::from).collect())
+        .collect()
+}
+
 /// A one-band scene with leaf, turbid, soil and wall optics and no objects.
 pub fn base_scene(size: (f64, f64), cell: (f64, f64, f64), boundary: BoundaryMode) -> SceneDesc {
     let mut optics = BTreeMap::new();

@@ -188,6 +188,73 @@ pub(in crate::radiative) struct Emitter<'s> {
     normal: Option<DVec3>,
     points: &'s [(DVec3, f64)],
     ground: bool,
+    /// Turbid: the two emission points' offsets from the barycentre (m; the horizontal
+    /// signs alternate over directions), the first point's weight, and the cell's bounds
+    /// (see [`turbid_emitter`]); `None` for other emitters.
+    pair: Option<TurbidPair>,
+}
+
+/// The two emission points of a turbid cell (physics.md §3.6): per direction, the height z*
+/// at which one ray carries the exact expectation of the source's vertical distribution
+/// through a homogeneous medium ([`exp_moment_position_of_rate`]), and horizontally the
+/// barycentre ± the spread per axis (the horizontal signs alternate over directions), half
+/// the power each.
+#[derive(Clone, Copy)]
+struct TurbidPair {
+    /// Cell index.
+    cell: usize,
+    /// Rate and mirror flag of the vertical maximum-entropy density.
+    u: f64,
+    flip: bool,
+    /// Horizontal offsets (m).
+    dx: f64,
+    dy: f64,
+    lo: DVec3,
+    hi: DVec3,
+}
+
+impl TurbidPair {
+    /// The pair of cell `cell` (`centre`, size `size`, m) whose intercepted energy has its
+    /// barycentre at `mean`: per axis the maximum-entropy density with that mean.
+    fn new(cell: usize, mean: DVec3, centre: DVec3, size: DVec3) -> Self {
+        let lo = centre - 0.5 * size;
+        let rel = ((mean - lo) / size).clamp(DVec3::ZERO, DVec3::ONE);
+        let (u, flip) = max_entropy_rate(rel.z);
+        TurbidPair {
+            cell,
+            u,
+            flip,
+            dx: max_entropy_sigma(rel.x) * size.x,
+            dy: max_entropy_sigma(rel.y) * size.y,
+            lo,
+            hi: lo + size,
+        }
+    }
+
+    /// The two points for direction `j` from barycentre `origin`, inside the cell by 1e-6 of
+    /// its size, with their power shares.
+    fn points(&self, ctx: &Ctx, origin: DVec3, j: usize) -> [(DVec3, f64); 2] {
+        let d = ctx.omega[j];
+        let cr = ctx.cells[self.cell];
+        let gd = &ctx.g_dir[j * ctx.n_tm..(j + 1) * ctx.n_tm];
+        let k: f64 = ctx.ents[cr.ent_lo as usize..cr.ent_hi as usize]
+            .iter()
+            .map(|e| gd[e.tm as usize] * e.density)
+            .sum();
+        let dz = self.hi.z - self.lo.z;
+        // Downstream ∝ e^{c z/Δz}: c = kΔz/μ (μ signed; a horizontal ray: no dependence).
+        let c = if d.z.abs() > 1e-12 { k * dz / d.z } else { 0.0 };
+        let z = self.lo.z + dz * exp_moment_position_of_rate(self.u, self.flip, c);
+        let h = DVec3::new(
+            if j & 1 == 0 { self.dx } else { -self.dx },
+            if j & 2 == 0 { self.dy } else { -self.dy },
+            0.0,
+        );
+        let eps = 1e-6 * (self.hi - self.lo);
+        let inside = |p: DVec3| p.clamp(self.lo + eps, self.hi - eps);
+        let o = DVec3::new(origin.x, origin.y, z);
+        [(inside(o + h), 0.5), (inside(o - h), 0.5)]
+    }
 }
 
 /// Turbid entry `k` (`turbid_subfaces: Off`): its stored power per slot scattered with the
@@ -240,16 +307,17 @@ fn turbid_emitter<'s>(
     let p = &st.tur_pts[k];
     let cell = ctx.entry_cell[k] as usize;
     let centre = cell_centre(spec, cell);
-    origin_up = if p[3] > 0.0 {
-        DVec3::new(p[0], p[1], p[2]) / p[3]
+    // The barycentre of the intercepted energy and the two emission points of its within-cell
+    // distribution (physics.md §3.6).
+    let wsum = p[3] + p[7];
+    let mean = if wsum > 0.0 {
+        (DVec3::new(p[0], p[1], p[2]) + DVec3::new(p[4], p[5], p[6])) / wsum
     } else {
         centre
     };
-    origin_dn = if p[7] > 0.0 {
-        DVec3::new(p[4], p[5], p[6]) / p[7]
-    } else {
-        centre
-    };
+    let pair = TurbidPair::new(cell, mean, centre, spec.cell);
+    origin_up = mean;
+    origin_dn = mean;
     skip = None;
     normal = None;
     for ch in 0..w {
@@ -267,6 +335,7 @@ fn turbid_emitter<'s>(
         normal,
         points: &[],
         ground: false,
+        pair: Some(pair),
     })
 }
 
@@ -327,6 +396,7 @@ fn facet_emitter<'s>(
         normal,
         points,
         ground: false,
+        pair: None,
     }
 }
 
@@ -381,11 +451,13 @@ fn ground_emitter<'s>(
         normal,
         points,
         ground,
+        pair: None,
     }
 }
 
-/// Sends an emitter's `outgoing` power along every tiling direction: from both half-barycentres
-/// (turbid, `split`: the two-point quadrature) or from each scattering point; first-order sun
+/// Sends an emitter's `outgoing` power along every tiling direction: from the cell's two
+/// emission points per direction (turbid, `split`: [`TurbidPair`]) or from each scattering
+/// point; first-order sun
 /// rays (`first`) with the hotspot correlation.
 fn send_emitter(
     ctx: &Ctx,
@@ -406,6 +478,7 @@ fn send_emitter(
         normal,
         points,
         ground,
+        pair,
     } = *src;
     // First-order sun rays (what turbid cells, facets and the ground scatter of the
     // direct beam) get the hotspot correlation through turbid cells on their way up.
@@ -433,13 +506,16 @@ fn send_emitter(
             // Two-point quadrature of the interception distribution: half the power
             // from the barycentre of each half of the intercepted energy.
             let hs_j = hs && ctx.hs_dir[j];
-            for o in [origin_up, origin_dn] {
+            let pts = pair.map_or([(origin_up, 0.5), (origin_dn, 0.5)], |p| {
+                p.points(ctx, origin_up, j)
+            });
+            for (o, share) in pts {
                 if walk::select(ctx, hs_j, dense).batched() {
-                    // What `send` does for this ray (powers v · 0.5, then
+                    // What `send` does for this ray (powers v · share, then
                     // `Ctx::queue`).
-                    ctx.queue_scaled(o, j, v, 0.5, out);
+                    ctx.queue_scaled(o, j, v, share, out);
                 } else {
-                    send(ctx, o, j, None, v, 0.5, hs_j, pw, out);
+                    send(ctx, o, j, None, v, share, hs_j, pw, out);
                 }
             }
             continue;
@@ -506,10 +582,9 @@ pub(in crate::radiative) struct ExitGroups {
 /// paper §3.2, Figure 7; physics.md §3.6, §6.3): `recs` are the entry's records (see
 /// [`TurRecords`]). Each record's power per slot goes along every direction j with the slot's
 /// phase row (the sun's row for the sun slot), as in `Off`. `Faces`/`Subfaces`: each non-empty
-/// incident store sends its own power from its own two points (half from the barycentre of the
-/// first half of its intercepted energy, half from the second's). `Blend`: one pair of rays per
-/// direction j, from the barycentres of the per-slot points weighted by the power each slot
-/// sends into j. With `turbid_exit_grouping` (cells without facets) the rays of all the
+/// incident store sends its own power from its own two points ([`TurbidPair`] about the
+/// store's barycentre). `Blend`: one pair of rays per direction j, about the barycentre of the
+/// per-slot points weighted by the power each slot sends into j. With `turbid_exit_grouping` (cells without facets) the rays of all the
 /// entry's stores are first followed to the cell's exit by [`Ctx::to_exit`] and then traced
 /// merged, one per (direction, exit face or sub-face) from the power-weighted barycentre of the
 /// exit points (Figure 7c); first-order sun rays with the hotspot correlation are traced from
@@ -575,11 +650,13 @@ pub(in crate::radiative) fn emit_turbid_records(
         let r = r as usize;
         sc.outgoing.iter_mut().for_each(|v| *v = 0.0);
         scatter_record(ctx, tr, r, (tables, tm, sun_row), blend, centre, sc);
-        let (pu, pd) = if blend {
-            (centre, centre)
+        let rec_mean = if blend {
+            centre
         } else {
-            half_points(&tr.pts[r * 8..r * 8 + 8], centre)
+            let (pu, pd) = half_points(&tr.pts[r * 8..r * 8 + 8], centre);
+            0.5 * (pu + pd)
         };
+        let rec_pair = TurbidPair::new(cell, rec_mean, centre, spec.cell);
         let t_kernel = std::time::Instant::now();
         // Rays without the hotspot go to the batched walk's queue (see `Ctx::trace_any`).
         let dense = matches!(out.tur.as_deref(), Some(TurAcc::Dense { .. }));
@@ -591,29 +668,28 @@ pub(in crate::radiative) fn emit_turbid_records(
             for (e, x) in sc.emitted.iter_mut().zip(v) {
                 *e += x;
             }
-            let (o_up, o_dn) = if blend {
+            let pts = if blend {
                 let a = &sc.acc[j];
                 if a[6] > 0.0 {
-                    (
-                        DVec3::new(a[0], a[1], a[2]) / a[6],
-                        DVec3::new(a[3], a[4], a[5]) / a[6],
-                    )
+                    let m = (DVec3::new(a[0], a[1], a[2]) + DVec3::new(a[3], a[4], a[5]))
+                        / (2.0 * a[6]);
+                    TurbidPair::new(cell, m, centre, spec.cell).points(ctx, m, j)
                 } else {
-                    (centre, centre)
+                    TurbidPair::new(cell, centre, centre, spec.cell).points(ctx, centre, j)
                 }
             } else {
-                (pu, pd)
+                rec_pair.points(ctx, rec_mean, j)
             };
             // Two-point quadrature of the store's interception distribution.
             let hs_j = hs && ctx.hs_dir[j];
-            for o in [o_up, o_dn] {
+            for (o, share) in pts {
                 if group && !hs_j {
-                    ctx.to_exit(cell, o, j, v, 0.5, &mut sc.ex, pw, out);
+                    ctx.to_exit(cell, o, j, v, share, &mut sc.ex, pw, out);
                 } else if walk::select(ctx, hs_j, dense).batched() {
-                    // What `send` does for this ray (powers v · 0.5, then `Ctx::queue`).
-                    ctx.queue_scaled(o, j, v, 0.5, out);
+                    // What `send` does for this ray (powers v · share, then `Ctx::queue`).
+                    ctx.queue_scaled(o, j, v, share, out);
                 } else {
-                    send(ctx, o, j, None, v, 0.5, hs_j, pw, out);
+                    send(ctx, o, j, None, v, share, hs_j, pw, out);
                 }
             }
         }

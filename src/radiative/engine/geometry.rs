@@ -218,3 +218,125 @@ pub(in crate::radiative) fn cell_centre(spec: &GridSpec, c: usize) -> DVec3 {
     let [i, j, k] = spec.ijk(c);
     spec.origin + (DVec3::new(i as f64, j as f64, k as f64) + 0.5) * spec.cell
 }
+
+/// Mean of the truncated exponential density `∝ e^{−u x}` on x ∈ [0, 1]:
+/// `1/u − 1/(e^u − 1)`; for |u| < ¼ its Bernoulli series `1/2 − u/12 + u³/720 − u⁵/30240 +
+/// u⁷/1209600 − u⁹/47900160` (the closed form cancels there).
+fn trunc_exp_mean(u: f64) -> f64 {
+    if u.abs() < 0.25 {
+        let u2 = u * u;
+        return 0.5
+            - u * (1.0 / 12.0
+                - u2 * (1.0 / 720.0
+                    - u2 * (1.0 / 30240.0 - u2 * (1.0 / 1209600.0 - u2 / 47900160.0))));
+    }
+    1.0 / u - 1.0 / u.exp_m1()
+}
+
+/// Variance of the density of [`trunc_exp_mean`]: `1/u² − e^u/(e^u − 1)²`; for |u| < ¼ the
+/// series `1/12 − u²/240 + u⁴/6048 − u⁶/172800 + u⁸/5322240` (the derivative of the mean's).
+fn trunc_exp_var(u: f64) -> f64 {
+    if u.abs() < 0.25 {
+        let u2 = u * u;
+        return 1.0 / 12.0
+            - u2 * (1.0 / 240.0 - u2 * (1.0 / 6048.0 - u2 * (1.0 / 172800.0 - u2 / 5322240.0)));
+    }
+    if u > 40.0 {
+        // e^u/(e^u − 1)² < e^{−40}: the untruncated exponential (and no overflow).
+        return 1.0 / (u * u);
+    }
+    let e = u.exp_m1();
+    1.0 / (u * u) - (e + 1.0) / (e * e)
+}
+
+/// The rate u ≥ 0 of the truncated exponential on [0, 1] whose mean is `m` ∈ (0, ½]: Newton
+/// steps on the monotone mean (`d mean/du = −variance`) kept inside the bracket [0, 1/m] (the
+/// mean lies below 1/u), with bisection when a step leaves it (Press et al. 2007, `rtsafe`).
+fn trunc_exp_rate(m: f64) -> f64 {
+    if m >= 0.5 {
+        return 0.0;
+    }
+    let (mut lo, mut hi) = (0.0, 1.0 / m);
+    let mut u = if m > 0.3 {
+        12.0 * (0.5 - m)
+    } else {
+        1.0 / m - 1.0
+    };
+    for _ in 0..100 {
+        let f = trunc_exp_mean(u) - m;
+        if f > 0.0 {
+            lo = u;
+        } else {
+            hi = u;
+        }
+        let v = trunc_exp_var(u);
+        let mut next = u + f / v;
+        if !(next > lo && next < hi) || v <= 0.0 {
+            next = 0.5 * (lo + hi);
+        }
+        if (next - u).abs() <= 1e-15 * u.max(1e-3) {
+            return next;
+        }
+        u = next;
+    }
+    u
+}
+
+/// Within-cell spread of the intercepted energy along one axis, from its mean alone: the
+/// standard deviation, in units of the cell width, of the maximum-entropy density on [0, 1]
+/// with mean `m` (Jaynes 1957: the truncated exponential `∝ e^{−u x}`). This is the exact
+/// spread of single-direction interception in a homogeneous cell (Beer's law along the axis:
+/// `u = kΔ/|μ|`); a uniform source has m = ½ and σ = 1/√12. Symmetric: σ(m) = σ(1 − m).
+pub fn max_entropy_sigma(m: f64) -> f64 {
+    // The density for 1 − m is the mirror image: solve for the mean below ½ (u ≥ 0).
+    let m = m.min(1.0 - m).clamp(1e-9, 0.5);
+    trunc_exp_var(trunc_exp_rate(m)).max(0.0).sqrt()
+}
+
+/// `ln Z(v)`, `Z(v) = ∫₀¹ e^{−v x} dx = (1 − e^{−v})/v` (Z(0) = 1), without overflow for any
+/// finite v (series `−v/2 + v²/24` near 0).
+fn ln_trunc_exp_norm(v: f64) -> f64 {
+    if v.abs() < 1e-4 {
+        return -0.5 * v + v * v / 24.0;
+    }
+    if v > 0.0 {
+        (-(-v).exp_m1()).ln() - v.ln()
+    } else {
+        let w = -v;
+        w + (-(-w).exp_m1()).ln() - w.ln()
+    }
+}
+
+/// The position x* ∈ [0, 1] (cell widths) with `e^{c x*} = ⟨e^{c x}⟩` under the
+/// maximum-entropy density of mean `m` on [0, 1] (see [`max_entropy_sigma`]):
+/// `x* = ln(Z(u − c)/Z(u))/c` for the density `∝ e^{−u x}` (mirrored for m > ½). In a
+/// homogeneous medium everything a ray from height z sends downstream along a direction of
+/// vertical cosine μ is proportional to `e^{c z}` with `c = ±kΔz/|μ|` (+ upwards), so one
+/// emission height x* per direction reproduces the source's exact expectation (physics.md
+/// §3.6); `c → 0` gives the mean.
+pub fn exp_moment_position(m: f64, c: f64) -> f64 {
+    let flip = m > 0.5;
+    let u = trunc_exp_rate(m.min(1.0 - m).clamp(1e-9, 0.5));
+    exp_moment_position_of_rate(u, flip, c)
+}
+
+/// [`exp_moment_position`] for the density `∝ e^{−u x}` (`flip`: mirrored, `∝ e^{−u(1−x)}`),
+/// the rate solved once per cell and the position evaluated per direction.
+pub fn exp_moment_position_of_rate(u: f64, flip: bool, c: f64) -> f64 {
+    // Mirrored density x' = 1 − x: ⟨e^{cx}⟩ = e^c ⟨e^{−c x'}⟩.
+    let cc = if flip { -c } else { c };
+    let x = if cc.abs() < 1e-9 {
+        trunc_exp_mean(u)
+    } else {
+        let cc = cc.clamp(-1e6, 1e6);
+        (ln_trunc_exp_norm(u - cc) - ln_trunc_exp_norm(u)) / cc
+    };
+    let x = x.clamp(0.0, 1.0);
+    if flip { 1.0 - x } else { x }
+}
+
+/// The rate u ≥ 0 and the mirror flag of the maximum-entropy density on [0, 1] with mean `m`
+/// (see [`exp_moment_position_of_rate`]).
+pub fn max_entropy_rate(m: f64) -> (f64, bool) {
+    (trunc_exp_rate(m.min(1.0 - m).clamp(1e-9, 0.5)), m > 0.5)
+}

@@ -235,6 +235,89 @@ fn tabulated_half_barycentres_match_the_closed_form() {
     assert!(worst < 1e-6, "worst |Δs|/ℓ = {worst:e}");
 }
 
+/// The maximum-entropy spread recovers the standard deviation of a Beer's-law interception
+/// density from its mean (checked against direct quadrature of `u e^{−ux}/(1 − e^{−u})`), is
+/// 1/√12 for a centred mean and symmetric about ½.
+#[test]
+fn max_entropy_sigma_recovers_beer_law_spread() {
+    for u in [1e-6, 0.01, 0.3, 1.0, 3.0, 10.0, 50.0, 300.0] {
+        let n = 200_000;
+        let (mut s0, mut s1, mut s2) = (0.0, 0.0, 0.0);
+        for i in 0..n {
+            let x = (i as f64 + 0.5) / n as f64;
+            let f = (-u * x).exp();
+            s0 += f;
+            s1 += f * x;
+            s2 += f * x * x;
+        }
+        let m = s1 / s0;
+        let sd = (s2 / s0 - m * m).sqrt();
+        let got = max_entropy_sigma(m);
+        assert!((got / sd - 1.0).abs() < 1e-4, "u {u}: {got} vs {sd}");
+        assert!(
+            (max_entropy_sigma(1.0 - m) / got - 1.0).abs() < 1e-13,
+            "symmetry at u {u}"
+        );
+        // Continuous: a relative change of 1e-13 in the mean moves σ by O(1e-13).
+        let near = max_entropy_sigma(m * (1.0 + 1e-13));
+        assert!(
+            (near / got - 1.0).abs() < 1e-11,
+            "u {u}: σ jumps ({near} vs {got})"
+        );
+    }
+    assert!((max_entropy_sigma(0.5) - (1.0f64 / 12.0).sqrt()).abs() < 1e-15);
+    for m in [
+        0.0,
+        1e-300,
+        1e-12,
+        1.0,
+        1.0 - 1e-16,
+        -1.0,
+        2.0,
+        f64::MIN_POSITIVE,
+    ] {
+        let s = max_entropy_sigma(m);
+        assert!(s.is_finite() && (0.0..1e-6).contains(&s), "m {m}: {s}");
+    }
+}
+
+/// The exponential-moment position reproduces ⟨e^{cx}⟩ of the maximum-entropy density
+/// (direct quadrature), tends to the mean for c → 0 and to the support's ends for |c| → ∞,
+/// and stays finite for extreme inputs.
+#[test]
+fn exp_moment_position_matches_the_exponential_moment() {
+    for u in [0.0, 1e-6, 0.3, 2.0, 30.0, -5.0] {
+        for c in [-50.0, -4.8, -0.5, 1e-12, 0.7, 4.8, 60.0] {
+            let n = 400_000;
+            let (mut z0, mut z1, mut ze) = (0.0f64, 0.0, 0.0);
+            for i in 0..n {
+                let x = (i as f64 + 0.5) / n as f64;
+                let f = (-u * x).exp();
+                z0 += f;
+                z1 += f * x;
+                ze += f * (c * x).exp();
+            }
+            let m = z1 / z0;
+            let x = exp_moment_position(m, c);
+            let got = (c * x).exp();
+            let want = ze / z0;
+            assert!(
+                (got / want - 1.0).abs() < 1e-4,
+                "u {u} c {c}: {got} vs {want}"
+            );
+        }
+    }
+    assert!((exp_moment_position(0.3, 0.0) - 0.3).abs() < 1e-9);
+    assert!(exp_moment_position(0.5, 1e9) > 0.9999);
+    assert!(exp_moment_position(0.5, -1e9) < 1e-4);
+    for m in [0.0, 1.0, 1e-300, -3.0, 7.0] {
+        for c in [0.0, -1e300, 1e300, 3.0] {
+            let x = exp_moment_position(m, c);
+            assert!((0.0..=1.0).contains(&x), "m {m} c {c}: {x}");
+        }
+    }
+}
+
 /// The return of a monostatic LiDAR: a separation at rounding level (the reversed flight
 /// recomputed from positions, 1 ulp off) is an exact backscatter (`c = 0`, one-way
 /// transmittance), while a true separation keeps its decorrelation `2|d_out + d_in|/(l ΣG)`.
