@@ -412,6 +412,35 @@ fn bad_image_oversampling_is_rejected_with_its_field_and_line() {
     );
 }
 
+/// Fictive directions are refused (issue #31): no solver computes radiance along them (flux
+/// tracking walks the tiling directions only; Monte Carlo peels off toward the exact ones), so
+/// they would appear in no product. The error names the file, the line of `fictive:` and the
+/// field, and points to `directions.exact`; an empty list is accepted.
+#[test]
+fn fictive_directions_are_refused_naming_the_field_and_line() {
+    let text = GOOD.replace(
+        "    objects: [",
+        "    directions: Some((\n        count: 40,\n        fictive: [(zenith_deg: 20.0, azimuth_deg: 0.0)],\n    )),\n    objects: [",
+    );
+    let (e, msg) = error_of("fictive.ron", &text);
+    assert!(matches!(e, SceneError::NotSupported { .. }), "{msg}");
+    assert!(
+        msg.contains("fictive.ron")
+            && msg.contains("directions.fictive")
+            && msg.contains("directions.exact"),
+        "{msg}"
+    );
+    assert_eq!(
+        line_of(&e),
+        Some(line_containing(&text, "fictive: [")),
+        "{msg}"
+    );
+    let empty = text.replace("[(zenith_deg: 20.0, azimuth_deg: 0.0)]", "[]");
+    if let Err(e) = Simulation::load(&write("fictive_empty.ron", &empty), RunSettings::default()) {
+        panic!("an empty fictive list is accepted: {e}");
+    }
+}
+
 /// `--image-oversampling η` overrides the scene's η: nadir images of the 10 × 10-cell scene
 /// are 10η × 10η pixels and `summary.json` records η.
 #[test]
@@ -563,6 +592,26 @@ fn cli_isa_caps_the_instruction_set_and_is_recorded() {
             batch_lanes(cap, true),
             "{arg}"
         );
+        // The walk that ran (issue #31): at most the cap's lanes; the kernel and precision go
+        // with the lanes.
+        let walk = &s["walk"];
+        let lanes = walk["lanes"].as_u64().expect("walk.lanes") as usize;
+        assert!(lanes <= batch_lanes(cap, true), "{arg}: {walk}");
+        let expect = match lanes {
+            16 => ("avx512", "f32"),
+            8 => ("avx512", "f64"),
+            4 => ("avx2", "f64"),
+            1 => ("baseline", "f64"),
+            _ => panic!("{arg}: {walk}"),
+        };
+        assert_eq!(
+            (walk["kernel"].as_str(), walk["precision"].as_str()),
+            (Some(expect.0), Some(expect.1)),
+            "{arg}: {walk}"
+        );
+        if arg == "baseline" {
+            assert_eq!(lanes, 1, "{arg}: {walk}");
+        }
         // 1e-12 between the f64 walks (the same rays summed in another order); 1e-6 where
         // the default ran the single-precision walk (16 lanes: ~3e-7, see
         // `tests/batch_walk.rs`).

@@ -721,6 +721,12 @@ const DIRECTIONS: &[Case] = &[
         "directions.exact[0].azimuth_deg",
     ),
     c(
+        "fictive_direction_refused",
+        "count: 40,",
+        "count: 40, fictive: [(zenith_deg: 20.0, azimuth_deg: 0.0)],",
+        "directions.fictive",
+    ),
+    c(
         "direction_count_small",
         "count: 40",
         "count: 5",

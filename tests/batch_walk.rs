@@ -38,6 +38,28 @@ fn run(desc: &SceneDesc, batch_walk: bool) -> RadiativeProducts {
     )
 }
 
+/// Whether this CPU has `isa` (`"AVX2"`: the batched walk runs; `"AVX-512"`: its 8- and
+/// 16-lane forms run); when it has not, prints `skipped: CPU lacks ISA (what)` so that a test
+/// that cannot run here says so instead of passing silently (issue #31).
+fn cpu_has(isa: &str, what: &str) -> bool {
+    let best = lumenscape::radiative::engine::kernel_isa();
+    let has = match isa {
+        "AVX-512" => best == "AVX-512",
+        "AVX2" => best != "baseline",
+        other => panic!("unknown instruction set {other}"),
+    };
+    if !has {
+        eprintln!("skipped: CPU lacks {isa} ({what})");
+    }
+    has
+}
+
+/// The walk a run took (`summary.json` key `walk`): kernel, precision and lanes.
+fn walk_of(p: &RadiativeProducts) -> (&'static str, &'static str, u32) {
+    let w = p.raw.walk.expect("flux tracking records its walk");
+    (w.kernel, w.precision, w.lanes)
+}
+
 /// The products of `desc` run with `settings` at the preview preset.
 fn run_with(desc: &SceneDesc, settings: RunSettings) -> RadiativeProducts {
     let settings = RunSettings {
@@ -106,8 +128,22 @@ fn raw_pairs<'a>(
 }
 
 fn batched_equals_one_by_one(d: &SceneDesc, what: &str) {
+    if !cpu_has("AVX2", &format!("{what}: no batched walk to compare")) {
+        return;
+    }
     let one = run(d, false);
-    same_up_to_summation_order(&run(d, true), &one, what);
+    assert_eq!(
+        walk_of(&one),
+        ("baseline", "f64", 1),
+        "{what}: one-ray walk"
+    );
+    let batched = run(d, true);
+    let (kernel, precision, lanes) = walk_of(&batched);
+    assert!(
+        kernel != "baseline" && precision == "f64" && lanes > 1,
+        "{what}: the batched walk did not run ({kernel}, {precision}, {lanes})"
+    );
+    same_up_to_summation_order(&batched, &one, what);
     // The 4-lane walk that CPUs without AVX-512 run (where this CPU has AVX-512, the default
     // above ran 8 lanes).
     let avx2 = run_with(
@@ -119,6 +155,7 @@ fn batched_equals_one_by_one(d: &SceneDesc, what: &str) {
             ..Default::default()
         },
     );
+    assert_eq!(walk_of(&avx2), ("avx2", "f64", 4), "{what}: AVX2 walk");
     same_up_to_summation_order(&avx2, &one, &format!("{what}, AVX2 lanes"));
 }
 
@@ -270,6 +307,9 @@ fn hard_geometry() -> Vec<(SceneDesc, &'static str)> {
 /// and walked in each chunk's own order), with sky and ground.
 #[test]
 fn batched_walk_products_are_bit_identical_on_1_2_and_8_threads() {
+    if !cpu_has("AVX2", "batched walk on 1, 2 and 8 threads") {
+        return;
+    }
     let d = layer_with_sky();
     let go = |n| {
         let pool = rayon::ThreadPoolBuilder::new()
@@ -316,13 +356,28 @@ fn walks_agree_on_every_instruction_set() {
         ..Default::default()
     });
     trees.directions = Some(rami_directions(225.0));
+    // What cannot run on this CPU is reported as skipped, not passed.
+    let avx2_here = cpu_has(
+        "AVX2",
+        "batched walk best vs AVX2; one-ray walk AVX2 vs baseline",
+    );
+    let avx512_here =
+        avx2_here && cpu_has("AVX-512", "batched walk 8 lanes vs 4: the best set is AVX2");
     for (d, what) in [(&layer, "layer"), (&trees, "forest")] {
-        let best = products(d, true, KernelIsa::Best);
-        assert!(best.crossings > 0, "{what}: rays walked");
-        let avx2 = products(d, true, KernelIsa::Avx2);
-        same_up_to_summation_order(&best, &avx2, &format!("{what}, batched, best vs AVX2"));
+        if avx512_here {
+            let best = products(d, true, KernelIsa::Best);
+            assert!(best.crossings > 0, "{what}: rays walked");
+            let avx2 = products(d, true, KernelIsa::Avx2);
+            same_up_to_summation_order(&best, &avx2, &format!("{what}, batched, best vs AVX2"));
+        }
         let one = run_isa(d, false, KernelIsa::Best);
-        for isa in [KernelIsa::Avx2, KernelIsa::Baseline] {
+        assert!(one.1 > 0, "{what}: rays walked");
+        let caps: &[KernelIsa] = if avx2_here {
+            &[KernelIsa::Avx2, KernelIsa::Baseline]
+        } else {
+            &[]
+        };
+        for &isa in caps {
             assert!(
                 run_isa(d, false, isa) == one,
                 "{what}: one ray at a time, {isa:?} differs from the best set"
@@ -355,15 +410,12 @@ fn f32_walk_agrees(d: &SceneDesc, what: &str) {
             },
         )
     };
-    let (a, b) = (with(false), with(true));
-    if lumenscape::radiative::engine::kernel_isa() != "AVX-512" {
-        eprintln!("{what}: no AVX-512 on this CPU, the f32 walk does not run");
-        assert!(
-            product_bits(&a) == product_bits(&b),
-            "{what}: setting changed products"
-        );
+    if !cpu_has("AVX-512", &format!("{what}: the f32 walk does not run")) {
         return;
     }
+    let (a, b) = (with(false), with(true));
+    assert_eq!(walk_of(&a), ("avx512", "f64", 8), "{what}: f64 walk");
+    assert_eq!(walk_of(&b), ("avx512", "f32", 16), "{what}: f32 walk");
     // The f32 walk ran: its products are not the f64 walk's bits.
     assert!(
         product_bits(&a) != product_bits(&b),
@@ -459,6 +511,9 @@ fn f32_walk_agrees_with_the_f64_walk_on_hard_geometry() {
 /// The f32 walk's products are bit-identical on 1, 2 and 8 threads.
 #[test]
 fn f32_walk_products_are_bit_identical_on_1_2_and_8_threads() {
+    if !cpu_has("AVX-512", "f32 walk on 1, 2 and 8 threads") {
+        return;
+    }
     let d = layer_with_sky();
     let go = |n| {
         let pool = rayon::ThreadPoolBuilder::new()

@@ -359,7 +359,11 @@ pub struct DirectionParams {
     pub exact: Vec<ExactDirection>,
     /// Oversampled regions.
     pub oversample: Vec<OversampleRegion>,
-    /// Fictive directions (receive flux, never re-scattered; outside the 4π sum).
+    /// Fictive directions (receive flux, never re-scattered; outside the 4π sum). Built and
+    /// tabulated (`lumenscape directions --fictive`), but a scene file must leave this empty: no
+    /// solver computes radiance along them yet (flux tracking walks the tiling directions only,
+    /// Monte Carlo peels off toward the exact ones), so `check` and `run` refuse a non-empty
+    /// list naming its line; list such view directions under `exact`.
     pub fictive: Vec<ExactDirection>,
     /// Default solid angle of exact and fictive directions, sr (DART default 0.001).
     pub exact_solid_angle_sr: f64,

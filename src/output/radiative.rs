@@ -34,7 +34,8 @@ pub fn write_radiative(
     Ok(())
 }
 
-/// `summary.json`: scene, settings (preset, tracking knobs, the walk that ran), solver, launch
+/// `summary.json`: scene, settings (preset, tracking knobs, the instruction set), solver, the
+/// walk that ran (kernel, precision, lanes), launch
 /// grid, images, iterations and convergence, and per band albedo, fabs, ftran, energy closure
 /// and the BRF/HDRF list (docs/guide/products.md).
 fn write_summary(
@@ -72,6 +73,9 @@ fn write_summary(
             "sun_azimuth_deg": info.illumination.sun_azimuth_deg,
         },
         "solver": p.solver,
+        // The walk that traced the flux-tracking rays (null for Monte Carlo): products of runs
+        // with the same walk are the same bits on any CPU (docs/guide/products.md).
+        "walk": p.raw.walk,
         "monte_carlo": p.monte_carlo,
         "launch": p.launch,
         "images": (!p.raw.images.is_empty()).then_some(p.raw.image_grid),

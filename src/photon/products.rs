@@ -68,6 +68,7 @@ pub fn photon_products(
         crossings: res.crossings,
         skipped: res.skipped,
         kernel_seconds: 0.0,
+        walk: None,
     };
     let mut p = RadiativeProducts::new(
         raw,

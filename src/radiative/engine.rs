@@ -251,4 +251,23 @@ pub struct RadiativeResult {
     pub kernel_seconds: f64,
     /// How the sources were sampled on the top plane.
     pub launch: LaunchPlan,
+    /// Which walk traced the lean rays (flux tracking only; `None` for Monte Carlo).
+    pub walk: Option<WalkInfo>,
+}
+
+/// Which walk traced the flux-tracking rays of a run (`summary.json` key `walk`): the batched
+/// walk's dispatch target, precision and lanes, or the baseline one-ray walk. Runs with the
+/// same `WalkInfo` give the same product bits on any CPU; `f32` (16 lanes, AVX-512) and `f64`
+/// walks differ by ~3e-7 relative, 8 and 4 `f64` lanes in the last bits (summation order).
+/// Hotspot-correlated rays and scenes outside the lean tracker (facets, several turbid entries
+/// per cell, topography, incident-face stores) are always walked one by one in `f64`.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
+pub struct WalkInfo {
+    /// `avx512`, `avx2` (the batched walk on that instruction set) or `baseline` (rays one by
+    /// one, portable code: no batched walk on this CPU, or the scene or settings exclude it).
+    pub kernel: &'static str,
+    /// `f32` (single-precision geometry of the 16-lane walk) or `f64`.
+    pub precision: &'static str,
+    /// Rays in flight: 16, 8, 4, or 1 (baseline).
+    pub lanes: u32,
 }

@@ -46,7 +46,8 @@ pub struct SceneDesc {
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub lidars: Option<Vec<LidarDesc>>,
     /// Discrete directions (Direction stage): count, exact view directions, oversampled
-    /// regions, fictive directions, angular sectors. Default: 100 directions (DART default).
+    /// regions, fictive directions (refused for now: no product carries them), angular
+    /// sectors. Default: 100 directions (DART default).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub directions: Option<DirectionParams>,
     /// Radiative-stage settings (preset and individual knobs).

@@ -456,6 +456,25 @@ impl V<'_> {
         {
             return Err(src.invalid(format!("directions.{}", e.field), e.reason));
         }
+        // Fictive directions (DART: radiance along them, outside the 4π tiling) are built and
+        // tabulated by the Direction and Phase stages, but no solver computes radiance along
+        // them: flux tracking traces, intercepts and re-scatters along the tiling directions only
+        // (a fictive one would need its own attenuation-only walk from every scattering element,
+        // G values, slot-averaged phase/BRDF columns and Lambertian fractions along it, and the
+        // hotspot terms), and Monte Carlo peels off toward the exact directions. Accepting them
+        // would drop them from every product without a word (issue #31).
+        if let Some(d) = &desc.directions
+            && !d.fictive.is_empty()
+        {
+            return Err(SceneError::NotSupported {
+                at: src.at("directions.fictive"),
+                field: "directions.fictive".into(),
+                message: format!(
+                    "{} fictive direction(s) listed, but no solver computes radiance along fictive directions: list them under `directions.exact` instead (an exact direction's sector has the requested vector, bit for bit, and its BRF and image are written), or leave `fictive: []`",
+                    d.fictive.len()
+                ),
+            });
+        }
         // Exact directions of a scene are view directions (ground→sensor): the BRF table and the
         // orthographic images only hold upward ones, so a downward one would vanish from every
         // product without a word.

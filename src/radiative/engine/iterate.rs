@@ -550,7 +550,30 @@ fn new_result(ctx: &Ctx, plan: LaunchPlan, source: &[f64]) -> RadiativeResult {
         lost: vec![0.0; w],
         remaining: vec![0.0; w],
         launch: plan,
+        walk: Some(walk_info(ctx)),
         ..Default::default()
+    }
+}
+
+/// Which walk the run's lean rays take (see [`WalkInfo`]).
+fn walk_info(ctx: &Ctx) -> WalkInfo {
+    if !ctx.batch {
+        return WalkInfo {
+            kernel: "baseline",
+            precision: "f64",
+            lanes: 1,
+        };
+    }
+    let f32_walk = !ctx.lane_dirs32.is_empty();
+    let lanes = batch_lanes(ctx.inp.params.kernel_isa, f32_walk) as u32;
+    WalkInfo {
+        kernel: match lanes {
+            16 | 8 => "avx512",
+            4 => "avx2",
+            _ => "baseline",
+        },
+        precision: if f32_walk { "f32" } else { "f64" },
+        lanes,
     }
 }
 
