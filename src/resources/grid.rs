@@ -108,10 +108,12 @@ impl GridSpec {
 
     /// Horizontal area of the launch region of [`GridSpec::topo_launch_point`] for a source
     /// direction `d`, m² (the scene's X·Y without continuous topography).
+    /// A direction descending more slowly than the terrain (L_a ≤ −X) lights none of it
+    /// directly: area 0.
     pub fn topo_launch_area(&self, size: (f64, f64), d: DVec3) -> f64 {
         let (lx, ly) = self.topo_launch_span(d);
         let corner = if lx > 0.0 && ly > 0.0 { lx * ly } else { 0.0 };
-        (size.0 + lx) * (size.1 + ly) - corner
+        ((size.0 + lx).max(0.0) * (size.1 + ly).max(0.0) - corner).max(0.0)
     }
 
     /// Start point in the scene of the source ray along `d` at launch coordinates `(u, v)`

@@ -208,9 +208,18 @@ pub(crate) fn run_batch(ctx: &Ctx, batch: u64, n: u64, source: &[f64]) -> BatchO
             let u = (x - spec.origin.x) / ctx.size.0 * (ctx.size.0 + lx);
             let v = (y - spec.origin.y) / ctx.size.1 * (ctx.size.1 + ly);
             if sky {
+                // The weight change w (1 − f) has expectation 0 over the cosine-weighted sky
+                // (E[L_x] = E[L_y] = 0; the corner term L_x L_y of two offsets is second
+                // order): booked in the weight balance with the roulette's, so energy closes.
                 let f = spec.topo_launch_area(ctx.size, ph.d) / (ctx.size.0 * ctx.size.1);
+                for b in 0..nb {
+                    out.roulette[ph.off + b] += ph.w[b] * (1.0 - f);
+                }
                 ph.w.iter_mut().for_each(|w| *w *= f);
                 ph.w0 *= f;
+                if f <= 0.0 {
+                    continue;
+                }
             }
             match spec.topo_launch_point(ctx.size, u, v, ph.d) {
                 Some(p) => ph.p = p,

@@ -624,7 +624,9 @@ fn launch(ctx: &Ctx, plan: &LaunchPlan) -> Vec<ChunkOut> {
                         let (lx, ly) = spec.topo_launch_span(d);
                         let u = (ix as f64 + 0.5) * (size.0 + lx) / nlx as f64;
                         let v = (jy as f64 + 0.5) * (size.1 + ly) / nly as f64;
-                        let da = (size.0 + lx) * (size.1 + ly) / (nlx * nly) as f64;
+                        // (Clamped at 0: a direction below the terrain's downhill slope.)
+                        let da =
+                            (size.0 + lx).max(0.0) * (size.1 + ly).max(0.0) / (nlx * nly) as f64;
                         (spec.topo_launch_point(size, u, v, d), da)
                     };
                     if !sky {
