@@ -221,6 +221,12 @@ impl Dda {
         self.origin + self.dir * t
     }
 
+    /// Direction of the ray.
+    #[inline]
+    pub fn dir(&self) -> DVec3 {
+        self.dir
+    }
+
     /// Distance at which the ray leaves the cell whose index along `a` is `idx`.
     #[inline(always)]
     fn boundary_t(&self, a: usize, idx: i64) -> f64 {

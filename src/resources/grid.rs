@@ -82,6 +82,162 @@ impl GridSpec {
             + DVec3::new(self.n[0] as f64, self.n[1] as f64, self.n[2] as f64) * self.cell;
         (1e-12 * self.cell.max_element()).max(8.0 * f64::EPSILON * far.max_element())
     }
+
+    // --- Continuous topography (issue #31; physics.md §6.1, §6.5) ---------------------------
+
+    /// Signed widths (L_x, L_y), m, by which a downward source direction `d` (sun or sky
+    /// direction) widens (> 0) or narrows (< 0) the launch region on the top plane of a
+    /// `RepetitiveContinuousTopography` scene: `L_a = offset_a · d_a / |d_z|`; zero otherwise.
+    ///
+    /// The scene is invariant under the translation (X, 0, offset_x) (and likewise along y),
+    /// not under (X, 0, 0): the top planes of neighbouring tiles form a staircase, and a tile
+    /// receives, besides the rays crossing its own top plane, the rays crossing the riser of
+    /// height |offset| between its top and its lower neighbour's top on the side the light
+    /// comes from (or loses the rays that its higher neighbour's riser sends onto it). Per
+    /// tile, the intercepted direct power is `E_dir (X Y + L_x Y + L_y X)` (up to the `L_x L_y`
+    /// corner term, kept when both are positive), which is `E_dir X Y (n·s)/(n_z cos θ_s)` for
+    /// a uniform slope of normal n and sun vector s: the irradiance of a tilted plane per unit
+    /// horizontal area.
+    pub fn topo_launch_span(&self, d: DVec3) -> (f64, f64) {
+        if self.boundary != BoundaryMode::RepetitiveContinuousTopography || d.z >= 0.0 {
+            return (0.0, 0.0);
+        }
+        let (ox, oy) = self.topography_offset;
+        (ox * d.x / -d.z, oy * d.y / -d.z)
+    }
+
+    /// Horizontal area of the launch region of [`GridSpec::topo_launch_point`] for a source
+    /// direction `d`, m² (the scene's X·Y without continuous topography).
+    /// A direction descending more slowly than the terrain (L_a ≤ −X) lights none of it
+    /// directly: area 0.
+    pub fn topo_launch_area(&self, size: (f64, f64), d: DVec3) -> f64 {
+        let (lx, ly) = self.topo_launch_span(d);
+        let corner = if lx > 0.0 && ly > 0.0 { lx * ly } else { 0.0 };
+        ((size.0 + lx).max(0.0) * (size.1 + ly).max(0.0) - corner).max(0.0)
+    }
+
+    /// Start point in the scene of the source ray along `d` at launch coordinates `(u, v)`
+    /// (m from the origin, `u ∈ [0, X + L_x)`, `v ∈ [0, Y + L_y)`, see
+    /// [`GridSpec::topo_launch_span`]): the point (u, v) of the top plane when it lies over the
+    /// tile, else the point where the ray crosses the riser of the neighbouring tile, brought
+    /// back into this tile with its altitude offset. A launch coordinate with a negative span
+    /// skips the strip the higher neighbour's riser already lights. `None`: the corner of two
+    /// widened strips, or a riser point that does not land inside the scene box (mixed
+    /// signs, second order): the caller books its power as lost.
+    pub fn topo_launch_point(&self, size: (f64, f64), u: f64, v: f64, d: DVec3) -> Option<DVec3> {
+        let (lx, ly) = self.topo_launch_span(d);
+        let (ox, oy) = self.topography_offset;
+        // Launch coordinate → position on the plane z = top (relative to the origin).
+        let x = if ox < 0.0 { u - lx } else { u };
+        let y = if oy < 0.0 { v - ly } else { v };
+        let kx = if x < 0.0 {
+            -1.0
+        } else {
+            (x >= size.0) as i32 as f64
+        };
+        let ky = if y < 0.0 {
+            -1.0
+        } else {
+            (y >= size.1) as i32 as f64
+        };
+        let mut p = DVec3::new(x, y, self.top());
+        if kx != 0.0 && ky != 0.0 {
+            return None;
+        }
+        if kx != 0.0 || ky != 0.0 {
+            // Back along the ray to the face of the neighbouring tile it entered through.
+            let t = if kx != 0.0 {
+                (x - if kx > 0.0 { size.0 } else { 0.0 }) / d.x
+            } else {
+                (y - if ky > 0.0 { size.1 } else { 0.0 }) / d.y
+            };
+            p -= d * t;
+            p.x -= kx * size.0;
+            p.y -= ky * size.1;
+            p.z -= kx * ox + ky * oy;
+            // Snap onto the entry face (rounding) and wrap the other axis with its offset.
+            if kx != 0.0 {
+                p.x = if kx > 0.0 { 0.0 } else { size.0 };
+                let k = (p.y / size.1).floor();
+                p.y -= k * size.1;
+                p.z -= k * oy;
+            } else {
+                p.y = if ky > 0.0 { 0.0 } else { size.1 };
+                let k = (p.x / size.0).floor();
+                p.x -= k * size.0;
+                p.z -= k * ox;
+            }
+            if p.z > self.top() || p.z < self.origin.z {
+                return None;
+            }
+        }
+        Some(DVec3::new(p.x + self.origin.x, p.y + self.origin.y, p.z))
+    }
+
+    /// A ray in air above the scene top (`q.z > top`, coming down along `d`, `d.z < 0`) in a
+    /// `RepetitiveContinuousTopography` scene: marches through the empty air of the repeated
+    /// tiles (each side crossing shifts the altitude by the offset) until the ray reaches the
+    /// top plane or comes back inside the box below it. Returns the point (inside the box or
+    /// on its top plane) and the distance marched, m; `None` after `max_crossings` side
+    /// crossings (descending more slowly than the terrain: it never meets the ground again).
+    /// The flux tracker's march of `radiative::engine` (`radiative::walk`, `Ctx::trace_w`), shared with the
+    /// Monte Carlo walk.
+    pub fn descend_through_air(
+        &self,
+        mut q: DVec3,
+        d: DVec3,
+        size: (f64, f64),
+        max_crossings: u32,
+    ) -> Option<(DVec3, f64)> {
+        let top = self.top();
+        let mut s = 0.0;
+        let mut crossings = 0u32;
+        while q.z > top {
+            let t_top = (top - q.z) / d.z;
+            let mut side: Option<(usize, f64)> = None;
+            for a in 0..2 {
+                let len = if a == 0 { size.0 } else { size.1 };
+                let t = if d[a] > 0.0 {
+                    (self.origin[a] + len - q[a]) / d[a]
+                } else if d[a] < 0.0 {
+                    (self.origin[a] - q[a]) / d[a]
+                } else {
+                    f64::INFINITY
+                };
+                if side.is_none_or(|v| t < v.1) {
+                    side = Some((a, t));
+                }
+            }
+            match side {
+                Some((a, t)) if t < t_top => {
+                    crossings += 1;
+                    if crossings > max_crossings {
+                        return None;
+                    }
+                    q += d * t.max(0.0);
+                    s += t.max(0.0);
+                    let (len, off) = if a == 0 {
+                        (size.0, self.topography_offset.0)
+                    } else {
+                        (size.1, self.topography_offset.1)
+                    };
+                    let sg = if d[a] > 0.0 { 1.0 } else { -1.0 };
+                    q.z -= sg * off;
+                    q[a] = if sg > 0.0 {
+                        self.origin[a]
+                    } else {
+                        self.origin[a] + len
+                    };
+                }
+                _ => {
+                    q += d * t_top;
+                    s += t_top;
+                    q.z = top;
+                }
+            }
+        }
+        Some((q, s))
+    }
 }
 
 /// Turbid content of one cell for one material.

@@ -372,10 +372,10 @@ impl Ctx<'_> {
                     return ControlFlow::Break(Some(Hit::Lost));
                 }
                 let e = dda.point(dda.t);
-                match self.wrap(e, axis, s) {
-                    Some(q) => {
-                        w.travelled += dda.t;
-                        w.shift += e - q;
+                match self.wrap(e, axis, s, w.d) {
+                    Some((q, ta)) => {
+                        w.travelled += dda.t + ta;
+                        w.shift += e + w.d * ta - q;
                         w.skip = None;
                         // The same direction from q: restarted in place.
                         if dda.restart(spec, q) {
@@ -384,7 +384,13 @@ impl Ctx<'_> {
                         ControlFlow::Break(Some(Hit::Lost))
                     }
                     None => {
-                        ControlFlow::Break(Some(if w.d.z > 0.0 { Hit::Escape } else { Hit::Lost }))
+                        // (Continuous topography: see `Ctx::fly_exit`.)
+                        let topo = spec.topography_offset != (0.0, 0.0);
+                        ControlFlow::Break(Some(if w.d.z > 0.0 || topo {
+                            Hit::Escape
+                        } else {
+                            Hit::Lost
+                        }))
                     }
                 }
             }

@@ -23,7 +23,13 @@ pub fn run(inp: &PhotonInput) -> PhotonResult {
     let area = ctx.size.0 * ctx.size.1;
     let mut source = vec![0.0; w];
     for b in 0..nb {
-        source[b] = inp.e_dir[b] * area;
+        // Continuous topography (issue #31): the sun's launch region follows the staircase
+        // of tile tops (`GridSpec::topo_launch_span`; X·Y without the offset).
+        source[b] = if spec.topography_offset != (0.0, 0.0) {
+            inp.e_dir[b] * spec.topo_launch_area(ctx.size, inp.sun)
+        } else {
+            inp.e_dir[b] * area
+        };
         if has_sky {
             source[nb + b] = inp.e_diff[b] * area;
         }
@@ -193,6 +199,37 @@ pub(crate) fn run_batch(ctx: &Ctx, batch: u64, n: u64, source: &[f64]) -> BatchO
         } else {
             ph.d = inp.sun;
             ph.di = n_dirs;
+        }
+        // Continuous topography (issue #31): the same two uniforms placed over the launch
+        // region of the photon's direction (`GridSpec::topo_launch_point`); a sky photon's
+        // weight scales with that region's area (mean X·Y over the cosine-weighted sky).
+        if spec.topography_offset != (0.0, 0.0) {
+            let (lx, ly) = spec.topo_launch_span(ph.d);
+            let u = (x - spec.origin.x) / ctx.size.0 * (ctx.size.0 + lx);
+            let v = (y - spec.origin.y) / ctx.size.1 * (ctx.size.1 + ly);
+            if sky {
+                // The weight change w (1 − f) has expectation 0 over the cosine-weighted sky
+                // (E[L_x] = E[L_y] = 0; the corner term L_x L_y of two offsets is second
+                // order): booked in the weight balance with the roulette's, so energy closes.
+                let f = spec.topo_launch_area(ctx.size, ph.d) / (ctx.size.0 * ctx.size.1);
+                for b in 0..nb {
+                    out.roulette[ph.off + b] += ph.w[b] * (1.0 - f);
+                }
+                ph.w.iter_mut().for_each(|w| *w *= f);
+                ph.w0 *= f;
+                if f <= 0.0 {
+                    continue;
+                }
+            }
+            match spec.topo_launch_point(ctx.size, u, v, ph.d) {
+                Some(p) => ph.p = p,
+                None => {
+                    for b in 0..nb {
+                        out.lost[ph.off + b] += ph.w[b];
+                    }
+                    continue;
+                }
+            }
         }
         ph.order = 0;
         ph.skip_facet = None;

@@ -132,10 +132,10 @@ impl Ctx<'_> {
                             return None;
                         }
                         let e = dda.point(dda.t);
-                        match self.wrap(e, axis, s) {
-                            Some(q) => {
-                                walk.travelled += dda.t;
-                                walk.shift += e - q;
+                        match self.wrap(e, axis, s, ph.d) {
+                            Some((q, ta)) => {
+                                walk.travelled += dda.t + ta;
+                                walk.shift += e + ph.d * ta - q;
                                 p = q;
                                 skip = None;
                                 continue 'restart;

@@ -87,8 +87,10 @@ impl Ctx<'_> {
     }
 
     /// Re-entry point after leaving through a side (repetitive boundaries, with the altitude
-    /// offset of continuous topography); `None` if the point leaves the grid vertically.
-    pub(crate) fn wrap(&self, mut q: DVec3, axis: usize, s: i64) -> Option<DVec3> {
+    /// offset of continuous topography) of a ray along `d`, and the distance marched through
+    /// air after it (0 but with continuous topography); `None` if the point leaves the grid
+    /// vertically.
+    pub(crate) fn wrap(&self, mut q: DVec3, axis: usize, s: i64, d: DVec3) -> Option<(DVec3, f64)> {
         let spec = self.inp.spec;
         let (len, off) = if axis == 0 {
             (self.size.0, spec.topography_offset.0)
@@ -102,7 +104,13 @@ impl Ctx<'_> {
         } else {
             spec.origin[axis] + len
         };
-        (q.z <= spec.top() && q.z >= spec.origin.z).then_some(q)
+        // Continuous topography (issue #31): re-entering above the top while going down is
+        // air over a lower neighbouring tile, not an exit: march through it (as the flux
+        // tracker does) until the ray comes back inside or reaches the top plane.
+        if q.z > spec.top() && d.z < 0.0 {
+            return spec.descend_through_air(q, d, self.size, self.inp.params.max_crossings);
+        }
+        (q.z <= spec.top() && q.z >= spec.origin.z).then_some((q, 0.0))
     }
 
     /// Nearest facet hit in cell `c` along the segment `[t0, t1]` of a ray from `o` along `d`.
@@ -363,16 +371,22 @@ impl Ctx<'_> {
                 if ph.path + dda.t > self.max_path {
                     return Some(Hit::Lost);
                 }
-                match self.wrap(e, axis, s) {
-                    Some(q) => {
-                        ph.path += dda.t;
+                match self.wrap(e, axis, s, ph.d) {
+                    Some((q, ta)) => {
+                        ph.path += dda.t + ta;
                         // Unwrapped position = wrapped + shift (LiDAR geometry).
-                        ph.shift += e - q;
+                        ph.shift += e + ph.d * ta - q;
                         ph.p = q;
                         ph.skip_facet = None;
                         None
                     }
-                    None => Some(if ph.d.z > 0.0 { Hit::Escape } else { Hit::Lost }),
+                    // (Continuous topography: a downward photon that never meets the
+                    // terrain again has gone down the slope for good, as in the flux tracker.)
+                    None => Some(if ph.d.z > 0.0 || spec.topography_offset != (0.0, 0.0) {
+                        Hit::Escape
+                    } else {
+                        Hit::Lost
+                    }),
                 }
             }
         }
@@ -525,8 +539,8 @@ impl Ctx<'_> {
                 {
                     return ExitTo::Blocked;
                 }
-                match self.wrap(dda.point(dda.t), axis, s) {
-                    Some(q) => ExitTo::Wrapped(q),
+                match self.wrap(dda.point(dda.t), axis, s, dda.dir()) {
+                    Some((q, _)) => ExitTo::Wrapped(q),
                     None => ExitTo::Receiver,
                 }
             }

@@ -438,6 +438,12 @@ pub(in crate::radiative) struct ChunkOut {
     /// Horizontal size (x, y) of the element emitting the ray being traced, m ((0, 0): a
     /// point); set before each [`Ctx::trace`] call, read when the ray escapes.
     pub(in crate::radiative) foot: (f64, f64),
+    /// Continuous topography (issue #31): horizontal shift, m, from a DEM ground facet's
+    /// scattering point to the centre of its sub-cell column, added to the projected exit
+    /// point so that the footprint boxes of the pieces of a sub-cell cut by a facet edge
+    /// stay on that sub-cell (the barycentre of a partial piece is off-centre: diagonal
+    /// stripes along the DEM triangles' diagonals); (0, 0) otherwise.
+    pub(in crate::radiative) foot_shift: (f64, f64),
     /// Image events: image index; exit point projected onto z0 (x, y from the grid origin,
     /// wrapped in repetitive scenes) and footprint (x, y), m; values: W per channel.
     pub(in crate::radiative) img_key: Vec<u32>,
@@ -477,6 +483,7 @@ impl ChunkOut {
             gnd_val,
             escaped,
             foot,
+            foot_shift,
             img_key,
             img_pos,
             img_val,
@@ -501,6 +508,7 @@ impl ChunkOut {
         gnd_val.clear();
         escaped.fill(0.0);
         *foot = (0.0, 0.0);
+        *foot_shift = (0.0, 0.0);
         img_key.clear();
         img_pos.clear();
         img_val.clear();

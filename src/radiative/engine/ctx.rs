@@ -314,6 +314,31 @@ impl Ctx<'_> {
         let d = self.omega[dir];
         let mut x = p.x - (p.z - spec.origin.z) * d.x / d.z - spec.origin.x;
         let mut y = p.y - (p.z - spec.origin.z) * d.y / d.z - spec.origin.y;
+        // Continuous topography (issue #31): the reference surface is the mean terrain plane
+        // z = z0 + g·(x, y), g = offsets / sizes, not z = z0. It is invariant under the
+        // scene's translation (X, 0, offset_x), so a ray's exit point, lowered or raised by
+        // its side wraps, projects where its emitting element does (modulo X), and the
+        // projected tile fills the image once (onto z = z0 a slope's tile covers X(1 − g v_x/
+        // v_z) × Y: a gap band, the riser seen obliquely). Views that do not see the mean
+        // plane from above keep z0.
+        if spec.topography_offset != (0.0, 0.0) {
+            let g = (
+                spec.topography_offset.0 / self.size.0,
+                spec.topography_offset.1 / self.size.1,
+            );
+            let den = d.z - g.0 * d.x - g.1 * d.y;
+            if den > 0.0 {
+                let (rx, ry) = (p.x - spec.origin.x, p.y - spec.origin.y);
+                let t = (p.z - spec.origin.z - g.0 * rx - g.1 * ry) / den;
+                x = rx - t * d.x;
+                y = ry - t * d.y;
+            }
+        }
+        if out.foot_shift != (0.0, 0.0) {
+            // Continuous topography, DEM ground facet: see `ChunkOut::foot_shift`.
+            x += out.foot_shift.0;
+            y += out.foot_shift.1;
+        }
         if spec.boundary != BoundaryMode::Isolated {
             x = rem_euclid_period(x, self.size.0);
             y = rem_euclid_period(y, self.size.1);

@@ -544,8 +544,24 @@ fn send_emitter(
                 let side = n.dot(tiling[j].omega).signum();
                 origin += n * side * 1e-9 * spec.cell.min_element();
             }
+            // Continuous topography (issue #31): DEM ground facet footprints on their
+            // sub-cell column (see `ChunkOut::foot_shift`).
+            if spec.boundary == BoundaryMode::RepetitiveContinuousTopography
+                && !points.is_empty()
+                && skip.is_some_and(|f| ctx.inp.facets[f as usize].kind == FacetKind::Ground)
+            {
+                let centre = |x: f64, o: f64, c: f64| {
+                    let s = c / ctx.sub as f64;
+                    o + ((x - o) / s).floor() * s + 0.5 * s
+                };
+                out.foot_shift = (
+                    centre(pt.x, spec.origin.x, spec.cell.x) - pt.x,
+                    centre(pt.y, spec.origin.y, spec.cell.y) - pt.y,
+                );
+            }
             let hs_j = hs && ctx.hs_dir[j];
             send(ctx, origin, j, skip, v, share, hs_j, pw, out);
+            out.foot_shift = (0.0, 0.0);
         }
     }
     out.kernel_seconds += t_kernel.elapsed().as_secs_f64();

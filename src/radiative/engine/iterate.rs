@@ -179,6 +179,25 @@ fn context<'a>(inp: &'a RadiativeInput<'a>) -> (Ctx<'a>, LaunchPlan, Vec<f64>) {
             source[nb + b] = inp.e_diff[b] * area;
         }
     }
+    // Continuous topography (issue #31): the launch region of each source direction follows
+    // the staircase of tile tops (`GridSpec::topo_launch_span`), so the sources are the
+    // powers launched over it.
+    if spec.topography_offset != (0.0, 0.0) {
+        for b in 0..nb {
+            source[b] = inp.e_dir[b] * spec.topo_launch_area(size, inp.sun);
+            if has_sky {
+                source[nb + b] = tiling
+                    .iter()
+                    .filter(|d| d.omega.z < 0.0)
+                    .map(|d| {
+                        inp.e_diff[b] / std::f64::consts::PI
+                            * d.projected_sr
+                            * spec.topo_launch_area(size, d.omega)
+                    })
+                    .sum();
+            }
+        }
+    }
     for e in inp.emitters {
         for (s, v) in source.iter_mut().zip(&e.power) {
             *s += v;
@@ -588,6 +607,7 @@ fn launch(ctx: &Ctx, plan: &LaunchPlan) -> Vec<ChunkOut> {
     let area = size.0 * size.1;
     // --- Iteration 1: sources. Launch points in fixed chunks of rows.
     let top = spec.top();
+    let topo = spec.topography_offset != (0.0, 0.0);
     let sky_dirs: Vec<usize> = if has_sky {
         (0..n_dirs).filter(|&j| ctx.omega[j].z < 0.0).collect()
     } else {
@@ -618,22 +638,44 @@ fn launch(ctx: &Ctx, plan: &LaunchPlan) -> Vec<ChunkOut> {
                         spec.origin.y + (jy as f64 + 0.5) * size.1 / nly as f64,
                         top,
                     );
+                    // Continuous topography (issue #31): launch point and area of ray `ix` over
+                    // the direction's launch region (`GridSpec::topo_launch_point`).
+                    let topo_launch = |d: DVec3| -> (Option<DVec3>, f64) {
+                        if !topo {
+                            return (Some(p), da);
+                        }
+                        let (lx, ly) = spec.topo_launch_span(d);
+                        let u = (ix as f64 + 0.5) * (size.0 + lx) / nlx as f64;
+                        let v = (jy as f64 + 0.5) * (size.1 + ly) / nly as f64;
+                        // (Clamped at 0: a direction below the terrain's downhill slope.)
+                        let da =
+                            (size.0 + lx).max(0.0) * (size.1 + ly).max(0.0) / (nlx * nly) as f64;
+                        (spec.topo_launch_point(size, u, v, d), da)
+                    };
                     if !sky {
                         pw.iter_mut().for_each(|v| *v = 0.0);
+                        let (p, da) = topo_launch(inp.sun);
                         for b in 0..nb {
                             pw[b] = inp.e_dir[b] * da;
                         }
-                        ctx.trace(p, n_dirs, None, &mut pw, &mut out);
+                        match p {
+                            Some(p) => ctx.trace(p, n_dirs, None, &mut pw, &mut out),
+                            None => add(&mut out.lost, &pw),
+                        }
                         continue;
                     }
                     for &j in &sky_dirs {
                         pw.iter_mut().for_each(|v| *v = 0.0);
+                        let (p, da) = topo_launch(ctx.omega[j]);
                         // L_sky = E_diff/π; power = L ΔA ∫_{ΔΩ}|μ|dΩ (physics.md §6.1).
                         for b in 0..nb {
                             pw[nb + b] =
                                 inp.e_diff[b] / std::f64::consts::PI * da * tiling[j].projected_sr;
                         }
-                        ctx.trace(p, j, None, &mut pw, &mut out);
+                        match p {
+                            Some(p) => ctx.trace(p, j, None, &mut pw, &mut out),
+                            None => add(&mut out.lost, &pw),
+                        }
                     }
                 }
             }
