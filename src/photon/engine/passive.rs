@@ -169,6 +169,8 @@ pub(crate) fn run_batch(ctx: &Ctx, batch: u64, n: u64, source: &[f64]) -> BatchO
         surface_scored: false,
         first_u: None,
         first_order_done: false,
+        scatter_path: 0.0,
+        hs_k: crate::photon::small::Small::from_elem(0.0, 0),
     };
     let n_dirs = ctx.omega.len();
     let discrete = inp.params.sampler.is_discrete();
