@@ -29,12 +29,12 @@ fn run(desc: &SceneDesc, settings: RunSettings) -> RadiativeProducts {
 /// representative direction.
 fn all_peel_off_directions(sun_zenith_deg: f64) -> DirectionParams {
     let base = DirectionParams {
-        count: 300,
+        count: 200,
         oversample: vec![OversampleRegion::Cone {
             zenith_deg: sun_zenith_deg,
             azimuth_deg: 0.0,
-            half_angle_deg: 8.0,
-            solid_angle_sr: 0.0006,
+            half_angle_deg: 6.0,
+            solid_angle_sr: 0.001,
         }],
         ..Default::default()
     };
@@ -94,12 +94,12 @@ fn albedo_and_brf_integral(p: &RadiativeProducts, d: &SceneDesc) -> ((f64, f64),
 #[test]
 fn monte_carlo_albedo_carries_the_hotspot_of_its_brfs() {
     for leaf in [0.01, 0.05] {
-        let d = layer(leaf, 0.5);
+        let d = layer(leaf, 2.0);
         let mc = run(
             &d,
             RunSettings {
                 solver: Solver::MonteCarlo {
-                    photons: 200_000,
+                    photons: 150_000,
                     sampler: SamplerKind::Continuous,
                 },
                 ..Default::default()
@@ -153,7 +153,7 @@ fn probe() {
     let env = |k: &str, d: f64| std::env::var(k).ok().and_then(|v| v.parse().ok()).unwrap_or(d);
     let leaf = env("HS_LEAF", 0.0);
     let n = env("HS_PHOTONS", 200_000.0) as u64;
-    let d = layer(leaf, 0.5);
+    let d = layer(leaf, env("HS_MC_CELL", 2.0));
     let t = std::time::Instant::now();
     let mc = run(
         &d,
