@@ -11,8 +11,8 @@ use lumenscape::radiative::products::RadiativeProducts;
 use lumenscape::resources::scene::{RunSettings, Solver};
 use lumenscape::scene::SceneSource;
 use lumenscape::scene::desc::*;
-use lumenscape::scene::generators::turbid_layer::{TurbidLayerParams, turbid_layer};
 use lumenscape::scene::generators::BandOptics;
+use lumenscape::scene::generators::turbid_layer::{TurbidLayerParams, turbid_layer};
 use lumenscape::simulation::Simulation;
 
 const Z: f64 = 4.0;
@@ -83,7 +83,11 @@ fn albedo_and_brf_integral(p: &RadiativeProducts, d: &SceneDesc) -> ((f64, f64),
     assert_eq!(b.brf.len(), up.len());
     let (mut s, mut se) = (0.0, 0.0);
     for (e, dir) in b.brf.iter().zip(&up) {
-        assert_eq!(e.estimator, Some("peel-off"), "sector {dir:?} not peeled off");
+        assert_eq!(
+            e.estimator,
+            Some("peel-off"),
+            "sector {dir:?} not peeled off"
+        );
         let w = dir.projected_sr / std::f64::consts::PI;
         s += e.brf * w;
         se += e.brf_se.unwrap() * w;
@@ -122,7 +126,10 @@ fn monte_carlo_albedo_carries_the_hotspot_of_its_brfs() {
             (a - i) / se,
             100.0 * (a / a_ft - 1.0)
         );
-        assert!(se < 0.01 * a, "leaf {leaf}: SE {se} too large for the comparison");
+        assert!(
+            se < 0.01 * a,
+            "leaf {leaf}: SE {se} too large for the comparison"
+        );
         assert!(
             (a - i).abs() <= Z * se,
             "leaf {leaf}: MC albedo {a} vs its BRF integral {i} (SE {se})"
@@ -150,7 +157,12 @@ fn common_closes(p: &RadiativeProducts, leaf: f64) {
 #[test]
 #[ignore]
 fn probe() {
-    let env = |k: &str, d: f64| std::env::var(k).ok().and_then(|v| v.parse().ok()).unwrap_or(d);
+    let env = |k: &str, d: f64| {
+        std::env::var(k)
+            .ok()
+            .and_then(|v| v.parse().ok())
+            .unwrap_or(d)
+    };
     let leaf = env("HS_LEAF", 0.0);
     let n = env("HS_PHOTONS", 200_000.0) as u64;
     let d = layer(leaf, env("HS_MC_CELL", 2.0));

@@ -475,7 +475,14 @@ impl Ctx<'_> {
     /// (m from the scattering point) over `x` m: `Σ u_f max(0, G x − b ∫_{s0}^{s0+x} e^{−c s} ds)`
     /// per tracked turbid entry (the same per-entry expression as [`Ctx::transmittance`]).
     #[inline]
-    pub(crate) fn hs_depth(&self, c: usize, g_cur: &[f64], hs: &[[f64; 2]], s0: f64, x: f64) -> f64 {
+    pub(crate) fn hs_depth(
+        &self,
+        c: usize,
+        g_cur: &[f64],
+        hs: &[[f64; 2]],
+        s0: f64,
+        x: f64,
+    ) -> f64 {
         let mut tau = 0.0;
         for e in self.inp.grid.turbid_of(c) {
             let tm = self.tur_mat[e.material as usize];
