@@ -60,9 +60,64 @@ pub fn track_flux(
             | MaterialKind::Leaf { reflectance, .. } => reflectance.clone(),
             _ => vec![0.0; nb],
         });
-    // RPV / Hapke flat ground: one facet table per band for the horizontal normal.
+    let ground_brdf = match ground_brdf_tables(scene.flat_ground, &mats, &dirs, &settings, nb) {
+        Ok(t) => t,
+        Err(e) => {
+            errors.0.push(e);
+            return;
+        }
+    };
+    let fractions = exact_facet_fractions(&facets, &dirs);
+    let optics: Vec<TrackOptics> = tables.optics.clone();
+    let image_of = image_indices(&dirs);
+    let input = RadiativeInput {
+        spec: &spec,
+        grid: &grid,
+        facets: &facets.facets,
+        facet_fractions: &fractions,
+        facet_brdf: &facet_brdf,
+        facet_tables: &facet_tables,
+        dirs: &dirs.set,
+        sector_of: &dirs.sector_of,
+        n_sectors: dirs.n_sectors,
+        optics: &optics,
+        image_of: &image_of,
+        image_oversampling: settings.image_oversampling,
+        flat_ground,
+        ground_brdf,
+        sun: dirs.sun,
+        e_dir: scene.e_dir.clone(),
+        e_diff: scene.e_diff.clone(),
+        params: settings.tracking.clone(),
+        emitters: &[],
+    };
+    let t0 = std::time::Instant::now();
+    let raw = run(&input);
+    let secs = t0.elapsed().as_secs_f64();
+    commands.insert_resource(ImageDirections(image_of));
+    commands.insert_resource(RadiativeProducts::new(
+        raw,
+        &dirs.set,
+        &scene.band_names,
+        scene.area_m2,
+        &scene.e_dir,
+        &scene.e_diff,
+        &scene.ground_facet,
+        secs,
+    ));
+}
+
+/// Step of [`track_flux`]: the RPV / Hapke tables of the flat ground (one facet table per band
+/// for the horizontal normal); `None` for a Lambertian ground or no flat ground.
+fn ground_brdf_tables(
+    flat_ground: Option<crate::resources::materials::MaterialId>,
+    mats: &Materials,
+    dirs: &Directions,
+    settings: &RadiativeSettings,
+    nb: usize,
+) -> Result<Option<Vec<crate::phase::PhaseTable>>, String> {
     let mut ground_brdf = None;
-    if let Some(g) = scene.flat_ground {
+    if let Some(g) = flat_ground {
         let m = &mats.list[g as usize];
         let per_band = m.kind.brdf_models(nb);
         if let Some(models) = per_band {
@@ -76,15 +131,19 @@ pub fn track_flux(
                     &settings.tables,
                 ) {
                     Ok(t) => tables_b.push(t),
-                    Err(e) => {
-                        errors.0.push(format!("ground material `{}`: {e}", m.name));
-                        return;
-                    }
+                    Err(e) => return Err(format!("ground material `{}`: {e}", m.name)),
                 }
             }
             ground_brdf = Some(tables_b);
         }
     }
+    Ok(ground_brdf)
+}
+
+/// Step of [`track_flux`]: the exact Lambertian scattering fractions (front, back) per facet
+/// and tiling direction, when the facets × directions stay within `EXACT_FRACTIONS_LIMIT`
+/// (empty otherwise: the tracker falls back to renormalised cosines).
+fn exact_facet_fractions(facets: &FacetStore, dirs: &Directions) -> Vec<(Vec<f32>, Vec<f32>)> {
     let n_dirs = dirs.set.tiling().len();
     let omega: Vec<glam::DVec3> = dirs.set.tiling().iter().map(|d| d.omega).collect();
     let regular: Vec<bool> = dirs
@@ -93,9 +152,7 @@ pub fn track_flux(
         .iter()
         .map(|d| d.kind == crate::direction::DirectionKind::Regular)
         .collect();
-    let fractions: Vec<(Vec<f32>, Vec<f32>)> = if facets.facets.len() * n_dirs
-        <= EXACT_FRACTIONS_LIMIT
-    {
+    if facets.facets.len() * n_dirs <= EXACT_FRACTIONS_LIMIT {
         // One computation per distinct unit normal (bit for bit): a flat DEM's triangles, the
         // sides of trunks of one shape and a building's parallel walls share theirs, and the
         // exact fractions (tanh–sinh quadrature per sector) were ~10 % of the forest bench's
@@ -136,12 +193,14 @@ pub fn track_flux(
         which.iter().map(|&i| per_normal[i].clone()).collect()
     } else {
         Vec::new()
-    };
-    let optics: Vec<TrackOptics> = tables.optics.clone();
-    // Orthographic images for every exact upward direction (the view directions a scene asks for).
+    }
+}
+
+/// Step of [`track_flux`]: the image index of each tiling direction — orthographic images for
+/// every exact upward direction (the view directions a scene asks for), `u32::MAX` otherwise.
+fn image_indices(dirs: &Directions) -> Vec<u32> {
     let mut n_img = 0u32;
-    let image_of: Vec<u32> = dirs
-        .set
+    dirs.set
         .tiling()
         .iter()
         .map(|d| {
@@ -152,42 +211,7 @@ pub fn track_flux(
                 u32::MAX
             }
         })
-        .collect();
-    let input = RadiativeInput {
-        spec: &spec,
-        grid: &grid,
-        facets: &facets.facets,
-        facet_fractions: &fractions,
-        facet_brdf: &facet_brdf,
-        facet_tables: &facet_tables,
-        dirs: &dirs.set,
-        sector_of: &dirs.sector_of,
-        n_sectors: dirs.n_sectors,
-        optics: &optics,
-        image_of: &image_of,
-        image_oversampling: settings.image_oversampling,
-        flat_ground,
-        ground_brdf,
-        sun: dirs.sun,
-        e_dir: scene.e_dir.clone(),
-        e_diff: scene.e_diff.clone(),
-        params: settings.tracking.clone(),
-        emitters: &[],
-    };
-    let t0 = std::time::Instant::now();
-    let raw = run(&input);
-    let secs = t0.elapsed().as_secs_f64();
-    commands.insert_resource(ImageDirections(image_of));
-    commands.insert_resource(RadiativeProducts::new(
-        raw,
-        &dirs.set,
-        &scene.band_names,
-        scene.area_m2,
-        &scene.e_dir,
-        &scene.e_diff,
-        &scene.ground_facet,
-        secs,
-    ));
+        .collect()
 }
 
 /// Table sets of the RPV/Hapke facets: `facet_brdf[f]` indexes `sets` (u32::MAX for other

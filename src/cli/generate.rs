@@ -242,7 +242,25 @@ pub fn run(args: &Args, out: &mut dyn Write) -> Result<(), CliError> {
     {
         return Err(format!("--leaf-size: {x} is not a length ≥ 0 m").into());
     }
-    let mut desc = match &args.kind {
+    let mut desc = generate_scene(&args.kind)?;
+    if let Some(x) = leaf_size {
+        for o in desc.optics.values_mut() {
+            if let crate::scene::desc::OpticsDesc::Turbid { leaf_size_m, .. } = o {
+                *leaf_size_m = x;
+            }
+        }
+    }
+    // Refuse to print a scene that would not load.
+    crate::scene::validate::validate(&desc, &crate::scene::SceneSource::generated())?;
+    out.write_all(crate::scene::to_ron(&desc).as_bytes())?;
+    writeln!(out)?;
+    Ok(())
+}
+
+/// Step of [`run`]: the scene of the generator `kind` with its arguments (before the
+/// `--leaf-size` override).
+fn generate_scene(kind: &Kind) -> Result<crate::scene::desc::SceneDesc, CliError> {
+    Ok(match kind {
         Kind::TurbidLayer {
             lai,
             lad,
@@ -286,12 +304,7 @@ pub fn run(args: &Args, out: &mut dyn Write) -> Result<(), CliError> {
             };
             match leaves {
                 Some(path) => {
-                    let abs = std::fs::canonicalize(path)
-                        .map_err(|e| format!("{}: {e}", path.display()))?;
-                    // Check the list now, so a broken file fails here rather than at run time.
-                    let text = std::fs::read_to_string(&abs)
-                        .map_err(|e| format!("{}: {e}", abs.display()))?;
-                    crate::io::leaf_list::parse_leaf_list(&text, &abs)?;
+                    let abs = checked_leaf_list(path)?;
                     disk_canopy::disk_canopy_from_list(&params, &abs.to_string_lossy())
                 }
                 None => disk_canopy::disk_canopy(&params)?,
@@ -331,15 +344,7 @@ pub fn run(args: &Args, out: &mut dyn Write) -> Result<(), CliError> {
         } => {
             let case = rami::RamiCase::parse(case)?;
             let leaves = match leaves {
-                Some(path) => {
-                    let abs = std::fs::canonicalize(path)
-                        .map_err(|e| format!("{}: {e}", path.display()))?;
-                    // Check the list now, so a broken file fails here rather than at run time.
-                    let text = std::fs::read_to_string(&abs)
-                        .map_err(|e| format!("{}: {e}", abs.display()))?;
-                    crate::io::leaf_list::parse_leaf_list(&text, &abs)?;
-                    Some(abs.to_string_lossy().into_owned())
-                }
+                Some(path) => Some(checked_leaf_list(path)?.to_string_lossy().into_owned()),
                 None => None,
             };
             rami::rami_scene(
@@ -368,17 +373,14 @@ pub fn run(args: &Args, out: &mut dyn Write) -> Result<(), CliError> {
             seed: *seed,
             ..Default::default()
         }),
-    };
-    if let Some(x) = leaf_size {
-        for o in desc.optics.values_mut() {
-            if let crate::scene::desc::OpticsDesc::Turbid { leaf_size_m, .. } = o {
-                *leaf_size_m = x;
-            }
-        }
-    }
-    // Refuse to print a scene that would not load.
-    crate::scene::validate::validate(&desc, &crate::scene::SceneSource::generated())?;
-    out.write_all(crate::scene::to_ron(&desc).as_bytes())?;
-    writeln!(out)?;
-    Ok(())
+    })
+}
+
+/// Step of [`generate_scene`]: the canonical path of a `--leaves` list, checked now (read and
+/// parsed) so a broken file fails here rather than at run time.
+fn checked_leaf_list(path: &std::path::Path) -> Result<std::path::PathBuf, CliError> {
+    let abs = std::fs::canonicalize(path).map_err(|e| format!("{}: {e}", path.display()))?;
+    let text = std::fs::read_to_string(&abs).map_err(|e| format!("{}: {e}", abs.display()))?;
+    crate::io::leaf_list::parse_leaf_list(&text, &abs)?;
+    Ok(abs)
 }

@@ -451,55 +451,95 @@ fn global(hemi: usize, u: f64, phi: f64) -> DVec3 {
 /// direction of about `omega` sr (physics.md §2.3).
 fn split_for_exact(l: &Leaf, ut: f64, pt: f64, target: DVec3, omega: f64, tag: u32) -> Node {
     let r = l.rect;
-    let exact = |rect: Rect| {
-        Node::Leaf(Leaf {
-            rect,
-            kind: LeafKind::Exact(tag),
-            rep: Some(target),
-            id: 0,
-        })
-    };
     if r.area() <= 1.5 * omega {
-        return exact(r);
+        return exact_leaf(r, target, tag);
     }
     let rem_kind = l.kind;
     let target_size = r.area();
-    let mut children = Vec::new();
     let st = (1.0 - ut * ut).max(0.0).sqrt();
     if st < 1e-9 && r.is_cap() {
-        // Exact zenith/nadir: a small cap plus an annulus cut into near-square wedges.
-        let u_s = 1.0 - omega / TAU;
-        children.push(exact(Rect {
+        return split_cap_for_exact(r, target, omega, tag, rem_kind);
+    }
+    let (du_h, dphi_h) = exact_half_widths(r, st, omega);
+    let (lo, hi) = exact_u_range(r, ut, du_h);
+    let (a, b) = exact_phi_range(r, pt, dphi_h);
+    let mut children = vec![exact_leaf(
+        Rect {
+            u0: lo,
+            u1: hi,
+            phi0: a.rem_euclid(TAU),
+            dphi: b - a,
+        },
+        target,
+        tag,
+    )];
+    for rem in exact_remainders(r, (lo, hi), (a, b)) {
+        if rem.area() <= 0.0 {
+            continue;
+        }
+        children.push(grid_split(rem, target_size, rem_kind));
+    }
+    Node::List {
+        extent: r,
+        children,
+    }
+}
+
+/// Step of [`split_for_exact`]: the exact leaf of `rect`, represented by `target`.
+fn exact_leaf(rect: Rect, target: DVec3, tag: u32) -> Node {
+    Node::Leaf(Leaf {
+        rect,
+        kind: LeafKind::Exact(tag),
+        rep: Some(target),
+        id: 0,
+    })
+}
+
+/// Step of [`split_for_exact`] for an exact zenith/nadir in the cap `r`: a small exact cap of
+/// `omega` sr plus an annulus cut into near-square wedges of kind `rem_kind`.
+fn split_cap_for_exact(r: Rect, target: DVec3, omega: f64, tag: u32, rem_kind: LeafKind) -> Node {
+    let mut children = Vec::new();
+    let u_s = 1.0 - omega / TAU;
+    children.push(exact_leaf(
+        Rect {
             u0: u_s,
             u1: 1.0,
             phi0: 0.0,
             dphi: TAU,
-        }));
-        let ann = Rect {
-            u0: r.u0,
-            u1: u_s,
-            phi0: 0.0,
-            dphi: TAU,
-        };
-        let (h, w) = ann.shape();
-        let q = ((w / h).round() as usize).max(3);
-        let wq = TAU / q as f64;
-        for j in 0..q {
-            children.push(leaf(
-                Rect {
-                    u0: r.u0,
-                    u1: u_s,
-                    phi0: j as f64 * wq,
-                    dphi: wq,
-                },
-                rem_kind,
-            ));
-        }
-        return Node::List {
-            extent: r,
-            children,
-        };
+        },
+        target,
+        tag,
+    ));
+    let ann = Rect {
+        u0: r.u0,
+        u1: u_s,
+        phi0: 0.0,
+        dphi: TAU,
+    };
+    let (h, w) = ann.shape();
+    let q = ((w / h).round() as usize).max(3);
+    let wq = TAU / q as f64;
+    for j in 0..q {
+        children.push(leaf(
+            Rect {
+                u0: r.u0,
+                u1: u_s,
+                phi0: j as f64 * wq,
+                dphi: wq,
+            },
+            rem_kind,
+        ));
     }
+    Node::List {
+        extent: r,
+        children,
+    }
+}
+
+/// Step of [`split_for_exact`]: the half widths `(du, dφ)` of a near-square exact cell of
+/// `omega` sr at sin θ = `st` inside `r` (dφ capped at π/4 and half the parent's azimuth
+/// span; du capped at half the parent's μ span).
+fn exact_half_widths(r: Rect, st: f64, omega: f64) -> (f64, f64) {
     let half = omega.sqrt() / 2.0;
     let cap_phi = if r.full_ring() {
         FRAC_PI_4
@@ -512,7 +552,12 @@ fn split_for_exact(l: &Leaf, ut: f64, pt: f64, target: DVec3, omega: f64, tag: u
         du_h = 0.5 * (r.u1 - r.u0);
         dphi_h = (omega / (4.0 * du_h)).min(cap_phi);
     }
-    // μ range shifted inside the parent, then thin remainders snapped away.
+    (du_h, dphi_h)
+}
+
+/// Step of [`split_for_exact`]: the exact cell's μ range around `ut`, shifted inside the
+/// parent `r`, then thin remainders snapped away.
+fn exact_u_range(r: Rect, ut: f64, du_h: f64) -> (f64, f64) {
     let (mut lo, mut hi) = (ut - du_h, ut + du_h);
     if lo < r.u0 {
         hi += r.u0 - lo;
@@ -529,8 +574,13 @@ fn split_for_exact(l: &Leaf, ut: f64, pt: f64, target: DVec3, omega: f64, tag: u
     if r.u1 - hi < 0.25 * (hi - lo) {
         hi = r.u1;
     }
-    // Azimuth range, relative to the parent's start.
-    let (a, b) = if r.full_ring() {
+    (lo, hi)
+}
+
+/// Step of [`split_for_exact`]: the exact cell's azimuth range `(a, b)` around `pt` (a full
+/// ring: centred on `pt`; a sector: shifted inside it, thin remainders snapped away).
+fn exact_phi_range(r: Rect, pt: f64, dphi_h: f64) -> (f64, f64) {
+    if r.full_ring() {
         let a = (pt - dphi_h).rem_euclid(TAU);
         (a, a + 2.0 * dphi_h)
     } else {
@@ -552,13 +602,12 @@ fn split_for_exact(l: &Leaf, ut: f64, pt: f64, target: DVec3, omega: f64, tag: u
             b = r.dphi;
         }
         (r.phi0 + a, r.phi0 + b)
-    };
-    children.push(exact(Rect {
-        u0: lo,
-        u1: hi,
-        phi0: a.rem_euclid(TAU),
-        dphi: b - a,
-    }));
+    }
+}
+
+/// Step of [`split_for_exact`]: the parts of `r` around the exact cell `[lo, hi] × [a, b]`
+/// (above, below, then beside it in azimuth), possibly empty.
+fn exact_remainders(r: Rect, (lo, hi): (f64, f64), (a, b): (f64, f64)) -> Vec<Rect> {
     let mut rems = Vec::new();
     if hi < r.u1 {
         rems.push(Rect {
@@ -601,16 +650,7 @@ fn split_for_exact(l: &Leaf, ut: f64, pt: f64, target: DVec3, omega: f64, tag: u
             });
         }
     }
-    for rem in rems {
-        if rem.area() <= 0.0 {
-            continue;
-        }
-        children.push(grid_split(rem, target_size, rem_kind));
-    }
-    Node::List {
-        extent: r,
-        children,
-    }
+    rems
 }
 
 /// Splits an exact leaf holding representative `a` so that a second exact direction `b` gets

@@ -67,13 +67,60 @@ pub fn plan_grid(
     max_memory_bytes: u64,
     objects: &TurbidObjects,
 ) -> Result<GridPlan, String> {
+    let (sx, sy) = info.size;
+    let (dx, dy, dz) = info.cell;
+    let (z0, top) = z_extent(info, terrain, facets, objects)?;
+    let nf = cell_counts(info, z0, top)?;
+    let n = nf.map(|x| x as usize);
+    let topography_offset = if info.boundary == BoundaryMode::RepetitiveContinuousTopography {
+        terrain.edge_offsets(sx, sy)
+    } else {
+        (0.0, 0.0)
+    };
+    let spec = GridSpec {
+        n,
+        cell: DVec3::new(dx, dy, dz),
+        origin: DVec3::new(0.0, 0.0, z0),
+        subcells: info.subcells,
+        boundary: info.boundary,
+        topography_offset,
+    };
+    let est = memory_estimate(info, &spec, top, facets, max_memory_bytes, objects);
+    let peak = est.peak_bytes;
+    let over_limit = (peak > max_memory_bytes).then(|| {
+        format!(
+            "{}: the grid of {} × {} × {} cells needs an estimated {:.2} GiB, above the limit of {:.2} GiB (--max-memory): use larger cells or a smaller scene",
+            info.source.display(),
+            n[0],
+            n[1],
+            n[2],
+            peak as f64 / (1u64 << 30) as f64,
+            max_memory_bytes as f64 / (1u64 << 30) as f64
+        )
+    });
+    Ok(GridPlan {
+        spec,
+        est,
+        over_limit,
+    })
+}
+
+/// Step of [`plan_grid`]: the grid's vertical extent `(z0, top)` — z0 the lowest ground, turbid
+/// or facet point (0 when there is none), top the highest object point but at least one cell
+/// above z0. `Err` when the top is not finite.
+fn z_extent(
+    info: &SceneInfo,
+    terrain: &Terrain,
+    facets: &FacetStore,
+    objects: &TurbidObjects,
+) -> Result<(f64, f64), String> {
     let TurbidObjects {
         crowns,
         plots,
         meshes,
     } = objects;
     let (sx, sy) = info.size;
-    let (dx, dy, dz) = info.cell;
+    let dz = info.cell.2;
     let ground_lo = match terrain {
         Terrain::Flat(z) => *z,
         t => t
@@ -100,6 +147,15 @@ pub fn plan_grid(
             info.source.display()
         ));
     }
+    Ok((z0, top))
+}
+
+/// Step of [`plan_grid`]: the cell counts (x, y, z) in floating point, from the scene size, the
+/// cell size and the scene height (or the objects' top). `Err` when the objects reach above the
+/// scene height or the grid would exceed `MAX_GRID_CELLS`.
+fn cell_counts(info: &SceneInfo, z0: f64, top: f64) -> Result<[f64; 3], String> {
+    let (sx, sy) = info.size;
+    let (dx, dy, dz) = info.cell;
     // Cell counts in floating point first: an `as usize` cast saturates, and the products of
     // saturated counts overflow (a 2 × 1e308 m scene planned "5.8 KiB").
     let nz = match info.height {
@@ -137,23 +193,28 @@ pub fn plan_grid(
             num(dz)
         ));
     }
-    let n = nf.map(|x| x as usize);
-    let topography_offset = if info.boundary == BoundaryMode::RepetitiveContinuousTopography {
-        terrain.edge_offsets(sx, sy)
-    } else {
-        (0.0, 0.0)
-    };
-    let spec = GridSpec {
-        n,
-        cell: DVec3::new(dx, dy, dz),
-        origin: DVec3::new(0.0, 0.0, z0),
-        subcells: info.subcells,
-        boundary: info.boundary,
-        topography_offset,
-    };
-    // Memory estimate (upper bounds from bounding boxes), before any allocation.
+    Ok(nf)
+}
+
+/// Step of [`plan_grid`]: the memory estimate (upper bounds from the objects' and facets'
+/// bounding boxes) of the grid `spec` whose objects reach up to `top`.
+fn memory_estimate(
+    info: &SceneInfo,
+    spec: &GridSpec,
+    top: f64,
+    facets: &FacetStore,
+    max_memory_bytes: u64,
+    objects: &TurbidObjects,
+) -> MemoryEstimate {
+    let TurbidObjects {
+        crowns,
+        plots,
+        meshes,
+    } = objects;
+    let (dx, dy, dz) = info.cell;
+    let z0 = spec.origin.z;
     // Saturating arithmetic: an estimate that saturates exceeds any memory limit and is
-    // refused below, instead of wrapping to a small number.
+    // refused by the caller, instead of wrapping to a small number.
     let n_cells = spec.n_cells() as u64;
     let bbox_cells = |lo: DVec3, hi: DVec3| -> u64 {
         let (a, b) = cell_range(lo.x, hi.x, 0.0, dx);
@@ -207,28 +268,12 @@ pub fn plan_grid(
         .saturating_add(turbid_max.saturating_mul(8 + 16))
         .saturating_add(refs_max.saturating_mul(4 + 8))
         .saturating_add(facet_bytes);
-    let est = MemoryEstimate {
+    MemoryEstimate {
         cell_index_bytes,
         turbid_entries_max: turbid_max,
         facet_refs_max: refs_max,
         facet_bytes,
         peak_bytes: peak,
         limit_bytes: max_memory_bytes,
-    };
-    let over_limit = (peak > max_memory_bytes).then(|| {
-        format!(
-            "{}: the grid of {} × {} × {} cells needs an estimated {:.2} GiB, above the limit of {:.2} GiB (--max-memory): use larger cells or a smaller scene",
-            info.source.display(),
-            n[0],
-            n[1],
-            n[2],
-            peak as f64 / (1u64 << 30) as f64,
-            max_memory_bytes as f64 / (1u64 << 30) as f64
-        )
-    });
-    Ok(GridPlan {
-        spec,
-        est,
-        over_limit,
-    })
+    }
 }

@@ -156,22 +156,62 @@ fn write_budget(
     // Radiative budget per cell: absorbed and intercepted power per band, normalised by the
     // incident power on the cell's horizontal area (physics.md §6.7 [rec]).
     let raw = &p.raw;
-    let (w, nb) = (raw.n_channels, raw.n_bands);
+    let nb = raw.n_bands;
     let col_area = spec.cell.x * spec.cell.y;
     let scene_area = col_area * (spec.n[0] * spec.n[1]) as f64;
     let src_per_m2: Vec<f64> = (0..nb)
         .map(|b| (raw.source[b] + if raw.has_sky { raw.source[nb + b] } else { 0.0 }) / scene_area)
         .collect();
-    let band_sum = |v: &[f64], e: usize, b: usize| {
-        v[e * w + b] + if raw.has_sky { v[e * w + nb + b] } else { 0.0 }
+    let bud = Budget {
+        raw,
+        info,
+        spec,
+        grid,
+        facets,
+        col_area,
+        scene_area,
+        src_per_m2,
     };
-    let mut cells = String::from("i,j,k,band,fabs,fintercepted\n");
-    let mut layers = vec![vec![[0.0f64; 2]; nb]; spec.n[2]];
-    // A facet's budget is shared among the cells it crosses in proportion to its area inside
-    // each (exact clipping; normalised so a facet lying in a cell face is not counted twice).
-    let has_facets = !grid.facet_start.is_empty() && !facets.facets.is_empty();
-    let mut ref_share = vec![0.0; if has_facets { grid.facet_ids.len() } else { 0 }];
-    if has_facets {
+    let (cells, layers) = bud.cells_csv();
+    write_atomic(&dir.join("budget/cells.csv"), cells.as_bytes())?;
+    let lay = bud.layers_csv(&layers);
+    write_atomic(&dir.join("budget/layers.csv"), lay.as_bytes())?;
+    let els = bud.elements_csv(mats);
+    write_atomic(&dir.join("budget/elements.csv"), els.as_bytes())?;
+    Ok(())
+}
+
+/// What the steps of [`write_budget`] share: the products, the grid, the cell and scene areas
+/// and the incident power per m² per band (sun + sky).
+struct Budget<'a> {
+    raw: &'a crate::radiative::engine::RadiativeResult,
+    info: &'a crate::resources::scene::SceneInfo,
+    spec: &'a GridSpec,
+    grid: &'a CellGrid,
+    facets: &'a FacetStore,
+    col_area: f64,
+    scene_area: f64,
+    src_per_m2: Vec<f64>,
+}
+
+impl Budget<'_> {
+    /// Element `e`'s power of band `b` in the per-channel array `v`: sun plus sky channel.
+    fn band_sum(&self, v: &[f64], e: usize, b: usize) -> f64 {
+        let (w, nb) = (self.raw.n_channels, self.raw.n_bands);
+        v[e * w + b]
+            + if self.raw.has_sky {
+                v[e * w + nb + b]
+            } else {
+                0.0
+            }
+    }
+
+    /// Step of [`write_budget`]: the share of each facet reference (`grid.facet_ids`) in its
+    /// facet's budget — its area inside the cell over the facet's area inside all its cells
+    /// (exact clipping; normalised so a facet lying in a cell face is not counted twice).
+    fn facet_ref_shares(&self) -> Vec<f64> {
+        let (spec, grid, facets) = (self.spec, self.grid, self.facets);
+        let mut ref_share = vec![0.0; grid.facet_ids.len()];
         let mut total = vec![0.0; facets.facets.len()];
         for c in 0..spec.n_cells() {
             let [i, j, k] = spec.ijk(c);
@@ -189,115 +229,150 @@ fn write_budget(
             let t = total[grid.facet_ids[r] as usize];
             ref_share[r] = if t > 0.0 { ref_share[r] / t } else { 0.0 };
         }
+        ref_share
     }
-    for c in 0..spec.n_cells() {
-        let [i, j, k] = spec.ijk(c);
-        let mut a = vec![0.0; nb];
-        let mut x = vec![0.0; nb];
-        for e in grid.turbid_start[c] as usize..grid.turbid_start[c + 1] as usize {
-            for b in 0..nb {
-                a[b] += band_sum(&raw.absorbed_turbid, e, b);
-                x[b] += band_sum(&raw.intercepted_turbid, e, b);
-            }
-        }
-        if has_facets {
-            for r in grid.facet_start[c] as usize..grid.facet_start[c + 1] as usize {
-                let f = grid.facet_ids[r] as usize;
+
+    /// Step of [`write_budget`]: `budget/cells.csv` (per cell and band, per unit incident power
+    /// on the cell's horizontal area) and the per-layer sums (per unit incident power on the
+    /// scene).
+    fn cells_csv(&self) -> (String, Vec<Vec<[f64; 2]>>) {
+        let (raw, info, spec, grid) = (self.raw, self.info, self.spec, self.grid);
+        let nb = raw.n_bands;
+        let (col_area, scene_area, src_per_m2) = (self.col_area, self.scene_area, &self.src_per_m2);
+        let band_sum = |v: &[f64], e: usize, b: usize| self.band_sum(v, e, b);
+        let mut cells = String::from("i,j,k,band,fabs,fintercepted\n");
+        let mut layers = vec![vec![[0.0f64; 2]; nb]; spec.n[2]];
+        // A facet's budget is shared among the cells it crosses in proportion to its area
+        // inside each.
+        let has_facets = !grid.facet_start.is_empty() && !self.facets.facets.is_empty();
+        let ref_share = if has_facets {
+            self.facet_ref_shares()
+        } else {
+            Vec::new()
+        };
+        for c in 0..spec.n_cells() {
+            let [i, j, k] = spec.ijk(c);
+            let mut a = vec![0.0; nb];
+            let mut x = vec![0.0; nb];
+            for e in grid.turbid_start[c] as usize..grid.turbid_start[c + 1] as usize {
                 for b in 0..nb {
-                    a[b] += ref_share[r] * band_sum(&raw.absorbed_facet, f, b);
-                    x[b] += ref_share[r] * band_sum(&raw.intercepted_facet, f, b);
+                    a[b] += band_sum(&raw.absorbed_turbid, e, b);
+                    x[b] += band_sum(&raw.intercepted_turbid, e, b);
+                }
+            }
+            if has_facets {
+                for r in grid.facet_start[c] as usize..grid.facet_start[c + 1] as usize {
+                    let f = grid.facet_ids[r] as usize;
+                    for b in 0..nb {
+                        a[b] += ref_share[r] * band_sum(&raw.absorbed_facet, f, b);
+                        x[b] += ref_share[r] * band_sum(&raw.intercepted_facet, f, b);
+                    }
+                }
+            }
+            if k == 0 && !raw.absorbed_ground.is_empty() {
+                // The flat ground belongs to the bottom cell of its column.
+                let col = i + spec.n[0] * j;
+                for b in 0..nb {
+                    a[b] += band_sum(&raw.absorbed_ground, col, b);
+                    x[b] += band_sum(&raw.intercepted_ground, col, b);
+                }
+            }
+            for b in 0..nb {
+                if a[b] != 0.0 || x[b] != 0.0 {
+                    let norm = src_per_m2[b] * col_area;
+                    let _ = writeln!(
+                        cells,
+                        "{i},{j},{k},{},{:.8e},{:.8e}",
+                        info.bands[b].name,
+                        a[b] / norm,
+                        x[b] / norm
+                    );
+                    layers[k][b][0] += a[b] / (src_per_m2[b] * scene_area);
+                    layers[k][b][1] += x[b] / (src_per_m2[b] * scene_area);
                 }
             }
         }
-        if k == 0 && !raw.absorbed_ground.is_empty() {
-            // The flat ground belongs to the bottom cell of its column.
-            let col = i + spec.n[0] * j;
-            for b in 0..nb {
-                a[b] += band_sum(&raw.absorbed_ground, col, b);
-                x[b] += band_sum(&raw.intercepted_ground, col, b);
-            }
-        }
-        for b in 0..nb {
-            if a[b] != 0.0 || x[b] != 0.0 {
-                let norm = src_per_m2[b] * col_area;
+        (cells, layers)
+    }
+
+    /// Step of [`write_budget`]: `budget/layers.csv` from the per-layer sums.
+    fn layers_csv(&self, layers: &[Vec<[f64; 2]>]) -> String {
+        let (info, spec) = (self.info, self.spec);
+        let mut lay = String::from("k,z_bottom_m,z_top_m,band,fabs,fintercepted\n");
+        for (k, l) in layers.iter().enumerate() {
+            for (b, v) in l.iter().enumerate() {
+                let z0 = spec.origin.z + k as f64 * spec.cell.z;
                 let _ = writeln!(
-                    cells,
-                    "{i},{j},{k},{},{:.8e},{:.8e}",
+                    lay,
+                    "{k},{z0:.4},{:.4},{},{:.8e},{:.8e}",
+                    z0 + spec.cell.z,
                     info.bands[b].name,
-                    a[b] / norm,
-                    x[b] / norm
+                    v[0],
+                    v[1]
                 );
-                layers[k][b][0] += a[b] / (src_per_m2[b] * scene_area);
-                layers[k][b][1] += x[b] / (src_per_m2[b] * scene_area);
             }
         }
+        lay
     }
-    write_atomic(&dir.join("budget/cells.csv"), cells.as_bytes())?;
-    let mut lay = String::from("k,z_bottom_m,z_top_m,band,fabs,fintercepted\n");
-    for (k, l) in layers.iter().enumerate() {
-        for (b, v) in l.iter().enumerate() {
-            let z0 = spec.origin.z + k as f64 * spec.cell.z;
-            let _ = writeln!(
-                lay,
-                "{k},{z0:.4},{:.4},{},{:.8e},{:.8e}",
-                z0 + spec.cell.z,
-                info.bands[b].name,
-                v[0],
-                v[1]
-            );
-        }
-    }
-    write_atomic(&dir.join("budget/layers.csv"), lay.as_bytes())?;
-    // Per element type and material.
-    let mut el: std::collections::BTreeMap<(String, String), Vec<[f64; 2]>> = Default::default();
-    for (e, t) in grid.turbid.iter().enumerate() {
-        let v = el
-            .entry(("turbid".into(), mats.list[t.material as usize].name.clone()))
-            .or_insert_with(|| vec![[0.0; 2]; nb]);
-        for b in 0..nb {
-            v[b][0] += band_sum(&raw.absorbed_turbid, e, b);
-            v[b][1] += band_sum(&raw.intercepted_turbid, e, b);
-        }
-    }
-    for (fi, f) in facets.facets.iter().enumerate() {
-        let v = el
-            .entry((
-                format!("{:?}", f.kind).to_lowercase(),
-                mats.list[f.material as usize].name.clone(),
-            ))
-            .or_insert_with(|| vec![[0.0; 2]; nb]);
-        for b in 0..nb {
-            v[b][0] += band_sum(&raw.absorbed_facet, fi, b);
-            v[b][1] += band_sum(&raw.intercepted_facet, fi, b);
-        }
-    }
-    let n_cols = spec.n[0] * spec.n[1];
-    if raw.absorbed_ground.iter().any(|&v| v != 0.0) {
-        let v = el
-            .entry(("ground".into(), "flat ground".into()))
-            .or_insert_with(|| vec![[0.0; 2]; nb]);
-        for c in 0..n_cols {
+
+    /// Step of [`write_budget`]: `budget/elements.csv` (per element type and material, per unit
+    /// incident power on the scene).
+    fn elements_csv(&self, mats: &Materials) -> String {
+        let (raw, info, spec, grid, facets) =
+            (self.raw, self.info, self.spec, self.grid, self.facets);
+        let nb = raw.n_bands;
+        let (scene_area, src_per_m2) = (self.scene_area, &self.src_per_m2);
+        let band_sum = |v: &[f64], e: usize, b: usize| self.band_sum(v, e, b);
+        let mut el: std::collections::BTreeMap<(String, String), Vec<[f64; 2]>> =
+            Default::default();
+        for (e, t) in grid.turbid.iter().enumerate() {
+            let v = el
+                .entry(("turbid".into(), mats.list[t.material as usize].name.clone()))
+                .or_insert_with(|| vec![[0.0; 2]; nb]);
             for b in 0..nb {
-                v[b][0] += band_sum(&raw.absorbed_ground, c, b);
-                v[b][1] += band_sum(&raw.intercepted_ground, c, b);
+                v[b][0] += band_sum(&raw.absorbed_turbid, e, b);
+                v[b][1] += band_sum(&raw.intercepted_turbid, e, b);
             }
         }
-    }
-    let mut els = String::from("element,material,band,fabs,fintercepted\n");
-    for ((kind, m), v) in &el {
-        for (b, x) in v.iter().enumerate() {
-            let norm = src_per_m2[b] * scene_area;
-            let _ = writeln!(
-                els,
-                "{kind},{m},{},{:.8e},{:.8e}",
-                info.bands[b].name,
-                x[0] / norm,
-                x[1] / norm
-            );
+        for (fi, f) in facets.facets.iter().enumerate() {
+            let v = el
+                .entry((
+                    format!("{:?}", f.kind).to_lowercase(),
+                    mats.list[f.material as usize].name.clone(),
+                ))
+                .or_insert_with(|| vec![[0.0; 2]; nb]);
+            for b in 0..nb {
+                v[b][0] += band_sum(&raw.absorbed_facet, fi, b);
+                v[b][1] += band_sum(&raw.intercepted_facet, fi, b);
+            }
         }
+        let n_cols = spec.n[0] * spec.n[1];
+        if raw.absorbed_ground.iter().any(|&v| v != 0.0) {
+            let v = el
+                .entry(("ground".into(), "flat ground".into()))
+                .or_insert_with(|| vec![[0.0; 2]; nb]);
+            for c in 0..n_cols {
+                for b in 0..nb {
+                    v[b][0] += band_sum(&raw.absorbed_ground, c, b);
+                    v[b][1] += band_sum(&raw.intercepted_ground, c, b);
+                }
+            }
+        }
+        let mut els = String::from("element,material,band,fabs,fintercepted\n");
+        for ((kind, m), v) in &el {
+            for (b, x) in v.iter().enumerate() {
+                let norm = src_per_m2[b] * scene_area;
+                let _ = writeln!(
+                    els,
+                    "{kind},{m},{},{:.8e},{:.8e}",
+                    info.bands[b].name,
+                    x[0] / norm,
+                    x[1] / norm
+                );
+            }
+        }
+        els
     }
-    write_atomic(&dir.join("budget/elements.csv"), els.as_bytes())?;
-    Ok(())
 }
 
 /// Orthographic images (DART 5 paper §3.2, §5; physics.md §6.6, §8.1): one multi-channel EXR

@@ -30,10 +30,9 @@ pub fn run_radiative(
         .clone()
 }
 
-/// Rows of the DISORT turbid-canopy oracle (`assets/reference/turbid_canopy_disort.csv`, header
-/// skipped), fields as strings: lai, band, sun zenith, view zenith, BRF, albedo, ….
-pub fn disort_rows() -> Vec<Vec<String>> {
-    std::fs::read_to_string(asset("assets/reference/turbid_canopy_disort.csv"))
+/// Rows of a CSV oracle under `assets/reference/`, header skipped, fields as strings.
+fn oracle_rows(file: &str) -> Vec<Vec<String>> {
+    std::fs::read_to_string(asset(&format!("assets/reference/{file}")))
         .unwrap()
         .lines()
         .skip(1)
@@ -41,15 +40,16 @@ pub fn disort_rows() -> Vec<Vec<String>> {
         .collect()
 }
 
+/// Rows of the DISORT turbid-canopy oracle (`assets/reference/turbid_canopy_disort.csv`, header
+/// skipped), fields as strings: lai, band, sun zenith, view zenith, BRF, albedo, ….
+pub fn disort_rows() -> Vec<Vec<String>> {
+    oracle_rows("turbid_canopy_disort.csv")
+}
+
 /// Rows of the extended DISORT oracle (`assets/reference/turbid_canopy_disort_ext.csv`: LAI 1,
-/// 3, 5; sun zenith 0, 20, 35, 50°), header skipped, fields as strings as in [`disort_rows`].
+/// 3, 5; sun zenith 0, 20, 35, 50°), fields as in [`disort_rows`].
 pub fn disort_ext_rows() -> Vec<Vec<String>> {
-    std::fs::read_to_string(asset("assets/reference/turbid_canopy_disort_ext.csv"))
-        .unwrap()
-        .lines()
-        .skip(1)
-        .map(|l| l.split(',').map(String::from).collect())
-        .collect()
+    oracle_rows("turbid_canopy_disort_ext.csv")
 }
 
 /// A one-band scene with leaf, turbid, soil and wall optics and no objects.

@@ -116,28 +116,13 @@ pub fn run(inp: &PhotonInput) -> PhotonResult {
 /// Photon stream purpose tag (see `random::stream`).
 pub const PHOTON_STREAM: u64 = 0x5048_4f54_4f4e; // "PHOTON"
 
+/// One batch of `n` photons (stream `batch` of the run's seed): each photon is launched
+/// ([`launch_photon`]) and traced, then the batch's absorption summaries are booked
+/// ([`book_summaries`]).
 pub(crate) fn run_batch(ctx: &Ctx, batch: u64, n: u64, source: &[f64]) -> BatchOut {
     let inp = ctx.inp;
-    let spec = inp.spec;
     let (nb, w) = (ctx.nb, ctx.w);
-    let n_entries = inp.grid.turbid.len();
-    let n_cols = spec.n[0] * spec.n[1];
-    let mut out = BatchOut {
-        summary: vec![0.0; ctx.sum.len()],
-        abs_tur: Acc::new(n_entries, w),
-        int_tur: Acc::new(n_entries, w),
-        abs_fac: Acc::new(inp.facets.len(), w),
-        int_fac: Acc::new(inp.facets.len(), w),
-        abs_gnd: Acc::new(n_cols, w),
-        int_gnd: Acc::new(n_cols, w),
-        abs_fluid: HashMap::new(),
-        lost: vec![0.0; w],
-        roulette: vec![0.0; w],
-        events: 0,
-        crossings: 0,
-        skipped: 0,
-        wave: None,
-    };
+    let mut out = new_batch_out(ctx);
     let mut rng = crate::random::stream(inp.params.seed, PHOTON_STREAM, batch);
     let has_sky = w > nb;
     let n_total = n * inp.params.batches.max(1) as u64;
@@ -153,7 +138,57 @@ pub(crate) fn run_batch(ctx: &Ctx, batch: u64, n: u64, source: &[f64]) -> BatchO
     let mut g_cur = vec![0.0; n_tur];
     let mut scratch = vec![0.0; nb];
     let mut tr = vec![0.0; nb];
-    let mut ph = Photon {
+    let mut ph = new_photon(nb);
+    for i in 0..n_sun + n_sky {
+        let sky = i >= n_sun;
+        let tot = if sky { tot_sky } else { tot_sun };
+        if !launch_photon(ctx, &mut ph, &mut rng, &mut out, source, sky, tot) {
+            continue;
+        }
+        ph.order = 0;
+        ph.skip_facet = None;
+        trace_photon(
+            ctx,
+            &mut ph,
+            &mut rng,
+            &mut out,
+            &mut g_cur,
+            &mut scratch,
+            &mut tr,
+        );
+    }
+    book_summaries(ctx, &mut out);
+    out
+}
+
+/// Step of [`run_batch`]: the batch's empty tallies.
+fn new_batch_out(ctx: &Ctx) -> BatchOut {
+    let inp = ctx.inp;
+    let spec = inp.spec;
+    let w = ctx.w;
+    let n_entries = inp.grid.turbid.len();
+    let n_cols = spec.n[0] * spec.n[1];
+    BatchOut {
+        summary: vec![0.0; ctx.sum.len()],
+        abs_tur: Acc::new(n_entries, w),
+        int_tur: Acc::new(n_entries, w),
+        abs_fac: Acc::new(inp.facets.len(), w),
+        int_fac: Acc::new(inp.facets.len(), w),
+        abs_gnd: Acc::new(n_cols, w),
+        int_gnd: Acc::new(n_cols, w),
+        abs_fluid: HashMap::new(),
+        lost: vec![0.0; w],
+        roulette: vec![0.0; w],
+        events: 0,
+        crossings: 0,
+        skipped: 0,
+        wave: None,
+    }
+}
+
+/// Step of [`run_batch`]: the photon record reused by every photon of the batch (zeroed).
+fn new_photon(nb: usize) -> Photon {
+    Photon {
         p: DVec3::ZERO,
         d: DVec3::ZERO,
         path: 0.0,
@@ -171,83 +206,93 @@ pub(crate) fn run_batch(ctx: &Ctx, batch: u64, n: u64, source: &[f64]) -> BatchO
         first_order_done: false,
         scatter_path: 0.0,
         hs_k: crate::photon::small::Small::from_elem(0.0, 0),
-    };
+    }
+}
+
+/// Step of [`run_batch`]: launches one sun or sky photon at the top of the scene — position
+/// (two uniforms), weight (`source` over `tot` photons of its kind), direction (the sun, or a
+/// cosine-weighted sky direction) and, on continuous topography, the launch point over the
+/// direction's launch region. False when the photon is not traced (zero weight, or lost or
+/// weighted out at launch; booked in `out`).
+fn launch_photon(
+    ctx: &Ctx,
+    ph: &mut Photon,
+    rng: &mut rand_xoshiro::Xoshiro256PlusPlus,
+    out: &mut BatchOut,
+    source: &[f64],
+    sky: bool,
+    tot: f64,
+) -> bool {
+    let inp = ctx.inp;
+    let spec = inp.spec;
+    let nb = ctx.nb;
     let n_dirs = ctx.omega.len();
     let discrete = inp.params.sampler.is_discrete();
-    for i in 0..n_sun + n_sky {
-        let sky = i >= n_sun;
-        let x = spec.origin.x + rng.next_f64() * ctx.size.0;
-        let y = spec.origin.y + rng.next_f64() * ctx.size.1;
-        ph.p = DVec3::new(x, y, spec.top());
-        ph.off = if sky { nb } else { 0 };
-        for b in 0..nb {
-            ph.w[b] = if sky {
-                source[nb + b] / tot_sky
-            } else {
-                source[b] / tot_sun
-            };
-        }
-        ph.w0 = ph.w.iter().cloned().fold(0.0, f64::max);
-        if ph.w0 <= 0.0 {
-            continue;
-        }
-        if sky {
-            // Isotropic sky: cosine-weighted downward directions.
-            ph.d = sample_cosine_hemisphere(DVec3::NEG_Z, &mut rng);
-            if discrete {
-                ph.di = inp.dirs.find_sector(ph.d);
-                ph.d = ctx.omega[ph.di];
-            }
+    let x = spec.origin.x + rng.next_f64() * ctx.size.0;
+    let y = spec.origin.y + rng.next_f64() * ctx.size.1;
+    ph.p = DVec3::new(x, y, spec.top());
+    ph.off = if sky { nb } else { 0 };
+    for b in 0..nb {
+        ph.w[b] = if sky {
+            source[nb + b] / tot
         } else {
-            ph.d = inp.sun;
-            ph.di = n_dirs;
-        }
-        // Continuous topography (issue #31): the same two uniforms placed over the launch
-        // region of the photon's direction (`GridSpec::topo_launch_point`); a sky photon's
-        // weight scales with that region's area (mean X·Y over the cosine-weighted sky).
-        if spec.topography_offset != (0.0, 0.0) {
-            let (lx, ly) = spec.topo_launch_span(ph.d);
-            let u = (x - spec.origin.x) / ctx.size.0 * (ctx.size.0 + lx);
-            let v = (y - spec.origin.y) / ctx.size.1 * (ctx.size.1 + ly);
-            if sky {
-                // The weight change w (1 − f) has expectation 0 over the cosine-weighted sky
-                // (E[L_x] = E[L_y] = 0; the corner term L_x L_y of two offsets is second
-                // order): booked in the weight balance with the roulette's, so energy closes.
-                let f = spec.topo_launch_area(ctx.size, ph.d) / (ctx.size.0 * ctx.size.1);
-                for b in 0..nb {
-                    out.roulette[ph.off + b] += ph.w[b] * (1.0 - f);
-                }
-                ph.w.iter_mut().for_each(|w| *w *= f);
-                ph.w0 *= f;
-                if f <= 0.0 {
-                    continue;
-                }
-            }
-            match spec.topo_launch_point(ctx.size, u, v, ph.d) {
-                Some(p) => ph.p = p,
-                None => {
-                    for b in 0..nb {
-                        out.lost[ph.off + b] += ph.w[b];
-                    }
-                    continue;
-                }
-            }
-        }
-        ph.order = 0;
-        ph.skip_facet = None;
-        trace_photon(
-            ctx,
-            &mut ph,
-            &mut rng,
-            &mut out,
-            &mut g_cur,
-            &mut scratch,
-            &mut tr,
-        );
+            source[b] / tot
+        };
     }
-    // Per-batch absorption summaries (non-ground: turbid, non-ground facets, fluids; ground:
-    // flat ground (booked per event) and DEM facets).
-    let gf = inp.ground_facet;
+    ph.w0 = ph.w.iter().cloned().fold(0.0, f64::max);
+    if ph.w0 <= 0.0 {
+        return false;
+    }
+    if sky {
+        // Isotropic sky: cosine-weighted downward directions.
+        ph.d = sample_cosine_hemisphere(DVec3::NEG_Z, rng);
+        if discrete {
+            ph.di = inp.dirs.find_sector(ph.d);
+            ph.d = ctx.omega[ph.di];
+        }
+    } else {
+        ph.d = inp.sun;
+        ph.di = n_dirs;
+    }
+    // Continuous topography (issue #31): the same two uniforms placed over the launch
+    // region of the photon's direction (`GridSpec::topo_launch_point`); a sky photon's
+    // weight scales with that region's area (mean X·Y over the cosine-weighted sky).
+    if spec.topography_offset != (0.0, 0.0) {
+        let (lx, ly) = spec.topo_launch_span(ph.d);
+        let u = (x - spec.origin.x) / ctx.size.0 * (ctx.size.0 + lx);
+        let v = (y - spec.origin.y) / ctx.size.1 * (ctx.size.1 + ly);
+        if sky {
+            // The weight change w (1 − f) has expectation 0 over the cosine-weighted sky
+            // (E[L_x] = E[L_y] = 0; the corner term L_x L_y of two offsets is second
+            // order): booked in the weight balance with the roulette's, so energy closes.
+            let f = spec.topo_launch_area(ctx.size, ph.d) / (ctx.size.0 * ctx.size.1);
+            for b in 0..nb {
+                out.roulette[ph.off + b] += ph.w[b] * (1.0 - f);
+            }
+            ph.w.iter_mut().for_each(|w| *w *= f);
+            ph.w0 *= f;
+            if f <= 0.0 {
+                return false;
+            }
+        }
+        match spec.topo_launch_point(ctx.size, u, v, ph.d) {
+            Some(p) => ph.p = p,
+            None => {
+                for b in 0..nb {
+                    out.lost[ph.off + b] += ph.w[b];
+                }
+                return false;
+            }
+        }
+    }
+    true
+}
+
+/// Step of [`run_batch`]: the batch's absorption summaries (non-ground: turbid, non-ground
+/// facets, fluids; ground: flat ground (booked per event) and DEM facets).
+fn book_summaries(ctx: &Ctx, out: &mut BatchOut) {
+    let w = ctx.w;
+    let gf = ctx.inp.ground_facet;
     let mut absorbed = vec![0.0; w];
     let mut abs_dem = vec![0.0; w];
     let mut int_dem = vec![0.0; w];
@@ -279,5 +324,4 @@ pub(crate) fn run_batch(ctx: &Ctx, batch: u64, n: u64, source: &[f64]) -> BatchO
         out.summary[ctx.sum.absorbed_ground(ch)] += abs_dem[ch];
         out.summary[ctx.sum.ground(ch)] += int_dem[ch];
     }
-    out
 }

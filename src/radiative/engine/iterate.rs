@@ -116,7 +116,6 @@ pub fn run(inp: &RadiativeInput) -> RadiativeResult {
 /// settings), the launch plan and the source power per channel (W).
 fn context<'a>(inp: &'a RadiativeInput<'a>) -> (Ctx<'a>, LaunchPlan, Vec<f64>) {
     let spec = inp.spec;
-    let grid = inp.grid;
     let nb = inp.e_dir.len();
     let has_sky = inp.e_diff.iter().any(|&e| e > 0.0);
     let w = nb * if has_sky { 2 } else { 1 };
@@ -126,38 +125,14 @@ fn context<'a>(inp: &'a RadiativeInput<'a>) -> (Ctx<'a>, LaunchPlan, Vec<f64>) {
     let n_slots = n_sectors + 1;
     let mut omega: Vec<DVec3> = tiling.iter().map(|d| d.omega).collect();
     omega.push(inp.sun);
-    // Turbid materials.
-    let mut tur_mat = vec![u32::MAX; inp.optics.len()];
-    let mut g_flat = Vec::new();
-    let mut tur_ids = Vec::new();
-    for (m, o) in inp.optics.iter().enumerate() {
-        if let TrackOptics::Turbid { g, .. } = o {
-            tur_mat[m] = tur_ids.len() as u32;
-            tur_ids.push(m);
-            g_flat.extend_from_slice(g);
-        }
-    }
-    let n_cells = spec.n_cells();
-    let mut entry_cell = vec![0u32; grid.turbid.len()];
-    for c in 0..n_cells {
-        for e in grid.turbid_start[c]..grid.turbid_start[c + 1] {
-            entry_cell[e as usize] = c as u32;
-        }
-    }
-    // Tracker tables: G transposed to [direction][material]; per-cell records.
+    let (tur_mat, tur_ids, g_dir) = turbid_tables(inp, n_dirs);
     let n_tm = tur_ids.len();
-    let mut g_dir = vec![0.0; (n_dirs + 1) * n_tm];
-    for tm in 0..n_tm {
-        for dir in 0..=n_dirs {
-            g_dir[dir * n_tm + tm] = g_flat[tm * (n_dirs + 1) + dir];
-        }
-    }
+    let entry_cell = entry_cells(inp);
     let (ents, cells) = cell_records(inp, &tur_mat);
     let size = (
         spec.n[0] as f64 * spec.cell.x,
         spec.n[1] as f64 * spec.cell.y,
     );
-    let area = size.0 * size.1;
     // Launch grids on the top plane.
     let n_sky_dirs = if has_sky {
         tiling.iter().filter(|d| d.omega.z < 0.0).count()
@@ -172,37 +147,7 @@ fn context<'a>(inp: &'a RadiativeInput<'a>) -> (Ctx<'a>, LaunchPlan, Vec<f64>) {
         n_sky_dirs,
         &inp.params,
     );
-    let mut source = vec![0.0; w];
-    for b in 0..nb {
-        source[b] = inp.e_dir[b] * area;
-        if has_sky {
-            source[nb + b] = inp.e_diff[b] * area;
-        }
-    }
-    // Continuous topography (issue #31): the launch region of each source direction follows
-    // the staircase of tile tops (`GridSpec::topo_launch_span`), so the sources are the
-    // powers launched over it.
-    if spec.topography_offset != (0.0, 0.0) {
-        for b in 0..nb {
-            source[b] = inp.e_dir[b] * spec.topo_launch_area(size, inp.sun);
-            if has_sky {
-                source[nb + b] = tiling
-                    .iter()
-                    .filter(|d| d.omega.z < 0.0)
-                    .map(|d| {
-                        inp.e_diff[b] / std::f64::consts::PI
-                            * d.projected_sr
-                            * spec.topo_launch_area(size, d.omega)
-                    })
-                    .sum();
-            }
-        }
-    }
-    for e in inp.emitters {
-        for (s, v) in source.iter_mut().zip(&e.power) {
-            *s += v;
-        }
-    }
+    let source = source_powers(inp, size, has_sky, w);
     let n_source_rays = (plan.sun_n.0 * plan.sun_n.1) as f64
         + (plan.sky_n.0 * plan.sky_n.1 * n_sky_dirs) as f64
         + inp.emitters.len() as f64;
@@ -239,6 +184,7 @@ fn context<'a>(inp: &'a RadiativeInput<'a>) -> (Ctx<'a>, LaunchPlan, Vec<f64>) {
     } else {
         Vec::new()
     };
+    let (tstores, face_d, pts_per) = subface_layout(inp, plan.subcells, n_slots);
     // Where the walks dispatch (the batched walk only where it has AVX2 + FMA).
     let arch = inp.params.kernel_isa.arch();
     let mut ctx = Ctx {
@@ -271,23 +217,9 @@ fn context<'a>(inp: &'a RadiativeInput<'a>) -> (Ctx<'a>, LaunchPlan, Vec<f64>) {
         scells,
         skip,
         subfaces: inp.params.turbid_subfaces,
-        tstores: match inp.params.turbid_subfaces {
-            TurbidSubfaces::Off | TurbidSubfaces::Blend => 1,
-            TurbidSubfaces::Faces => 7,
-            TurbidSubfaces::Subfaces => {
-                6 * (plan.subcells.clamp(1, MAX_FACE_D) as usize).pow(2) + 1
-            }
-        },
-        face_d: if inp.params.turbid_subfaces == TurbidSubfaces::Subfaces {
-            plan.subcells.clamp(1, MAX_FACE_D)
-        } else {
-            1
-        },
-        pts_per: if inp.params.turbid_subfaces == TurbidSubfaces::Blend {
-            n_slots
-        } else {
-            1
-        },
+        tstores,
+        face_d,
+        pts_per,
         lane_dirs: Vec::new(),
         lane_dirs32: Vec::new(),
         scells32: Vec::new(),
@@ -297,6 +229,105 @@ fn context<'a>(inp: &'a RadiativeInput<'a>) -> (Ctx<'a>, LaunchPlan, Vec<f64>) {
         batch_tables(&mut ctx);
     }
     (ctx, plan, source)
+}
+
+/// Step of [`context`]: the tracked (turbid) materials — the tracker index of each material
+/// (`u32::MAX` when not turbid), the material of each tracker index, and G transposed to
+/// `[direction][tracker material]` (`n_dirs` tiling directions + the sun).
+fn turbid_tables(inp: &RadiativeInput, n_dirs: usize) -> (Vec<u32>, Vec<usize>, Vec<f64>) {
+    let mut tur_mat = vec![u32::MAX; inp.optics.len()];
+    let mut g_flat = Vec::new();
+    let mut tur_ids = Vec::new();
+    for (m, o) in inp.optics.iter().enumerate() {
+        if let TrackOptics::Turbid { g, .. } = o {
+            tur_mat[m] = tur_ids.len() as u32;
+            tur_ids.push(m);
+            g_flat.extend_from_slice(g);
+        }
+    }
+    let n_tm = tur_ids.len();
+    let mut g_dir = vec![0.0; (n_dirs + 1) * n_tm];
+    for tm in 0..n_tm {
+        for dir in 0..=n_dirs {
+            g_dir[dir * n_tm + tm] = g_flat[tm * (n_dirs + 1) + dir];
+        }
+    }
+    (tur_mat, tur_ids, g_dir)
+}
+
+/// Step of [`context`]: the cell of each turbid entry of the grid.
+fn entry_cells(inp: &RadiativeInput) -> Vec<u32> {
+    let grid = inp.grid;
+    let mut entry_cell = vec![0u32; grid.turbid.len()];
+    for c in 0..inp.spec.n_cells() {
+        for e in grid.turbid_start[c]..grid.turbid_start[c + 1] {
+            entry_cell[e as usize] = c as u32;
+        }
+    }
+    entry_cell
+}
+
+/// Step of [`context`]: the source power per channel (W) — sun then sky per band over the
+/// scene's top area (`size`), or over the launch region of each direction on continuous
+/// topography, plus the emitters' powers.
+fn source_powers(inp: &RadiativeInput, size: (f64, f64), has_sky: bool, w: usize) -> Vec<f64> {
+    let spec = inp.spec;
+    let nb = inp.e_dir.len();
+    let tiling = inp.dirs.tiling();
+    let area = size.0 * size.1;
+    let mut source = vec![0.0; w];
+    for b in 0..nb {
+        source[b] = inp.e_dir[b] * area;
+        if has_sky {
+            source[nb + b] = inp.e_diff[b] * area;
+        }
+    }
+    // Continuous topography (issue #31): the launch region of each source direction follows
+    // the staircase of tile tops (`GridSpec::topo_launch_span`), so the sources are the
+    // powers launched over it.
+    if spec.topography_offset != (0.0, 0.0) {
+        for b in 0..nb {
+            source[b] = inp.e_dir[b] * spec.topo_launch_area(size, inp.sun);
+            if has_sky {
+                source[nb + b] = tiling
+                    .iter()
+                    .filter(|d| d.omega.z < 0.0)
+                    .map(|d| {
+                        inp.e_diff[b] / std::f64::consts::PI
+                            * d.projected_sr
+                            * spec.topo_launch_area(size, d.omega)
+                    })
+                    .sum();
+            }
+        }
+    }
+    for e in inp.emitters {
+        for (s, v) in source.iter_mut().zip(&e.power) {
+            *s += v;
+        }
+    }
+    source
+}
+
+/// Step of [`context`]: the turbid-store layout of the subface setting — stores per turbid
+/// entry, the face subdivision and the points per slot.
+fn subface_layout(inp: &RadiativeInput, subcells: u32, n_slots: usize) -> (usize, u32, usize) {
+    let tstores = match inp.params.turbid_subfaces {
+        TurbidSubfaces::Off | TurbidSubfaces::Blend => 1,
+        TurbidSubfaces::Faces => 7,
+        TurbidSubfaces::Subfaces => 6 * (subcells.clamp(1, MAX_FACE_D) as usize).pow(2) + 1,
+    };
+    let face_d = if inp.params.turbid_subfaces == TurbidSubfaces::Subfaces {
+        subcells.clamp(1, MAX_FACE_D)
+    } else {
+        1
+    };
+    let pts_per = if inp.params.turbid_subfaces == TurbidSubfaces::Blend {
+        n_slots
+    } else {
+        1
+    };
+    (tstores, face_d, pts_per)
 }
 
 /// The tracker's turbid entries (tracked materials only) and one record per cell (its entries
