@@ -839,7 +839,7 @@ fn disk_canopy_albedo_converges_to_monte_carlo_with_directions() {
 /// Monte Carlo has no length scale of its own either (see the Radiative stage's
 /// `huge_and_tiny_scenes_give_the_products_of_the_metre_scene`): a building with walls in cell
 /// faces and a turbid crown, scaled by exact powers of two (2⁻¹⁰ ≈ 1 mm and 2¹³ ≈ 8 km cells,
-/// u_f ∝ 1/s), follows the same photon paths with the same seed, so every product matches the
+/// u_f ∝ 1/s, leaf size ∝ s), follows the same photon paths with the same seed, so every product matches the
 /// metre scene to 1e-9 relative (summation rounding only).
 #[test]
 fn huge_and_tiny_scenes_follow_the_photon_paths_of_the_metre_scene() {
@@ -857,6 +857,12 @@ fn huge_and_tiny_scenes_follow_the_photon_paths_of_the_metre_scene() {
             optics: "veg".into(),
         }));
         d.grid.height_m = Some(4.0 * s);
+        // The leaf dimension is a length too (hotspot-correlated first-order flights, #38).
+        for o in d.optics.values_mut() {
+            if let OpticsDesc::Turbid { leaf_size_m, .. } = o {
+                *leaf_size_m *= s;
+            }
+        }
         d
     };
     let p1 = run_mc(&make(1.0), 20_000, SamplerKind::Continuous);

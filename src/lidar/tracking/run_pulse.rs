@@ -208,6 +208,8 @@ fn launch(ctx: &Ctx, pl: &Pulse, d: DVec3, w: f64) -> Option<Photon> {
         surface_scored: false,
         first_u: None,
         first_order_done: false,
+        scatter_path: 0.0,
+        hs_k: crate::photon::small::Small::from_elem(0.0, 0),
     })
 }
 

@@ -55,6 +55,9 @@ pub(crate) struct Ctx<'a> {
     pub(crate) hs_view: Vec<Vec<[f64; 2]>>,
     /// Leaf dimension per turbid material, m (hotspot; all zero: none).
     pub(crate) hs_leaf: Vec<f64>,
+    /// G of the sun direction per tracked turbid material when some material has a leaf size
+    /// (the hotspot terms of first-order sun flights, [`Ctx::fly_hotspot`]); empty otherwise.
+    pub(crate) g_sun: Vec<f64>,
     /// Tiling direction vectors.
     pub(crate) omega: Vec<DVec3>,
     /// Sector containing each view and its solid angle (discrete-mode peel-off).
@@ -293,6 +296,15 @@ pub(crate) struct Photon {
     /// quadrature (`lidar::tracking`'s `FirstOrderColumns`): its first flight only samples the collision (the
     /// first-order return of its whole flight, surface included, is not scored again).
     pub(crate) first_order_done: bool,
+    /// Path length (m, [`Photon::path`]) at the photon's last scattering event: the origin of
+    /// the distance s of the hotspot-corrected first flight after a first-order sun event
+    /// ([`Ctx::fly_hotspot`]).
+    pub(crate) scatter_path: f64,
+    /// After a hotspot-corrected flight ([`Ctx::fly_hotspot`]) ending in a turbid collision:
+    /// the local effective G per tracked turbid material at the collision point
+    /// (`G − b e^{−c s}`, 0 where the crossing's clamped depth is still 0), from which the
+    /// collided material is drawn; empty otherwise (then G of the flight).
+    pub(crate) hs_k: PerMaterial<f64>,
 }
 
 impl<'a> Ctx<'a> {
@@ -327,6 +339,7 @@ impl<'a> Ctx<'a> {
             g_view: Vec::new(),
             hs_view: Vec::new(),
             hs_leaf: Vec::new(),
+            g_sun: Vec::new(),
             omega: tiling.iter().map(|d| d.omega).collect(),
             view_sector: inp.views.iter().map(|v| inp.dirs.find_sector(*v)).collect(),
             receiver: None,
@@ -401,6 +414,7 @@ impl<'a> Ctx<'a> {
                         .collect()
                 })
                 .collect();
+            ctx.g_sun = g_sun;
         }
         ctx.hs_leaf = leaf;
         ctx

@@ -204,6 +204,8 @@ fn new_photon(nb: usize) -> Photon {
         surface_scored: false,
         first_u: None,
         first_order_done: false,
+        scatter_path: 0.0,
+        hs_k: crate::photon::small::Small::from_elem(0.0, 0),
     }
 }
 

@@ -2,7 +2,7 @@
 //! facets, fluids and the ground, scattering directions (physics.md §3.3, §5), peel-off at
 //! every event and Russian roulette, until the photon escapes, is lost or dies.
 
-use super::context::{Bands, Ctx, Hit, Photon};
+use super::context::{Bands, Ctx, Hit, PerMaterial, Photon};
 use super::events::{brdf_event, choose, far_roulette_survival, roulette_survives};
 use super::input::{DiscreteRows, PhotonOptics};
 use super::peel_off::turbid_peel_phase;
@@ -63,6 +63,8 @@ pub(crate) fn trace_photon(
                 ground_event(ctx, ph, p, rng, out, scratch, tr);
             }
         }
+        // (Origin of the distance s of a hotspot-corrected flight, `Ctx::fly_hotspot`.)
+        ph.scatter_path = ph.path;
         if !next_order(ctx, ph, rng, out) {
             return;
         }
@@ -99,6 +101,9 @@ fn flight(
     // the collision estimator (one receiver trace per event instead of one per crossing).
     ph.ret = None;
     ph.surface_scored = false;
+    if !ph.hs_k.is_empty() {
+        ph.hs_k = Small::from_elem(0.0, 0);
+    }
     // Receiver mode past the first scattering: expected-value return along the flight
     // (`Ctx::scatter_flight`); its turbid and Lambertian-ground collisions are not peeled.
     let ms_forced = ctx.ms_stop >= 1.0
@@ -137,7 +142,27 @@ fn flight(
         } else {
             None
         };
-        let hit = ctx.fly(ph, g_cur, rng, out);
+        let hit = if ctx.receiver.is_none()
+            && ph.order == 1
+            && ph.off == 0
+            && ph.d.z > 0.0
+            && !ctx.g_sun.is_empty()
+        {
+            // First-order sun photon going up: the hotspot-correlated flight its peel-off
+            // transmittance assumed (physics.md §3.5, `Ctx::fly_hotspot`).
+            let hs: PerMaterial<[f64; 2]> = Small::from_fn(g_cur.len(), |tm| {
+                crate::radiative::engine::hotspot_terms(
+                    inp.sun,
+                    ph.d,
+                    ctx.g_sun[tm],
+                    g_cur[tm],
+                    ctx.hs_leaf[tm],
+                )
+            });
+            ctx.fly_hotspot(ph, g_cur, &hs, rng, out)
+        } else {
+            ctx.fly(ph, g_cur, rng, out)
+        };
         // First flight ending on the surface its forced walk ended on: the collision
         // peel-off reuses the walk's return transmittance (see `Ctx::forced_peel`).
         ph.ret = match (&hit, walk_end) {
@@ -199,7 +224,9 @@ fn turbid_event(
     out.events += 1;
     let entries = inp.grid.turbid_of(c);
     let start = inp.grid.turbid_start[c] as usize;
-    let sel = select_turbid_entry(ctx, c, g_cur, rng);
+    // After a hotspot-corrected flight: in proportion to the local extinction there.
+    let g_pick: &[f64] = if ph.hs_k.is_empty() { g_cur } else { &ph.hs_k };
+    let sel = select_turbid_entry(ctx, c, g_pick, rng);
     let entry = (start + sel) as u32;
     let mid = entries[sel].material as usize;
     let tm = ctx.tur_mat[mid] as usize;

@@ -3,7 +3,7 @@
 //! fluids (Woodcock 1965), facet hits per cell, the repetitive and isolated boundaries,
 //! empty-space jumps, and transmittance (shadow) rays.
 
-use super::context::{Ctx, ExitTo, Hit, Photon, ray_meets_box};
+use super::context::{Ctx, ExitTo, Hit, PerMaterial, Photon, ray_meets_box};
 use super::input::{FluidMaterial, PhotonOptics};
 use super::tally::BatchOut;
 use crate::photon::sampling::{Uniform01, sample_cosine_hemisphere};
@@ -331,6 +331,223 @@ impl Ctx<'_> {
         }
     }
 
+    /// The free flight of a first-order sun photon ([`Ctx::fly`] with the hotspot correlation,
+    /// physics.md §3.5): the photon's first event scattered the direct sun beam (passive mode,
+    /// sun channel, some turbid material with a leaf size), so, as its peel-off transmittance
+    /// ([`Ctx::transmittance`]) does, the turbid extinction at distance s from the scattering
+    /// point is `u_f (G − b e^{−c s})` with `hs` = [b, c] per tracked turbid material
+    /// ([`crate::radiative::engine::hotspot_terms`] of the sun and the flight direction). A
+    /// crossing of a cell from distance s0 over ℓ adds the optical depth
+    /// `u_f max(0, G ℓ − b ∫_{s0}^{s0+ℓ} e^{−c s} ds)` per turbid entry (exactly the peel-off's
+    /// per-crossing depth), so the probability of leaving the layer along the flight is the
+    /// peel-off's transmittance. Within the crossing the depth to distance x,
+    /// `F(x) = Σ u_f max(0, G x − b ∫_{s0}^{s0+x} e^{−c s} ds)`, is nondecreasing (each term is
+    /// a convex function that is 0 at x = 0, clamped at 0), so the collision where the free path
+    /// τ* runs out is its inverse ([`Ctx::hs_invert`], safeguarded Newton to 1e-12 relative).
+    /// The colliding material is then drawn in proportion to the local `u_f (G − b e^{−c s})`
+    /// (kept in `ph.hs_k`), fluids as in [`Ctx::fly`] with this local vegetation extinction.
+    pub(crate) fn fly_hotspot(
+        &self,
+        ph: &mut Photon,
+        g_cur: &[f64],
+        hs: &[[f64; 2]],
+        rng: &mut Xoshiro256PlusPlus,
+        out: &mut BatchOut,
+    ) -> Hit {
+        let spec = self.inp.spec;
+        let mut tau_star = -(1.0 - rng.next_f64()).ln();
+        let mut crossings = 0u32;
+        'restart: loop {
+            let Some(mut dda) = Dda::new_inline(spec, ph.p, ph.d) else {
+                return Hit::Lost;
+            };
+            loop {
+                out.crossings += 1;
+                let c = dda.index();
+                let r = self.empty[c];
+                if r != 0 {
+                    let exit = if r > 1 {
+                        fly_skip(&mut dda, r, &mut out.skipped)
+                    } else {
+                        cross_empty(&mut dda, &self.empty, &mut out.crossings)
+                    };
+                    match exit {
+                        Exit::Inside => continue,
+                        exit => match self.fly_exit(exit, &dda, ph, &mut crossings) {
+                            Some(hit) => return hit,
+                            None => continue 'restart,
+                        },
+                    }
+                }
+                let t0 = dda.t;
+                let mut t1 = dda.t_exit();
+                let fhit = if self.inp.grid.facet_start[c] < self.inp.grid.facet_start[c + 1] {
+                    self.facet_hit(c, dda.point(0.0), ph.d, t0, t1, ph.skip_facet)
+                } else {
+                    None
+                };
+                if let Some((_, th)) = fhit {
+                    t1 = th.max(t0);
+                }
+                let fl = self.fluid_of(c);
+                let kf = fl.map_or(0.0, |f| f.sigma_e.iter().cloned().fold(0.0, f64::max));
+                if t1 > t0 {
+                    // Distance from the scattering point at the segment's start.
+                    let s0 = ph.path - ph.scatter_path + t0;
+                    let ell = t1 - t0;
+                    let dt = kf * ell + self.hs_depth(c, g_cur, hs, s0, ell);
+                    if dt > 0.0 && dt >= tau_star {
+                        let x = self.hs_invert(c, g_cur, hs, s0, ell, kf, tau_star, dt);
+                        let t = t0 + x;
+                        let p = dda.point(t);
+                        // Local vegetation extinction at the collision, per material.
+                        let mut kv = 0.0;
+                        let mut hk = PerMaterial::from_elem(0.0, g_cur.len());
+                        for e in self.inp.grid.turbid_of(c) {
+                            let tm = self.tur_mat[e.material as usize];
+                            if tm == u32::MAX {
+                                continue;
+                            }
+                            let tm = tm as usize;
+                            let g = hs_local_g(g_cur[tm], hs.get(tm).copied(), s0, x);
+                            hk[tm] = g;
+                            kv += g * e.density as f64;
+                        }
+                        if kv <= 0.0 && kf <= 0.0 {
+                            // (Rounding at the clamp's kink: the flight's own G.)
+                            hk.iter_mut().zip(g_cur).for_each(|(h, g)| *h = *g);
+                            kv = self.k_veg(c, g_cur);
+                        }
+                        let k = kv + kf;
+                        if let Some(f) = fl
+                            && rng.next_f64() * k >= kv
+                        {
+                            let mut sw = 0.0;
+                            let mut sq = 0.0;
+                            for (b, wb) in ph.w.iter().enumerate() {
+                                sw += wb;
+                                sq += wb * f.sigma_e[b] / kf;
+                            }
+                            let q = if sw > 0.0 { sq / sw } else { 1.0 };
+                            if rng.next_f64() >= q {
+                                for (b, wb) in ph.w.iter_mut().enumerate() {
+                                    *wb *= (1.0 - f.sigma_e[b] / kf) / (1.0 - q);
+                                }
+                                ph.path += t;
+                                ph.p = p;
+                                tau_star = -(1.0 - rng.next_f64()).ln();
+                                continue 'restart;
+                            }
+                            for (b, wb) in ph.w.iter_mut().enumerate() {
+                                *wb *= (f.sigma_e[b] / kf) / q;
+                            }
+                            ph.path += t;
+                            return Hit::Volume {
+                                c: c | FLUID_BIT,
+                                p,
+                            };
+                        }
+                        ph.hs_k = hk;
+                        ph.path += t;
+                        return Hit::Volume { c, p };
+                    }
+                    tau_star -= dt;
+                }
+                if let Some((f, th)) = fhit {
+                    ph.path += th;
+                    return Hit::Facet {
+                        f,
+                        p: dda.point(th),
+                    };
+                }
+                match dda.advance() {
+                    Exit::Inside => {}
+                    exit => match self.fly_exit(exit, &dda, ph, &mut crossings) {
+                        Some(hit) => return hit,
+                        None => continue 'restart,
+                    },
+                }
+            }
+        }
+    }
+
+    /// Vegetation optical depth of a hotspot-corrected crossing of cell `c` from distance `s0`
+    /// (m from the scattering point) over `x` m: `Σ u_f max(0, G x − b ∫_{s0}^{s0+x} e^{−c s} ds)`
+    /// per tracked turbid entry (the same per-entry expression as [`Ctx::transmittance`]).
+    #[inline]
+    pub(crate) fn hs_depth(
+        &self,
+        c: usize,
+        g_cur: &[f64],
+        hs: &[[f64; 2]],
+        s0: f64,
+        x: f64,
+    ) -> f64 {
+        let mut tau = 0.0;
+        for e in self.inp.grid.turbid_of(c) {
+            let tm = self.tur_mat[e.material as usize];
+            if tm == u32::MAX {
+                continue;
+            }
+            let g = g_cur[tm as usize];
+            match hs.get(tm as usize) {
+                Some(&[b, cc]) if b > 0.0 => {
+                    let corr = b * crate::radiative::engine::hotspot_integral(cc, s0, x);
+                    tau += e.density as f64 * (g * x - corr).max(0.0);
+                }
+                _ => tau += g * e.density as f64 * x,
+            }
+        }
+        tau
+    }
+
+    /// The distance x ∈ [0, ℓ] into a hotspot-corrected crossing ([`Ctx::fly_hotspot`]) where
+    /// the optical depth `kf x + F(x)` (`F` = [`Ctx::hs_depth`], nondecreasing) reaches
+    /// `tau_star` ≤ `dt` = its value at ℓ: safeguarded Newton in a shrinking bracket, to
+    /// 1e-12 relative in optical depth (or a bracket of 1e-14 ℓ).
+    #[allow(clippy::too_many_arguments)]
+    pub(crate) fn hs_invert(
+        &self,
+        c: usize,
+        g_cur: &[f64],
+        hs: &[[f64; 2]],
+        s0: f64,
+        ell: f64,
+        kf: f64,
+        tau_star: f64,
+        dt: f64,
+    ) -> f64 {
+        let (mut lo, mut hi) = (0.0, ell);
+        let mut x = (tau_star / dt * ell).clamp(0.0, ell);
+        for _ in 0..200 {
+            let v = kf * x + self.hs_depth(c, g_cur, hs, s0, x) - tau_star;
+            if v.abs() <= 1e-12 * tau_star || hi - lo <= 1e-14 * ell {
+                return x;
+            }
+            if v > 0.0 {
+                hi = x;
+            } else {
+                lo = x;
+            }
+            // Derivative: the local extinction (clamped entries contribute 0).
+            let mut dv = kf;
+            for e in self.inp.grid.turbid_of(c) {
+                let tm = self.tur_mat[e.material as usize];
+                if tm != u32::MAX {
+                    let tm = tm as usize;
+                    dv += e.density as f64 * hs_local_g(g_cur[tm], hs.get(tm).copied(), s0, x);
+                }
+            }
+            let xn = if dv > 0.0 { x - v / dv } else { f64::NAN };
+            x = if xn > lo && xn < hi {
+                xn
+            } else {
+                0.5 * (lo + hi)
+            };
+        }
+        x
+    }
+
     /// A flight leaves the grid box through `exit` (not `Exit::Inside`) at `dda.t`: the hit it
     /// ends with, or `None` after wrapping through a repetitive side (the photon then restarts
     /// from its new position).
@@ -553,6 +770,26 @@ impl Ctx<'_> {
 #[inline]
 pub(crate) fn return_transmittance(tau: f64) -> f64 {
     if tau > 69.1 { 0.0 } else { (-tau).exp() }
+}
+
+/// The local effective G (m² m⁻² per unit `u_f`) at distance `x` into a hotspot-corrected
+/// crossing that starts at distance `s0` from the scattering point: `G − b e^{−c (s0 + x)}`
+/// where the crossing's clamped depth `max(0, G x − b ∫ e^{−c s})` is positive (its
+/// derivative), 0 where it is still clamped; `G` without hotspot terms.
+#[inline]
+pub(crate) fn hs_local_g(g: f64, hs: Option<[f64; 2]>, s0: f64, x: f64) -> f64 {
+    match hs {
+        Some([b, c]) if b > 0.0 => {
+            let f = g * x - b * crate::radiative::engine::hotspot_integral(c, s0, x);
+            let k = g - b * (-c * (s0 + x)).exp();
+            if f > 0.0 || (x == 0.0 && k > 0.0) {
+                k.max(0.0)
+            } else {
+                0.0
+            }
+        }
+        _ => g,
+    }
 }
 
 /// Marks a fluid collision in `Hit::Volume::c`.
