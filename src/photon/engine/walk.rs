@@ -229,6 +229,48 @@ impl Ctx<'_> {
         &self,
         ph: &mut Photon,
         g_cur: &[f64],
+        tau_star: f64,
+        rng: &mut Xoshiro256PlusPlus,
+        out: &mut BatchOut,
+    ) -> Hit {
+        self.fly_with(ph, &Uniform { g: g_cur }, tau_star, rng, out)
+    }
+
+    /// The free flight of a first-order sun photon ([`Ctx::fly`] with the hotspot correlation,
+    /// physics.md §3.5): the photon's first event scattered the direct sun beam (passive mode,
+    /// sun channel, some turbid material with a leaf size), so, as its peel-off transmittance
+    /// ([`Ctx::transmittance`]) does, the turbid extinction at distance s from the scattering
+    /// point is `u_f (G − b e^{−c s})` with `hs` = [b, c] per tracked turbid material
+    /// ([`crate::radiative::engine::hotspot_terms`] of the sun and the flight direction). A
+    /// crossing of a cell from distance s0 over ℓ adds the optical depth
+    /// `u_f max(0, G ℓ − b ∫_{s0}^{s0+ℓ} e^{−c s} ds)` per turbid entry (exactly the peel-off's
+    /// per-crossing depth), so the probability of leaving the layer along the flight is the
+    /// peel-off's transmittance. Within the crossing the depth to distance x,
+    /// `F(x) = Σ u_f max(0, G x − b ∫_{s0}^{s0+x} e^{−c s} ds)`, is nondecreasing (each term is
+    /// a convex function that is 0 at x = 0, clamped at 0), so the collision where the free path
+    /// τ* runs out is its inverse ([`Ctx::hs_invert`], safeguarded Newton to 1e-12 relative).
+    /// The colliding material is then drawn in proportion to the local `u_f (G − b e^{−c s})`
+    /// (kept in `ph.hs_k`), fluids as in [`Ctx::fly`] with this local vegetation extinction.
+    pub(crate) fn fly_hotspot(
+        &self,
+        ph: &mut Photon,
+        g_cur: &[f64],
+        hs: &[[f64; 2]],
+        rng: &mut Xoshiro256PlusPlus,
+        out: &mut BatchOut,
+    ) -> Hit {
+        let tau_star = -(1.0 - rng.next_f64()).ln();
+        self.fly_with(ph, &Hotspot { g: g_cur, hs }, tau_star, rng, out)
+    }
+
+    /// The free flight shared by [`Ctx::fly_to`] and [`Ctx::fly_hotspot`]: the DDA walk with
+    /// empty-space jumps, facet hits, boundary wrapping, the collision where the free optical
+    /// path `tau_star` runs out (the vegetation extinction along the flight given by `ext`) and
+    /// fluid null collisions against the majorant.
+    fn fly_with<E: FlightExtinction>(
+        &self,
+        ph: &mut Photon,
+        ext: &E,
         mut tau_star: f64,
         rng: &mut Xoshiro256PlusPlus,
         out: &mut BatchOut,
@@ -269,15 +311,25 @@ impl Ctx<'_> {
                 if let Some((_, th)) = fhit {
                     t1 = th.max(t0);
                 }
-                let kv = self.k_veg(c, g_cur);
                 let fl = self.fluid_of(c);
                 let kf = fl.map_or(0.0, |f| f.sigma_e.iter().cloned().fold(0.0, f64::max));
-                let k = kv + kf;
-                if k > 0.0 && t1 > t0 {
-                    let dt = (t1 - t0) * k;
+                if t1 > t0
+                    && let Some((dt, kv)) = ext.depth(self, ph, c, t0, t1 - t0, kf)
+                {
                     if dt >= tau_star {
-                        let t = t0 + tau_star / k;
+                        let cr = Crossing {
+                            c,
+                            t0,
+                            ell: t1 - t0,
+                            kf,
+                            dt,
+                            kv,
+                        };
+                        let x = ext.invert(self, ph, &cr, tau_star);
+                        let t = t0 + x;
                         let p = dda.point(t);
+                        let (kv, hk) = ext.local(self, ph, &cr, x);
+                        let k = kv + kf;
                         // Fluid null collision (band-dependent extinction below the majorant).
                         if let Some(f) = fl
                             && rng.next_f64() * k >= kv
@@ -308,146 +360,9 @@ impl Ctx<'_> {
                                 p,
                             };
                         }
-                        ph.path += t;
-                        return Hit::Volume { c, p };
-                    }
-                    tau_star -= dt;
-                }
-                if let Some((f, th)) = fhit {
-                    ph.path += th;
-                    return Hit::Facet {
-                        f,
-                        p: dda.point(th),
-                    };
-                }
-                match dda.advance() {
-                    Exit::Inside => {}
-                    exit => match self.fly_exit(exit, &dda, ph, &mut crossings) {
-                        Some(hit) => return hit,
-                        None => continue 'restart,
-                    },
-                }
-            }
-        }
-    }
-
-    /// The free flight of a first-order sun photon ([`Ctx::fly`] with the hotspot correlation,
-    /// physics.md §3.5): the photon's first event scattered the direct sun beam (passive mode,
-    /// sun channel, some turbid material with a leaf size), so, as its peel-off transmittance
-    /// ([`Ctx::transmittance`]) does, the turbid extinction at distance s from the scattering
-    /// point is `u_f (G − b e^{−c s})` with `hs` = [b, c] per tracked turbid material
-    /// ([`crate::radiative::engine::hotspot_terms`] of the sun and the flight direction). A
-    /// crossing of a cell from distance s0 over ℓ adds the optical depth
-    /// `u_f max(0, G ℓ − b ∫_{s0}^{s0+ℓ} e^{−c s} ds)` per turbid entry (exactly the peel-off's
-    /// per-crossing depth), so the probability of leaving the layer along the flight is the
-    /// peel-off's transmittance. Within the crossing the depth to distance x,
-    /// `F(x) = Σ u_f max(0, G x − b ∫_{s0}^{s0+x} e^{−c s} ds)`, is nondecreasing (each term is
-    /// a convex function that is 0 at x = 0, clamped at 0), so the collision where the free path
-    /// τ* runs out is its inverse ([`Ctx::hs_invert`], safeguarded Newton to 1e-12 relative).
-    /// The colliding material is then drawn in proportion to the local `u_f (G − b e^{−c s})`
-    /// (kept in `ph.hs_k`), fluids as in [`Ctx::fly`] with this local vegetation extinction.
-    pub(crate) fn fly_hotspot(
-        &self,
-        ph: &mut Photon,
-        g_cur: &[f64],
-        hs: &[[f64; 2]],
-        rng: &mut Xoshiro256PlusPlus,
-        out: &mut BatchOut,
-    ) -> Hit {
-        let spec = self.inp.spec;
-        let mut tau_star = -(1.0 - rng.next_f64()).ln();
-        let mut crossings = 0u32;
-        'restart: loop {
-            let Some(mut dda) = Dda::new_inline(spec, ph.p, ph.d) else {
-                return Hit::Lost;
-            };
-            loop {
-                out.crossings += 1;
-                let c = dda.index();
-                let r = self.empty[c];
-                if r != 0 {
-                    let exit = if r > 1 {
-                        fly_skip(&mut dda, r, &mut out.skipped)
-                    } else {
-                        cross_empty(&mut dda, &self.empty, &mut out.crossings)
-                    };
-                    match exit {
-                        Exit::Inside => continue,
-                        exit => match self.fly_exit(exit, &dda, ph, &mut crossings) {
-                            Some(hit) => return hit,
-                            None => continue 'restart,
-                        },
-                    }
-                }
-                let t0 = dda.t;
-                let mut t1 = dda.t_exit();
-                let fhit = if self.inp.grid.facet_start[c] < self.inp.grid.facet_start[c + 1] {
-                    self.facet_hit(c, dda.point(0.0), ph.d, t0, t1, ph.skip_facet)
-                } else {
-                    None
-                };
-                if let Some((_, th)) = fhit {
-                    t1 = th.max(t0);
-                }
-                let fl = self.fluid_of(c);
-                let kf = fl.map_or(0.0, |f| f.sigma_e.iter().cloned().fold(0.0, f64::max));
-                if t1 > t0 {
-                    // Distance from the scattering point at the segment's start.
-                    let s0 = ph.path - ph.scatter_path + t0;
-                    let ell = t1 - t0;
-                    let dt = kf * ell + self.hs_depth(c, g_cur, hs, s0, ell);
-                    if dt > 0.0 && dt >= tau_star {
-                        let x = self.hs_invert(c, g_cur, hs, s0, ell, kf, tau_star, dt);
-                        let t = t0 + x;
-                        let p = dda.point(t);
-                        // Local vegetation extinction at the collision, per material.
-                        let mut kv = 0.0;
-                        let mut hk = PerMaterial::from_elem(0.0, g_cur.len());
-                        for e in self.inp.grid.turbid_of(c) {
-                            let tm = self.tur_mat[e.material as usize];
-                            if tm == u32::MAX {
-                                continue;
-                            }
-                            let tm = tm as usize;
-                            let g = hs_local_g(g_cur[tm], hs.get(tm).copied(), s0, x);
-                            hk[tm] = g;
-                            kv += g * e.density as f64;
+                        if let Some(hk) = hk {
+                            ph.hs_k = hk;
                         }
-                        if kv <= 0.0 && kf <= 0.0 {
-                            // (Rounding at the clamp's kink: the flight's own G.)
-                            hk.iter_mut().zip(g_cur).for_each(|(h, g)| *h = *g);
-                            kv = self.k_veg(c, g_cur);
-                        }
-                        let k = kv + kf;
-                        if let Some(f) = fl
-                            && rng.next_f64() * k >= kv
-                        {
-                            let mut sw = 0.0;
-                            let mut sq = 0.0;
-                            for (b, wb) in ph.w.iter().enumerate() {
-                                sw += wb;
-                                sq += wb * f.sigma_e[b] / kf;
-                            }
-                            let q = if sw > 0.0 { sq / sw } else { 1.0 };
-                            if rng.next_f64() >= q {
-                                for (b, wb) in ph.w.iter_mut().enumerate() {
-                                    *wb *= (1.0 - f.sigma_e[b] / kf) / (1.0 - q);
-                                }
-                                ph.path += t;
-                                ph.p = p;
-                                tau_star = -(1.0 - rng.next_f64()).ln();
-                                continue 'restart;
-                            }
-                            for (b, wb) in ph.w.iter_mut().enumerate() {
-                                *wb *= (f.sigma_e[b] / kf) / q;
-                            }
-                            ph.path += t;
-                            return Hit::Volume {
-                                c: c | FLUID_BIT,
-                                p,
-                            };
-                        }
-                        ph.hs_k = hk;
                         ph.path += t;
                         return Hit::Volume { c, p };
                     }
@@ -770,6 +685,132 @@ impl Ctx<'_> {
 #[inline]
 pub(crate) fn return_transmittance(tau: f64) -> f64 {
     if tau > 69.1 { 0.0 } else { (-tau).exp() }
+}
+
+/// One crossing of a non-empty cell in a free flight ([`Ctx::fly_with`]): cell `c`, entered
+/// at distance `t0` along the flight, `ell` m long, fluid majorant `kf` (m⁻¹), its optical depth
+/// `dt` and, for a constant vegetation extinction, that extinction `kv` (m⁻¹).
+struct Crossing {
+    c: usize,
+    t0: f64,
+    ell: f64,
+    kf: f64,
+    dt: f64,
+    kv: f64,
+}
+
+/// The vegetation extinction along a free flight ([`Ctx::fly_with`]): a crossing's optical depth
+/// and constant extinction (`None`: nothing can collide in it), the distance into it where a
+/// free path `tau` ≤ its depth runs out, and the vegetation extinction at that point (m⁻¹)
+/// with the per-material G to keep for the choice of the colliding material (`None`: the
+/// flight's own).
+trait FlightExtinction {
+    fn depth(
+        &self,
+        ctx: &Ctx,
+        ph: &Photon,
+        c: usize,
+        t0: f64,
+        ell: f64,
+        kf: f64,
+    ) -> Option<(f64, f64)>;
+    fn invert(&self, ctx: &Ctx, ph: &Photon, x: &Crossing, tau: f64) -> f64;
+    fn local(
+        &self,
+        ctx: &Ctx,
+        ph: &Photon,
+        x: &Crossing,
+        at: f64,
+    ) -> (f64, Option<PerMaterial<f64>>);
+}
+
+/// The ordinary flight: extinction `k = Σ G u_f + kf`, constant in each cell.
+struct Uniform<'a> {
+    g: &'a [f64],
+}
+
+impl FlightExtinction for Uniform<'_> {
+    #[inline(always)]
+    fn depth(
+        &self,
+        ctx: &Ctx,
+        _: &Photon,
+        c: usize,
+        _: f64,
+        ell: f64,
+        kf: f64,
+    ) -> Option<(f64, f64)> {
+        let kv = ctx.k_veg(c, self.g);
+        let k = kv + kf;
+        (k > 0.0).then_some((ell * k, kv))
+    }
+    #[inline(always)]
+    fn invert(&self, _: &Ctx, _: &Photon, x: &Crossing, tau: f64) -> f64 {
+        tau / (x.kv + x.kf)
+    }
+    #[inline(always)]
+    fn local(&self, _: &Ctx, _: &Photon, x: &Crossing, _: f64) -> (f64, Option<PerMaterial<f64>>) {
+        (x.kv, None)
+    }
+}
+
+/// The first-order sun flight with the hotspot correlation (see [`Ctx::fly_hotspot`]): `hs` =
+/// [b, c] per tracked turbid material; distances from the scattering point.
+struct Hotspot<'a> {
+    g: &'a [f64],
+    hs: &'a [[f64; 2]],
+}
+
+impl FlightExtinction for Hotspot<'_> {
+    #[inline(always)]
+    fn depth(
+        &self,
+        ctx: &Ctx,
+        ph: &Photon,
+        c: usize,
+        t0: f64,
+        ell: f64,
+        kf: f64,
+    ) -> Option<(f64, f64)> {
+        // Distance from the scattering point at the segment's start.
+        let s0 = ph.path - ph.scatter_path + t0;
+        let dt = kf * ell + ctx.hs_depth(c, self.g, self.hs, s0, ell);
+        (dt > 0.0).then_some((dt, 0.0))
+    }
+    #[inline(always)]
+    fn invert(&self, ctx: &Ctx, ph: &Photon, x: &Crossing, tau: f64) -> f64 {
+        let s0 = ph.path - ph.scatter_path + x.t0;
+        ctx.hs_invert(x.c, self.g, self.hs, s0, x.ell, x.kf, tau, x.dt)
+    }
+    /// The local `u_f (G − b e^{−c s})` per material at the collision.
+    fn local(
+        &self,
+        ctx: &Ctx,
+        ph: &Photon,
+        cr: &Crossing,
+        x: f64,
+    ) -> (f64, Option<PerMaterial<f64>>) {
+        let (c, t0, kf) = (cr.c, cr.t0, cr.kf);
+        let s0 = ph.path - ph.scatter_path + t0;
+        let mut kv = 0.0;
+        let mut hk = PerMaterial::from_elem(0.0, self.g.len());
+        for e in ctx.inp.grid.turbid_of(c) {
+            let tm = ctx.tur_mat[e.material as usize];
+            if tm == u32::MAX {
+                continue;
+            }
+            let tm = tm as usize;
+            let g = hs_local_g(self.g[tm], self.hs.get(tm).copied(), s0, x);
+            hk[tm] = g;
+            kv += g * e.density as f64;
+        }
+        if kv <= 0.0 && kf <= 0.0 {
+            // (Rounding at the clamp's kink: the flight's own G.)
+            hk.iter_mut().zip(self.g).for_each(|(h, g)| *h = *g);
+            kv = ctx.k_veg(c, self.g);
+        }
+        (kv, Some(hk))
+    }
 }
 
 /// The local effective G (m² m⁻² per unit `u_f`) at distance `x` into a hotspot-corrected
