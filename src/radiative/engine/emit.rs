@@ -196,16 +196,15 @@ pub(in crate::radiative) struct Emitter<'s> {
 
 /// The two emission points of a turbid cell (physics.md §3.6): per direction, the height z*
 /// at which one ray carries the exact expectation of the source's vertical distribution
-/// through a homogeneous medium ([`exp_moment_position_of_rate`]), and horizontally the
+/// through a homogeneous medium ([`MaxEntropyProfile::position`]), and horizontally the
 /// barycentre ± the spread per axis (the horizontal signs alternate over directions), half
 /// the power each.
 #[derive(Clone, Copy)]
 struct TurbidPair {
     /// Cell index.
     cell: usize,
-    /// Rate and mirror flag of the vertical maximum-entropy density.
-    u: f64,
-    flip: bool,
+    /// The vertical maximum-entropy density.
+    profile: MaxEntropyProfile,
     /// Horizontal offsets (m).
     dx: f64,
     dy: f64,
@@ -219,11 +218,9 @@ impl TurbidPair {
     fn new(cell: usize, mean: DVec3, centre: DVec3, size: DVec3) -> Self {
         let lo = centre - 0.5 * size;
         let rel = ((mean - lo) / size).clamp(DVec3::ZERO, DVec3::ONE);
-        let (u, flip) = max_entropy_rate(rel.z);
         TurbidPair {
             cell,
-            u,
-            flip,
+            profile: MaxEntropyProfile::new(rel.z),
             dx: max_entropy_sigma(rel.x) * size.x,
             dy: max_entropy_sigma(rel.y) * size.y,
             lo,
@@ -244,7 +241,7 @@ impl TurbidPair {
         let dz = self.hi.z - self.lo.z;
         // Downstream ∝ e^{c z/Δz}: c = kΔz/μ (μ signed; a horizontal ray: no dependence).
         let c = if d.z.abs() > 1e-12 { k * dz / d.z } else { 0.0 };
-        let z = self.lo.z + dz * exp_moment_position_of_rate(self.u, self.flip, c);
+        let z = self.lo.z + dz * self.profile.position(c);
         let h = DVec3::new(
             if j & 1 == 0 { self.dx } else { -self.dx },
             if j & 2 == 0 { self.dy } else { -self.dy },

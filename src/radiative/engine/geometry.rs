@@ -315,28 +315,43 @@ fn ln_trunc_exp_norm(v: f64) -> f64 {
 /// emission height x* per direction reproduces the source's exact expectation (physics.md
 /// §3.6); `c → 0` gives the mean.
 pub fn exp_moment_position(m: f64, c: f64) -> f64 {
-    let flip = m > 0.5;
-    let u = trunc_exp_rate(m.min(1.0 - m).clamp(1e-9, 0.5));
-    exp_moment_position_of_rate(u, flip, c)
+    MaxEntropyProfile::new(m).position(c)
 }
 
-/// [`exp_moment_position`] for the density `∝ e^{−u x}` (`flip`: mirrored, `∝ e^{−u(1−x)}`),
-/// the rate solved once per cell and the position evaluated per direction.
-pub fn exp_moment_position_of_rate(u: f64, flip: bool, c: f64) -> f64 {
-    // Mirrored density x' = 1 − x: ⟨e^{cx}⟩ = e^c ⟨e^{−c x'}⟩.
-    let cc = if flip { -c } else { c };
-    let x = if cc.abs() < 1e-9 {
-        trunc_exp_mean(u)
-    } else {
-        let cc = cc.clamp(-1e6, 1e6);
-        (ln_trunc_exp_norm(u - cc) - ln_trunc_exp_norm(u)) / cc
-    };
-    let x = x.clamp(0.0, 1.0);
-    if flip { 1.0 - x } else { x }
+/// The maximum-entropy density on [0, 1] with a given mean (see [`max_entropy_sigma`]): the
+/// density `∝ e^{−u x}` (`flip`: mirrored, `∝ e^{−u(1−x)}`), with what does not depend on the
+/// direction (`ln Z(u)`, the mean) computed once per cell.
+#[derive(Debug, Clone, Copy)]
+pub struct MaxEntropyProfile {
+    u: f64,
+    flip: bool,
+    ln_z: f64,
+    mean: f64,
 }
 
-/// The rate u ≥ 0 and the mirror flag of the maximum-entropy density on [0, 1] with mean `m`
-/// (see [`exp_moment_position_of_rate`]).
-pub fn max_entropy_rate(m: f64) -> (f64, bool) {
-    (trunc_exp_rate(m.min(1.0 - m).clamp(1e-9, 0.5)), m > 0.5)
+impl MaxEntropyProfile {
+    /// The profile whose mean is `m` (clamped into [0, 1]).
+    pub fn new(m: f64) -> Self {
+        let u = trunc_exp_rate(m.min(1.0 - m).clamp(1e-9, 0.5));
+        MaxEntropyProfile {
+            u,
+            flip: m > 0.5,
+            ln_z: ln_trunc_exp_norm(u),
+            mean: trunc_exp_mean(u),
+        }
+    }
+
+    /// [`exp_moment_position`] of this profile for the exponent `c`.
+    pub fn position(&self, c: f64) -> f64 {
+        // Mirrored density x' = 1 − x: ⟨e^{cx}⟩ = e^c ⟨e^{−c x'}⟩.
+        let cc = if self.flip { -c } else { c };
+        let x = if cc.abs() < 1e-9 {
+            self.mean
+        } else {
+            let cc = cc.clamp(-1e6, 1e6);
+            (ln_trunc_exp_norm(self.u - cc) - self.ln_z) / cc
+        };
+        let x = x.clamp(0.0, 1.0);
+        if self.flip { 1.0 - x } else { x }
+    }
 }
