@@ -31,6 +31,7 @@ pub mod geometry;
 pub mod io;
 pub mod lidar;
 pub mod maket;
+pub mod memory;
 pub mod output;
 pub mod phase;
 pub mod photon;

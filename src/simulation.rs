@@ -163,6 +163,31 @@ impl Simulation {
             .ok()
     }
 
+    /// The memory estimate of every stage of this run ([`crate::memory::estimate`]), from the
+    /// planned grid (facets and grid extent; no allocation of the grid). The facets and
+    /// warnings planning builds are dropped again (the Maket stage builds them), so that a run
+    /// after this one is unchanged. `lumenscape run` inserts the result as a resource (written
+    /// into `summary.json`) after checking it against `--max-memory`.
+    pub fn memory_plan(&mut self) -> Result<crate::memory::MemoryPlan, StageError> {
+        let warnings = self
+            .world
+            .get_resource::<crate::resources::scene::Warnings>()
+            .cloned();
+        let planned = self.plan();
+        let report = self.plan_report();
+        let plan = report.map(|r| crate::memory::estimate(self, &r));
+        self.world
+            .remove_resource::<crate::resources::facets::FacetStore>();
+        if let Some(w) = warnings {
+            self.world.insert_resource(w);
+        }
+        planned?;
+        plan.ok_or_else(|| StageError {
+            stage: Stage::Maket,
+            messages: vec!["planning produced no grid".into()],
+        })
+    }
+
     /// Runs every implemented stage in order, writing products into `out` when given.
     /// Returns the stages that ran.
     pub fn run(&mut self, out: Option<&Path>) -> Result<Vec<Stage>, StageError> {

@@ -42,10 +42,20 @@ pub fn write_radiative_products(
     grid: Res<CellGrid>,
     facets: Res<FacetStore>,
     mats: Res<Materials>,
+    memory: Option<Res<crate::memory::MemoryPlan>>,
     mut errors: ResMut<StageErrors>,
 ) {
     if let Err(e) = write_radiative(
-        &out.0, &products, &info, &settings, &dirs, &spec, &grid, &facets, &mats,
+        &out.0,
+        &products,
+        &info,
+        &settings,
+        &dirs,
+        &spec,
+        &grid,
+        &facets,
+        &mats,
+        memory.as_deref(),
     ) {
         errors.0.push(e);
     }
@@ -57,10 +67,13 @@ pub fn write_lidar_products(
     out: Res<OutputDir>,
     products: Res<crate::lidar::run::LidarProducts>,
     info: Res<crate::resources::scene::SceneInfo>,
+    memory: Option<Res<crate::memory::MemoryPlan>>,
     mut errors: ResMut<StageErrors>,
 ) {
     let names: Vec<String> = info.bands.iter().map(|b| b.name.clone()).collect();
-    if let Err(e) = crate::lidar::products::write_lidar(&out.0, &products.0, &names) {
+    if let Err(e) =
+        crate::lidar::products::write_lidar(&out.0, &products.0, &names, memory.as_deref())
+    {
         errors.0.push(e);
     }
 }
@@ -73,7 +86,7 @@ pub enum OutputSystems {
 }
 
 /// Adds the Output stage's systems: each runs when an output folder is set and its stage's
-/// products exist.
+/// products exist; `summary.json` is written last (its measured peak covers the others).
 pub fn add_systems(s: &mut Schedule) {
     use crate::systems::no_stage_error;
     s.add_systems(
@@ -83,15 +96,16 @@ pub fn add_systems(s: &mut Schedule) {
                 .run_if(resource_exists::<CellGrid>)
                 .run_if(resource_exists::<MaketReport>)
                 .run_if(no_stage_error),
-            write_radiative_products
-                .run_if(resource_exists::<OutputDir>)
-                .run_if(resource_exists::<crate::radiative::products::RadiativeProducts>)
-                .run_if(no_stage_error),
             write_lidar_products
                 .run_if(resource_exists::<OutputDir>)
                 .run_if(resource_exists::<crate::lidar::run::LidarProducts>)
                 .run_if(no_stage_error),
+            write_radiative_products
+                .run_if(resource_exists::<OutputDir>)
+                .run_if(resource_exists::<crate::radiative::products::RadiativeProducts>)
+                .run_if(no_stage_error),
         )
+            .chain()
             .in_set(OutputSystems::Write),
     );
 }

@@ -221,6 +221,9 @@ fn tiny_run(dir: &Path, solver: Solver) {
     };
     let mut sim = Simulation::from_desc(&desc, &SceneSource::generated(), settings)
         .unwrap_or_else(|e| panic!("{e}"));
+    // As `lumenscape run` does: the memory estimate, recorded in summary.json.
+    let plan = sim.memory_plan().unwrap_or_else(|e| panic!("{e}"));
+    sim.world.insert_resource(plan);
     sim.run(Some(dir)).unwrap_or_else(|e| panic!("{e}"));
 }
 

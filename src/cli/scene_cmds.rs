@@ -325,91 +325,58 @@ pub fn print_report(r: &MaketReport, out: &mut dyn Write) -> std::io::Result<()>
     Ok(())
 }
 
-/// (bytes, directions, slots) the Direction/Phase/Radiative stages will need.
-fn radiative_estimate(sim: &mut Simulation, report: &MaketReport) -> (u64, usize, usize) {
-    use crate::resources::tracking::RadiativeSettings;
-    use crate::resources::tracking::{DirectionRequest, REFERENCE_MIN_DIRECTIONS};
-    let settings = sim.resource::<RadiativeSettings>().clone();
-    let mut params = sim.resource::<DirectionRequest>().0.clone();
-    if settings.preset == crate::scene::desc::Preset::Reference {
-        params.count = params.count.max(REFERENCE_MIN_DIRECTIONS);
+/// Prints the memory estimate per stage (the terms of each) and the peak.
+pub fn print_memory(
+    m: &crate::memory::MemoryPlan,
+    limit: u64,
+    out: &mut dyn Write,
+) -> std::io::Result<()> {
+    writeln!(
+        out,
+        "memory estimate per stage ({} worker threads):",
+        m.threads
+    )?;
+    for s in &m.stages {
+        let terms: Vec<String> = s
+            .terms
+            .iter()
+            .filter(|t| t.bytes > 0)
+            .map(|t| format!("{} {}", t.name, human_bytes(t.bytes)))
+            .collect();
+        writeln!(
+            out,
+            "  {:<9} {:>10}  ({})",
+            s.stage,
+            human_bytes(s.bytes),
+            terms.join(", ")
+        )?;
     }
-    let Ok(set) = crate::direction::DirectionSet::new(&params) else {
-        return (0, 0, 0);
-    };
-    let n_dirs = set.tiling().len();
-    let slots = if settings.per_direction_stores {
-        n_dirs
-    } else {
-        set.n_sectors()
-    } + 1;
-    let info = sim.resource::<crate::resources::scene::SceneInfo>().clone();
-    let sky = info.illumination.skyl.iter().any(|&s| s > 0.0);
-    let n_facets = report.facet_count.values().sum::<u64>() as usize;
-    // Orthographic images: one per exact upward direction, columns × η² pixels.
-    let n_images = set
-        .tiling()
-        .iter()
-        .filter(|d| {
-            matches!(d.kind, crate::direction::DirectionKind::Exact { .. }) && d.omega.z > 0.0
-        })
-        .count();
-    let eta = settings.image_oversampling.max(1) as usize;
-    let subcells = sim
-        .world
-        .get_resource::<crate::resources::grid::GridSpec>()
-        .map_or(1, |g| g.subcells.clamp(1, 8) as usize);
-    let turbid_stores = match settings.tracking.turbid_subfaces {
-        crate::scene::desc::TurbidSubfaces::Off => (1, 1),
-        crate::scene::desc::TurbidSubfaces::Faces => (7, 7),
-        crate::scene::desc::TurbidSubfaces::Subfaces => {
-            (6 * subcells * subcells + 1, 6 * subcells * subcells + 1)
-        }
-        crate::scene::desc::TurbidSubfaces::Blend => (1, slots),
-    };
-    // The estimate's integer products overflow for absurd counts (a grid over the memory
-    // limit is still reported before its refusal): bound them in floating point first and
-    // report a saturated estimate instead.
-    {
-        let f = |x: usize| x as f64;
-        let w = f(info.bands.len()) * 2.0;
-        let (ts, tp) = (f(turbid_stores.0.max(1)), f(turbid_stores.1.max(1)));
-        let entries = report.memory.turbid_entries_max as f64;
-        let refs = report.memory.facet_refs_max as f64;
-        let cols = f(report.cells[0]) * f(report.cells[1]);
-        let pixels = f(n_images) * cols * f(eta) * f(eta);
-        let nd = f(n_dirs) + 1.0;
-        let bound = f(report.leaf_area.len()) * w * nd * nd * 16.0
-            + f(n_facets) * nd * 8.0
-            + 16.0
-                * (entries * (ts * f(slots) * w + tp * 8.0)
-                    + refs * (2.0 * w + 4.0)
-                    + cols * (w + 4.0))
-            + 8.0 * w * (3.0 * (entries + f(n_facets) + cols) + nd)
-            + f(rayon::current_num_threads()) * 8.0 * nd * ts * (w + 4.0)
-            + 24.0 * w * pixels
-            + (1u64 << 30) as f64;
-        if !(bound < (1u64 << 62) as f64) {
-            return (u64::MAX, n_dirs, slots);
-        }
-    }
-    let est = crate::radiative::memory_estimate(
-        n_dirs,
-        slots,
-        turbid_stores,
-        info.bands.len(),
-        sky,
-        report.leaf_area.len(),
-        report.memory.turbid_entries_max as usize,
-        report.memory.facet_refs_max as usize,
-        n_facets,
-        report.cells[0] * report.cells[1],
-        n_images * report.cells[0] * report.cells[1] * eta * eta,
-    );
-    (est, n_dirs, slots)
+    writeln!(
+        out,
+        "memory estimate (peak, all stages): {} in the {} stage (limit {})",
+        human_bytes(m.peak_bytes),
+        m.peak_stage,
+        human_bytes(limit)
+    )
 }
 
-/// Runs `check`.
+/// The refusal of a run whose stage `s` is estimated above `limit` bytes (`--max-memory`).
+fn over_limit_error(scene: &Path, s: &crate::memory::StageMemory, limit: u64) -> CliError {
+    CliError {
+        message: format!(
+            "{}: the {} stage needs an estimated {} ({} bytes), above the limit of {} (--max-memory): use larger cells, fewer directions or a smaller scene, or raise --max-memory",
+            scene.display(),
+            s.stage,
+            human_bytes(s.bytes),
+            s.bytes,
+            human_bytes(limit)
+        ),
+        code: 1,
+    }
+}
+
+/// Runs `check`: the plan report, the memory estimate per stage; exit 1 when the scene is
+/// invalid or a stage's estimate is above `--max-memory`.
 pub fn check(args: &CheckArgs, out: &mut dyn Write) -> Result<(), CliError> {
     let mut sim = args.opts.load()?;
     let planned = sim.plan();
@@ -424,24 +391,27 @@ pub fn check(args: &CheckArgs, out: &mut dyn Write) -> Result<(), CliError> {
         });
     }
     let report = sim.plan_report().expect("planning inserted its resources");
-    let rad = radiative_estimate(&mut sim, &report);
+    let mem = crate::memory::estimate(&mut sim, &report);
+    let limit = report.memory.limit_bytes;
     if args.json {
         let mut v = serde_json::to_value(&report)?;
-        v["radiative_memory_estimate_bytes"] = rad.0.into();
-        v["directions"] = rad.1.into();
+        v["memory_plan"] = serde_json::to_value(&mem)?;
+        v["radiative_memory_estimate_bytes"] = mem
+            .stages
+            .iter()
+            .find(|s| s.stage == "Radiative")
+            .map_or(0, |s| s.bytes)
+            .into();
         writeln!(out, "{}", serde_json::to_string_pretty(&v)?)?;
     } else {
         writeln!(out, "{}: scene is valid", args.opts.scene.display())?;
         print_report(&report, out)?;
-        writeln!(
-            out,
-            "radiative stage: {} directions, {} interception slots, memory estimate {} (phase tables, stores, products)",
-            rad.1,
-            rad.2,
-            human_bytes(rad.0)
-        )?;
+        print_memory(&mem, limit, out)?;
     }
     planned?;
+    if let Some(s) = mem.over(limit) {
+        return Err(over_limit_error(&args.opts.scene, s, limit));
+    }
     Ok(())
 }
 
@@ -497,6 +467,15 @@ pub struct RunArgs {
 pub fn run(args: &RunArgs, out: &mut dyn Write) -> Result<(), CliError> {
     let t0 = std::time::Instant::now();
     let mut sim = args.opts.load()?;
+    // The memory estimate of every stage, before the output folder and anything big exist.
+    let mem = sim.memory_plan()?;
+    let limit = sim
+        .resource::<crate::resources::scene::RunSettings>()
+        .max_memory_bytes;
+    if let Some(s) = mem.over(limit) {
+        return Err(over_limit_error(&args.opts.scene, s, limit));
+    }
+    sim.world.insert_resource(mem);
     let staged = StagedDir::begin(&args.out, args.force, "--force")?;
     let ran = sim.run(Some(staged.path()))?;
     let written: Vec<String> = product_files(staged.path()).into_keys().collect();

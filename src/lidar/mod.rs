@@ -154,3 +154,50 @@ impl NeumaierSum {
         self.sum + self.compensation
     }
 }
+
+/// Memory the LiDAR simulation of one instrument holds at its peak, bytes, as named terms:
+///
+/// * `photon context`: the photon engine's per-cell tables (as for the passive Monte Carlo
+///   solver: the facet bounding box per cell, 6 f64, and the column tables of the first-flight
+///   sampler, two f64 per cell and turbid material and one flag per cell, when cells × turbid
+///   materials ≤ 2²³).
+/// * `pulse chunk`: the results of one chunk of pulses (at most `chunk_pulses`, see
+///   [`simulate::LidarChunks`]) held until it is written or spooled: per pulse the waveform,
+///   one f64 per digitiser bin over the two-way travel time through the grid's height plus the
+///   pulse kernel (±3 FWHM), and ~256 bytes of records (energies, returns).
+/// * `footprint moments`: the beam footprint's rectangle-moment table
+///   ([`pulse::FootprintMoments`], kept in a process-wide cache): per radial interval (at least
+///   `MOMENT_SPLIT` = 6; 8 on the example instruments, whose footprints have two profile
+///   nodes) `MOMENT_CELLS`² cells of 32 f64.
+///
+/// `grid_height_m` is the grid's height, `n_cells` its cells, `turbid_materials` the scene's
+/// turbid materials.
+pub fn memory_terms(
+    desc: &crate::scene::desc::LidarDesc,
+    n_cells: usize,
+    turbid_materials: usize,
+    grid_height_m: f64,
+    chunk_pulses: usize,
+) -> Vec<(&'static str, f64)> {
+    let f = |x: usize| x as f64;
+    let columns = if n_cells.saturating_mul(turbid_materials) <= 1 << 23 {
+        f(n_cells) * (16.0 * f(turbid_materials) + 1.0)
+    } else {
+        0.0
+    };
+    let context = f(n_cells) * 48.0 + columns;
+    let pulses = simulate::PulsePlan::new(desc)
+        .len()
+        .min(chunk_pulses.max(1));
+    // Light travels 0.15 m (two-way) per ns.
+    let bin_ns = if desc.bin_ns > 0.0 { desc.bin_ns } else { 1.0 };
+    let bins = (grid_height_m.max(0.0) / 0.15 + 6.0 * desc.pulse_fwhm_ns.max(0.0)) / bin_ns;
+    let per_pulse = 8.0 * bins.min(1e9) + 256.0;
+    let intervals = pulse::moments::MOMENT_SPLIT + 2.0;
+    let cells = f(pulse::moments::MOMENT_CELLS).powi(2);
+    vec![
+        ("photon context", context),
+        ("pulse chunk", f(pulses) * per_pulse),
+        ("footprint moments", intervals * cells * 32.0 * 8.0),
+    ]
+}

@@ -20,7 +20,14 @@ pub const PULSE_PERIOD_S: f64 = 1e-5;
 pub const QUICKLOOKS: usize = 8;
 
 /// Writes every instrument's products.
-pub fn write_lidar(dir: &Path, runs: &[LidarRun], band_names: &[String]) -> Result<(), String> {
+/// `memory`: the run's memory estimate, recorded in each `lidar.json` with the peak resident
+/// set measured when that file is written.
+pub fn write_lidar(
+    dir: &Path,
+    runs: &[LidarRun],
+    band_names: &[String],
+    memory: Option<&crate::memory::MemoryPlan>,
+) -> Result<(), String> {
     for run in runs {
         let d = dir.join("lidar").join(&run.desc.name);
         std::fs::create_dir_all(d.join("raw"))
@@ -152,7 +159,7 @@ pub fn write_lidar(dir: &Path, runs: &[LidarRun], band_names: &[String]) -> Resu
                 &[],
             )?;
         }
-        write_summary(&d.join("lidar.json"), run)?;
+        write_summary(&d.join("lidar.json"), run, memory)?;
     }
     Ok(())
 }
@@ -160,7 +167,11 @@ pub fn write_lidar(dir: &Path, runs: &[LidarRun], band_names: &[String]) -> Resu
 /// `lidar.json`, serialised straight into the file (no JSON tree of the whole scan in memory:
 /// a 250 000-pulse scan's tree took ~300 MiB). Keys in byte order within every object, as
 /// `serde_json::Value` (a `BTreeMap`) prints them.
-fn write_summary(path: &Path, run: &LidarRun) -> Result<(), String> {
+fn write_summary(
+    path: &Path,
+    run: &LidarRun,
+    memory: Option<&crate::memory::MemoryPlan>,
+) -> Result<(), String> {
     use serde::Serialize;
     /// One pulse (fields in key order).
     #[derive(Serialize)]
@@ -216,6 +227,8 @@ fn write_summary(path: &Path, run: &LidarRun) -> Result<(), String> {
         background_rate_hz: Rates<'a>,
         docs: serde_json::Value,
         instrument: serde_json::Value,
+        #[serde(skip_serializing_if = "Option::is_none")]
+        memory: Option<serde_json::Value>,
         notes: &'a [String],
         per_pulse: PerPulse<'a>,
         photon_counting_detections: usize,
@@ -236,6 +249,7 @@ fn write_summary(path: &Path, run: &LidarRun) -> Result<(), String> {
         // Through a `Value`, so that its keys are sorted as everywhere else in the file.
         instrument: serde_json::to_value(&run.desc)
             .map_err(|e| format!("{}: {e}", path.display()))?,
+        memory: memory.map(crate::output::radiative::memory_record),
         notes: &run.notes,
         per_pulse: PerPulse(run),
         photon_counting_detections: run.counted_totals().0,

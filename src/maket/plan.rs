@@ -196,8 +196,11 @@ fn cell_counts(info: &SceneInfo, z0: f64, top: f64) -> Result<[f64; 3], String> 
     Ok(nf)
 }
 
-/// Step of [`plan_grid`]: the memory estimate (upper bounds from the objects' and facets'
-/// bounding boxes) of the grid `spec` whose objects reach up to `top`.
+/// Step of [`plan_grid`]: the memory estimate of the grid `spec` whose objects reach up to
+/// `top`: turbid entries counted as the cells each crown's volume meets ([`crown_cells`]) and
+/// the bounding-box cells of plots and turbid mesh triangles (upper bounds: entries of one
+/// material in one cell merge); facet–cell references counted with the assignment's own
+/// triangle–box test ([`facet_cells`]).
 fn memory_estimate(
     info: &SceneInfo,
     spec: &GridSpec,
@@ -225,13 +228,29 @@ fn memory_estimate(
             .saturating_mul(span(c, d))
             .saturating_mul(span(e, f))
     };
+    // Crowns of one material that share a cell make one entry: cells marked per material in
+    // a bit set (1 bit per cell and material) when that stays small, else counted per crown.
     let mut turbid_max = 0u64;
-    for c in crowns.iter() {
-        let b = c.geom.bounds();
-        turbid_max = turbid_max.saturating_add(bbox_cells(
-            DVec3::new(b[0], b[1], b[2]),
-            DVec3::new(b[3], b[4], b[5]),
-        ));
+    let mut materials: Vec<u32> = crowns.iter().map(|c| c.material).collect();
+    materials.sort_unstable();
+    materials.dedup();
+    let words = spec.n_cells().div_ceil(64);
+    if words.saturating_mul(materials.len()) <= 1 << 23 {
+        for m in &materials {
+            let mut bits = vec![0u64; words];
+            for c in crowns.iter().filter(|c| c.material == *m) {
+                let n = crown_cells(&c.geom, spec, |i| bits[i / 64] |= 1 << (i % 64));
+                if n == u64::MAX {
+                    turbid_max = u64::MAX;
+                }
+            }
+            let set: u64 = bits.iter().map(|w| w.count_ones() as u64).sum();
+            turbid_max = turbid_max.saturating_add(set);
+        }
+    } else {
+        for c in crowns.iter() {
+            turbid_max = turbid_max.saturating_add(crown_cells(&c.geom, spec, |_| {}));
+        }
     }
     for p in plots.iter() {
         let (lo, hi) = p.footprint_bounds();
@@ -253,12 +272,7 @@ fn memory_estimate(
     let refs_max: u64 = facets
         .facets
         .iter()
-        .map(|f| {
-            bbox_cells(
-                f.v[0].min(f.v[1]).min(f.v[2]),
-                f.v[0].max(f.v[1]).max(f.v[2]),
-            )
-        })
+        .map(|f| facet_cells(&f.v, spec))
         .fold(0u64, u64::saturating_add);
     let n_facets = facets.facets.len() as u64;
     let cell_index_bytes = 8 * (n_cells + 1);
@@ -276,4 +290,108 @@ fn memory_estimate(
         peak_bytes: peak,
         limit_bytes: max_memory_bytes,
     }
+}
+
+/// Cells of `g` whose box meets the crown's volume (the cells its rasterisation can give leaf
+/// area; wrapped in repetitive scenes, cut at the sides of isolated ones), counted without
+/// allocating; `visit` gets each one's cell index. A crown over more than 2²⁷ bounding-box
+/// cells is not visited cell by cell: `u64::MAX` (such a grid is over any memory limit). A cell box meets the crown when the box's horizontal rectangle meets the
+/// crown's widest cross-section within the box's height range: the cross-sections are nested
+/// ellipses about one axis, so that test is exact. 0 for a crown without leaves.
+pub fn crown_cells(
+    c: &crate::geometry::crown::CrownGeom,
+    g: &GridSpec,
+    mut visit: impl FnMut(usize),
+) -> u64 {
+    if !(c.u0 > 0.0) {
+        return 0;
+    }
+    let b = c.bounds();
+    let (i0, i1) = cell_range(b[0], b[3], g.origin.x, g.cell.x);
+    let (j0, j1) = cell_range(b[1], b[4], g.origin.y, g.cell.y);
+    let (k0, k1) = cell_range(b[2], b[5], g.origin.z, g.cell.z);
+    if box_cells((i0, i1), (j0, j1), (k0, k1)) > COUNT_LIMIT {
+        return u64::MAX;
+    }
+    let (zb, zt) = (c.z_base, c.z_base + c.height);
+    let (rx, ry) = c.radius;
+    if !(rx > 0.0 && ry > 0.0) {
+        return 0;
+    }
+    let mut n = 0u64;
+    for k in k0.max(0)..k1.min(g.n[2] as i64) {
+        let (lo, hi) = g.cell_box(0, 0, k);
+        let (za, zc) = (lo.z.max(zb), hi.z.min(zt));
+        if zc <= za {
+            continue;
+        }
+        // Largest relative radius over [za, zc]: s is unimodal (ellipsoid: widest at mid-height;
+        // cone, trapezoid: at the base; cylinder: constant).
+        let mid = zb + 0.5 * c.height;
+        let mut s = c.s(za).max(c.s(zc));
+        if (za..=zc).contains(&mid) {
+            s = s.max(c.s(mid));
+        }
+        if c.shape == crate::geometry::crown::CrownShape::Cylinder {
+            s = 1.0;
+        }
+        if !(s > 0.0) {
+            continue;
+        }
+        for j in j0..j1 {
+            let Some(jw) = g.wrap(j, 1) else {
+                continue;
+            };
+            let y0 = g.origin.y + j as f64 * g.cell.y;
+            let dy = (y0 - c.center.1).max(c.center.1 - (y0 + g.cell.y)).max(0.0) / ry;
+            for i in i0..i1 {
+                let Some(iw) = g.wrap(i, 0) else {
+                    continue;
+                };
+                let x0 = g.origin.x + i as f64 * g.cell.x;
+                let dx = (x0 - c.center.0).max(c.center.0 - (x0 + g.cell.x)).max(0.0) / rx;
+                if dx * dx + dy * dy < s * s {
+                    n += 1;
+                    visit(g.index(iw, jw, k as usize));
+                }
+            }
+        }
+    }
+    n
+}
+
+/// Cells of `g` a facet triangle `v` is listed in by the facet assignment (the same cells and
+/// the same triangle–box test as [`super::rasterise::assign_facets_to_cells`]), counted
+/// without allocating.
+pub fn facet_cells(v: &[DVec3; 3], g: &GridSpec) -> u64 {
+    let lo = v[0].min(v[1]).min(v[2]);
+    let hi = v[0].max(v[1]).max(v[2]);
+    let (i0, i1) = cell_range(lo.x, hi.x, g.origin.x, g.cell.x);
+    let (j0, j1) = cell_range(lo.y, hi.y, g.origin.y, g.cell.y);
+    let (k0, k1) = cell_range(lo.z, hi.z, g.origin.z, g.cell.z);
+    if box_cells((i0, i1), (j0, j1), (k0, k1)) > COUNT_LIMIT {
+        return box_cells((i0, i1), (j0, j1), (k0, k1));
+    }
+    let mut n = 0u64;
+    for k in (k0.saturating_sub(1)).max(0)..(k1.saturating_add(1)).min(g.n[2] as i64) {
+        for j in (j0.saturating_sub(1)).max(0)..(j1.saturating_add(1)).min(g.n[1] as i64) {
+            for i in (i0.saturating_sub(1)).max(0)..(i1.saturating_add(1)).min(g.n[0] as i64) {
+                let (blo, bhi) = g.cell_box(i, j, k);
+                if crate::geometry::triangle::overlaps_box(v, blo, bhi) {
+                    n += 1;
+                }
+            }
+        }
+    }
+    n
+}
+
+/// Above this many bounding-box cells an object's cells are not counted one by one (the
+/// bounding-box count is taken: such a grid is far above any memory limit anyway).
+const COUNT_LIMIT: u64 = 1 << 27;
+
+/// Cells of the index box `[i0, i1) × [j0, j1) × [k0, k1)` (saturating).
+fn box_cells(i: (i64, i64), j: (i64, i64), k: (i64, i64)) -> u64 {
+    let span = |(a, b): (i64, i64)| b.saturating_sub(a).max(0) as u64;
+    span(i).saturating_mul(span(j)).saturating_mul(span(k))
 }

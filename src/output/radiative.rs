@@ -24,28 +24,31 @@ pub fn write_radiative(
     grid: &CellGrid,
     facets: &FacetStore,
     mats: &Materials,
+    memory: Option<&crate::memory::MemoryPlan>,
 ) -> Result<(), String> {
     std::fs::create_dir_all(dir.join("budget"))
         .map_err(|e| format!("{}: cannot create output folder: {e}", dir.display()))?;
-    write_summary(dir, p, info, settings, dirs)?;
     write_brf_csv(dir, p)?;
     write_budget(dir, p, info, spec, grid, facets, mats)?;
     write_images(dir, p, info, dirs, spec)?;
+    // Last, so that the measured peak it records covers the other products' writing.
+    write_summary(dir, p, info, settings, dirs, memory)?;
     Ok(())
 }
 
 /// `summary.json`: scene, settings (preset, tracking knobs, the instruction set), solver, the
 /// walk that ran (kernel, precision, lanes), launch
 /// grid, images, iterations and convergence, and per band albedo, fabs, ftran, energy closure
-/// and the BRF/HDRF list (docs/guide/products.md).
+/// and the BRF/HDRF list, and the memory estimate with the measured peak (docs/guide/products.md).
 fn write_summary(
     dir: &std::path::Path,
     p: &crate::radiative::products::RadiativeProducts,
     info: &crate::resources::scene::SceneInfo,
     settings: &crate::resources::tracking::RadiativeSettings,
     dirs: &crate::resources::tracking::Directions,
+    memory: Option<&crate::memory::MemoryPlan>,
 ) -> Result<(), String> {
-    let summary = serde_json::json!({
+    let mut summary = serde_json::json!({
         "schema_version": 1,
         "lumenscape_version": env!("CARGO_PKG_VERSION"),
         "scene": info.name,
@@ -87,6 +90,9 @@ fn write_summary(
         "tracking_seconds": p.tracking_seconds,
         "bands": p.bands,
     });
+    if let Some(m) = memory {
+        summary["memory"] = memory_record(m);
+    }
     write_atomic(
         &dir.join("summary.json"),
         serde_json::to_string_pretty(&summary)
@@ -498,4 +504,22 @@ fn write_png(path: &std::path::Path, nx: usize, ny: usize, v: &[f64]) -> Result<
             .map_err(|e| format!("{}: {e}", path.display()))?;
     }
     write_atomic(path, &buf)
+}
+
+/// The `memory` record of `summary.json` (and of a LiDAR-only run's `lidar.json`): the
+/// estimate per stage and its peak, and the peak resident set measured so far (`VmHWM`;
+/// `null` where the system does not report it).
+pub fn memory_record(m: &crate::memory::MemoryPlan) -> serde_json::Value {
+    serde_json::json!({
+        "estimate_peak_bytes": m.peak_bytes,
+        "estimate_peak_stage": m.peak_stage,
+        "measured_peak_rss_bytes": crate::memory::peak_rss_bytes(),
+        "threads": m.threads,
+        "baseline_bytes": m.baseline_bytes,
+        "stages": m.stages.iter().map(|s| serde_json::json!({
+            "stage": s.stage,
+            "bytes": s.bytes,
+            "terms": s.terms.iter().map(|t| serde_json::json!({"name": t.name, "bytes": t.bytes})).collect::<Vec<_>>(),
+        })).collect::<Vec<_>>(),
+    })
 }

@@ -14,3 +14,57 @@ pub mod material_optics;
 pub mod products;
 pub mod sampling;
 pub mod small;
+
+/// What the Photon stage's memory depends on, counted before anything is allocated.
+#[derive(Debug, Clone, Default)]
+pub struct PhotonCounts {
+    /// Grid cells.
+    pub n_cells: usize,
+    /// Turbid materials of the scene.
+    pub turbid_materials: usize,
+    /// Turbid entries (the Maket plan's count).
+    pub turbid_entries: usize,
+    /// Facets.
+    pub n_facets: usize,
+    /// Grid columns.
+    pub n_columns: usize,
+    /// Tiling directions.
+    pub n_dirs: usize,
+    /// Channels (bands × (1 + sky)).
+    pub channels: usize,
+    /// Photon batches (the run's `PhotonParams::batches`).
+    pub batches: usize,
+}
+
+/// Memory the Photon stage (passive Monte Carlo) holds at its peak, bytes, as named terms:
+///
+/// * `photon context`: per cell the facet bounding box (6 f64) and, when cells × turbid
+///   materials ≤ 2²³, the column tables of the first-flight sampler (two f64 per cell and
+///   material, one flag per cell).
+/// * `batch tallies`: a wave of up to 16 batches is held until merged; each keeps absorbed and
+///   intercepted power per turbid entry, facet and column (dense f64 arrays of ≤ 2¹⁸ values,
+///   hashed records above) and its escape summary.
+/// * `products`: the merged absorbed and intercepted power per element and the per-batch
+///   escape sums for the standard errors.
+pub fn memory_terms(c: &PhotonCounts) -> Vec<(&'static str, f64)> {
+    let f = |x: usize| x as f64;
+    let w = f(c.channels.max(1));
+    let n_cells = f(c.n_cells);
+    let columns = if c.n_cells.saturating_mul(c.turbid_materials) <= 1 << 23 {
+        n_cells * (16.0 * f(c.turbid_materials) + 1.0)
+    } else {
+        0.0
+    };
+    let context = n_cells * 48.0 + columns;
+    let tally = |n: usize| (f(n) * w).min(f(1 << 18)) * 8.0;
+    let wave = f(c.batches.clamp(1, 16));
+    let summary = 8.0 * w * (f(c.n_dirs) * 4.0 + 16.0);
+    let batch = 2.0 * (tally(c.turbid_entries) + tally(c.n_facets) + tally(c.n_columns)) + summary;
+    let elements = f(c.turbid_entries) + f(c.n_facets) + f(c.n_columns);
+    let products = 2.0 * 8.0 * w * elements + f(c.batches) * summary;
+    vec![
+        ("photon context", context),
+        ("batch tallies", wave * batch),
+        ("products", products),
+    ]
+}

@@ -15,51 +15,145 @@ mod walk;
 /// instead of exact projected solid angles (memory and set-up time).
 pub const EXACT_FRACTIONS_LIMIT: usize = 20_000_000;
 
-/// Memory the Direction/Phase/Radiative stages need, bytes: phase tables (f32, N+1 rows × N
-/// columns per used turbid material and band), exact facet fractions (2N f32 per facet), and
-/// the interception stores (two generations of `entries × slots × channels` f64, plus facet and
-/// ground stores and up to 16 dense chunk accumulators of at most 8 MiB), and the orthographic
-/// images (`image_pixels` = pixels of all images together; three copies: the result and the two
-/// snapshots of the extrapolation). `turbid_stores` = (power stores, point pairs) per turbid
-/// entry: (1, 1) with `turbid_subfaces: Off`, (S, S) with `Faces` / `Subfaces` (S = 7 or
-/// 6 D² + 1; the worst case of every store touched), (1, slots) with `Blend`.
-#[allow(clippy::too_many_arguments)]
-pub fn memory_estimate(
-    n_dirs: usize,
-    slots: usize,
-    turbid_stores: (usize, usize),
-    n_bands: usize,
-    sky: bool,
-    turbid_materials: usize,
-    turbid_entries: usize,
-    facet_refs: usize,
-    n_facets: usize,
-    n_columns: usize,
-    image_pixels: usize,
-) -> u64 {
-    let w = n_bands * if sky { 2 } else { 1 };
-    let tables = turbid_materials * n_bands * crate::phase::bytes(n_dirs + 1, n_dirs, 1);
-    let fractions = if n_facets * n_dirs <= EXACT_FRACTIONS_LIMIT {
-        n_facets * 2 * n_dirs * 4
+/// What the Radiative stage's memory depends on, counted before anything is allocated (from
+/// the Maket plan, the direction set and the launch plan).
+#[derive(Debug, Clone, Default)]
+pub struct RadiativeCounts {
+    /// Tiling directions N (regular + exact + oversampled).
+    pub n_dirs: usize,
+    /// Downward tiling directions (sky launch directions).
+    pub n_down: usize,
+    /// Interception slots per store (sectors or directions, + the sun's).
+    pub slots: usize,
+    /// (power stores, point pairs) per turbid entry: (1, 1) with `turbid_subfaces: Off`, (S, S)
+    /// with `Faces` / `Subfaces` (S = 7 or 6 D² + 1; the worst case of every store touched),
+    /// (1, slots) with `Blend`.
+    pub turbid_stores: (usize, usize),
+    /// Bands.
+    pub n_bands: usize,
+    /// Whether the scene has sky light (a second channel set per band).
+    pub sky: bool,
+    /// Turbid materials with phase tables.
+    pub turbid_materials: usize,
+    /// Turbid entries (cell, material) (the Maket plan's count).
+    pub turbid_entries: usize,
+    /// Facet–cell references (the Maket plan's count).
+    pub facet_refs: usize,
+    /// Facets.
+    pub n_facets: usize,
+    /// Scattering points of the two-sided facets (leaves: they scatter into every direction):
+    /// (facet, cell, sub-cell) pieces, sub-cells of the launch plan's factor D.
+    pub facet_points: usize,
+    /// Rays the one-sided facets' scattering points send per scattering iteration: (downward,
+    /// upward) (each point sends one ray per direction of its normal's hemisphere, of which a
+    /// share θ/π points down for a normal at zenith angle θ).
+    pub one_sided_rays: (f64, f64),
+    /// Grid columns.
+    pub n_columns: usize,
+    /// Whether the ground is the flat plane z0 (ground stores per column).
+    pub flat_ground: bool,
+    /// Sub-cell factor D of the facet and ground scattering points (launch plan).
+    pub subcells: usize,
+    /// Sun launch points (launch plan).
+    pub sun_points: usize,
+    /// Sky launch points per downward direction (launch plan; 0 without sky light).
+    pub sky_points: usize,
+    /// Orthographic images (exact upward directions).
+    pub n_images: usize,
+    /// Pixels of all images together.
+    pub image_pixels: usize,
+    /// Worker threads.
+    pub threads: usize,
+}
+
+/// Memory the Direction/Phase/Radiative stages hold at their peak, bytes, as named terms
+/// (`f64` so that absurd counts saturate instead of overflowing):
+///
+/// * `phase tables`: f32, N+1 rows × N columns per turbid material and band.
+/// * `facet fractions`: exact Lambertian fractions, 2 N f32 per facet (and its two vectors'
+///   headers), when facets × N ≤ [`EXACT_FRACTIONS_LIMIT`].
+/// * `interception stores`: two generations (the one being scattered, the one being filled)
+///   of `entries × stores × slots × channels` f64 and the point records, facet front/back
+///   stores per reference, ground stores per column.
+/// * `chunk accumulators`: the [`N_CHUNKS`](engine) dense per-chunk turbid accumulators of at
+///   most 8 MiB each, and the per-thread exit groups of the face stores.
+/// * `chunk events`: [`chunk_event_bytes`].
+/// * `products`: absorbed and intercepted power per turbid entry, facet and column, the
+///   increments of the extrapolation (three copies) and the images (result and two snapshots).
+pub fn memory_terms(c: &RadiativeCounts) -> Vec<(&'static str, f64)> {
+    let f = |x: usize| x as f64;
+    let nd = f(c.n_dirs);
+    let nb = f(c.n_bands);
+    let w = nb * if c.sky { 2.0 } else { 1.0 };
+    let tables = f(c.turbid_materials) * nb * ((nd + 1.0) * nd * 4.0 + 3.0 * (nd + 1.0) * 8.0);
+    let fractions = if c.n_facets.saturating_mul(c.n_dirs) <= EXACT_FRACTIONS_LIMIT {
+        f(c.n_facets) * (2.0 * nd * 4.0 + 48.0)
     } else {
-        0
+        0.0
     };
-    let (ts, tp) = (turbid_stores.0.max(1), turbid_stores.1.max(1));
-    let stores = 2
-        * 8
-        * (turbid_entries * (ts * slots * w + tp * 8)
-            + facet_refs * (2 * w + 4)
-            + n_columns * (w + 4));
-    let products = 8 * w * (3 * turbid_entries + 3 * n_facets + 3 * n_columns + n_dirs);
-    let chunks = 16
-        * 8
-        * ((turbid_entries * ts * slots * w).min(1 << 20) + (turbid_entries * tp * 7).min(1 << 20));
-    // Exit groups of the face stores (per worker thread: n_dirs × stores × (w + 4) values).
-    let exit_groups = if ts > 1 {
-        rayon::current_num_threads() * 8 * n_dirs * ts * (w + 4)
+    let (ts, tp) = (f(c.turbid_stores.0.max(1)), f(c.turbid_stores.1.max(1)));
+    let entries = f(c.turbid_entries);
+    let slots = f(c.slots);
+    let cols = f(c.n_columns);
+    let stores = 2.0
+        * 8.0
+        * (entries * (ts * slots * w + tp * 8.0)
+            + f(c.facet_refs) * (2.0 * w + 4.0)
+            + cols * (w + 4.0));
+    let chunks = 16.0
+        * 8.0
+        * ((entries * ts * slots * w).min(f(1 << 20)) + (entries * tp * 8.0).min(f(1 << 20)));
+    let exit_groups = if ts > 1.0 {
+        f(c.threads) * 8.0 * nd * ts * (w + 4.0)
     } else {
-        0
+        0.0
     };
-    let images = 3 * 8 * w * image_pixels;
-    (tables + fractions + stores + products + chunks + images + exit_groups) as u64
+    let products = 8.0 * w * (3.0 * 2.0 * (entries + f(c.n_facets) + cols) + 2.0 * nd)
+        + 3.0 * 8.0 * w * f(c.image_pixels);
+    vec![
+        ("phase tables", tables),
+        ("facet fractions", fractions),
+        ("interception stores", stores),
+        ("chunk accumulators", chunks + exit_groups),
+        ("chunk events", chunk_event_bytes(c)),
+        ("products", products),
+    ]
+}
+
+/// Share of the upward rays of a scattering iteration that meet a facet (an event) before
+/// they escape; every downward ray ends in an event (on the ground or a facet). Calibrated on
+/// the example scenes (docs/performance.md, "Memory").
+pub const UPWARD_HIT_SHARE: f64 = 0.25;
+
+/// Event lists of the flux tracking's chunks, bytes: every chunk of an iteration keeps the
+/// facet, ground and image hits of its rays (per hit a key of 12–20 bytes and the channel
+/// powers, hit point and weight: 8 (W + 4) bytes) until the iteration's chunks are merged, so
+/// the lists of a whole iteration are resident at once (their allocations are reused by the
+/// next iteration). The largest iteration is the launch (each sun ray and each sky ray per
+/// downward direction ends in one hit) or the first scattering iteration: every turbid entry
+/// sends a ray pair along every direction, every two-sided facet scattering point a ray along
+/// every direction, one-sided ones along the directions of their normal's hemisphere, ground
+/// sub-columns along every upward direction; every downward ray and a share
+/// [`UPWARD_HIT_SHARE`] of the upward ones end in a hit, and each emitter adds one image event
+/// per image direction.
+pub fn chunk_event_bytes(c: &RadiativeCounts) -> f64 {
+    let f = |x: usize| x as f64;
+    let w = f(c.n_bands) * if c.sky { 2.0 } else { 1.0 };
+    let nd = f(c.n_dirs);
+    let n_down = f(c.n_down);
+    let n_up = nd - n_down;
+    let ground_points = if c.flat_ground {
+        f(c.n_columns) * f(c.subcells.max(1)).powi(2)
+    } else {
+        0.0
+    };
+    let launch = f(c.sun_points) + f(c.sky_points) * n_down;
+    let two_sided = 2.0 * f(c.turbid_entries) + f(c.facet_points);
+    let emitters = two_sided + ground_points;
+    let down = n_down * two_sided + c.one_sided_rays.0;
+    let up = n_up * (two_sided + ground_points) + c.one_sided_rays.1;
+    let hit = 16.0 + 8.0 * (w + 4.0);
+    let image = 36.0 + 8.0 * w;
+    let scatter = (down + UPWARD_HIT_SHARE * up) * hit + emitters * f(c.n_images) * image;
+    (launch * hit).max(scatter)
 }

@@ -10,7 +10,7 @@ use super::special::normal_interval;
 use super::{LidarError, check_non_negative, check_positive};
 use std::f64::consts::PI;
 
-mod moments;
+pub(crate) mod moments;
 mod sampler;
 #[cfg(test)]
 mod tests;
