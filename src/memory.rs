@@ -29,10 +29,11 @@ pub const BASELINE_BYTES: u64 = 23 << 19;
 /// (measured on the smallest example scenes; docs/performance.md "Memory").
 pub const BASELINE_GROWTH_BYTES: u64 = 3 << 20;
 
-/// The process baseline: the current resident set plus [`BASELINE_GROWTH_BYTES`], or
-/// [`BASELINE_BYTES`] where the system does not report it.
-pub fn baseline_bytes() -> u64 {
-    current_rss_bytes().map_or(BASELINE_BYTES, |b| b + BASELINE_GROWTH_BYTES)
+/// The process baseline from `rss` (the resident set before planning, [`current_rss_bytes`]):
+/// `rss` plus [`BASELINE_GROWTH_BYTES`], or [`BASELINE_BYTES`] where the system does not
+/// report it.
+pub fn baseline_bytes(rss: Option<u64>) -> u64 {
+    rss.map_or(BASELINE_BYTES, |b| b + BASELINE_GROWTH_BYTES)
 }
 
 /// One named term of a stage's estimate.
@@ -155,8 +156,9 @@ pub fn output_terms(
 }
 
 /// The memory estimate of running `sim` (after [`Simulation::plan`]; `report` its plan
-/// report): one [`StageMemory`] per stage that will run, and the peak.
-pub fn estimate(sim: &mut Simulation, report: &MaketReport) -> MemoryPlan {
+/// report; `rss` the process's resident set before planning, [`current_rss_bytes`]): one
+/// [`StageMemory`] per stage that will run, and the peak.
+pub fn estimate(sim: &mut Simulation, report: &MaketReport, rss: Option<u64>) -> MemoryPlan {
     use crate::resources::scene::{RunSettings, SceneInfo, SkipPassive, Solver};
     use crate::resources::tracking::{
         DirectionRequest, REFERENCE_MIN_DIRECTIONS, RadiativeSettings,
@@ -177,7 +179,7 @@ pub fn estimate(sim: &mut Simulation, report: &MaketReport) -> MemoryPlan {
     let entries = est.turbid_entries_max as usize;
     let refs = est.facet_refs_max as usize;
     let turbid_materials = report.leaf_area.len();
-    let baseline = baseline_bytes();
+    let baseline = baseline_bytes(rss);
     let base = ("baseline".to_string(), f(baseline));
     // What Maket leaves for the later stages: the cell index, the entries (8 bytes), the facet
     // references (4 bytes), the facets and their BVH.

@@ -173,9 +173,10 @@ impl Simulation {
             .world
             .get_resource::<crate::resources::scene::Warnings>()
             .cloned();
+        let rss = crate::memory::current_rss_bytes();
         let planned = self.plan();
         let report = self.plan_report();
-        let plan = report.map(|r| crate::memory::estimate(self, &r));
+        let plan = report.map(|r| crate::memory::estimate(self, &r, rss));
         self.world
             .remove_resource::<crate::resources::facets::FacetStore>();
         if let Some(w) = warnings {

@@ -379,6 +379,7 @@ fn over_limit_error(scene: &Path, s: &crate::memory::StageMemory, limit: u64) ->
 /// invalid or a stage's estimate is above `--max-memory`.
 pub fn check(args: &CheckArgs, out: &mut dyn Write) -> Result<(), CliError> {
     let mut sim = args.opts.load()?;
+    let rss = crate::memory::current_rss_bytes();
     let planned = sim.plan();
     if !sim
         .world
@@ -391,7 +392,7 @@ pub fn check(args: &CheckArgs, out: &mut dyn Write) -> Result<(), CliError> {
         });
     }
     let report = sim.plan_report().expect("planning inserted its resources");
-    let mem = crate::memory::estimate(&mut sim, &report);
+    let mem = crate::memory::estimate(&mut sim, &report, rss);
     let limit = report.memory.limit_bytes;
     if args.json {
         let mut v = serde_json::to_value(&report)?;
