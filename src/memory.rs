@@ -23,17 +23,28 @@ use serde::Serialize;
 /// peaks, less their modelled terms; docs/performance.md "Memory").
 pub const BASELINE_BYTES: u64 = 23 << 19;
 
-/// What the process adds to its resident set at the estimate (`VmRSS` after loading the scene
-/// and planning the grid) before the stages' own data, bytes: the code of the stages still to
-/// run, the worker threads' stacks and allocator arenas, the libraries' lazy tables
+/// What the process adds to its resident set after the estimate (`VmRSS` after loading the
+/// scene, before planning the grid) besides the stages' own data, bytes, with the flux-tracking
+/// solver: the code of the stages still to run (the walks' instruction-set variants are the
+/// largest part), the worker threads' stacks and allocator arenas, the libraries' lazy tables
 /// (measured on the smallest example scenes; docs/performance.md "Memory").
 pub const BASELINE_GROWTH_BYTES: u64 = 3 << 20;
 
+/// [`BASELINE_GROWTH_BYTES`] of runs without the flux tracking (Monte Carlo solver, LiDAR-only
+/// scenes): less code is touched (measured on the smallest example scenes).
+pub const BASELINE_GROWTH_NO_FLUX_BYTES: u64 = 3 << 19;
+
 /// The process baseline from `rss` (the resident set before planning, [`current_rss_bytes`]):
-/// `rss` plus [`BASELINE_GROWTH_BYTES`], or [`BASELINE_BYTES`] where the system does not
-/// report it.
-pub fn baseline_bytes(rss: Option<u64>) -> u64 {
-    rss.map_or(BASELINE_BYTES, |b| b + BASELINE_GROWTH_BYTES)
+/// `rss` plus the growth still to come ([`BASELINE_GROWTH_BYTES`], or
+/// [`BASELINE_GROWTH_NO_FLUX_BYTES`] when no flux tracking runs), or [`BASELINE_BYTES`] where
+/// the system does not report it.
+pub fn baseline_bytes(rss: Option<u64>, flux_tracking: bool) -> u64 {
+    let growth = if flux_tracking {
+        BASELINE_GROWTH_BYTES
+    } else {
+        BASELINE_GROWTH_NO_FLUX_BYTES
+    };
+    rss.map_or(BASELINE_BYTES, |b| b + growth)
 }
 
 /// One named term of a stage's estimate.
@@ -179,7 +190,8 @@ pub fn estimate(sim: &mut Simulation, report: &MaketReport, rss: Option<u64>) ->
     let entries = est.turbid_entries_max as usize;
     let refs = est.facet_refs_max as usize;
     let turbid_materials = report.leaf_area.len();
-    let baseline = baseline_bytes(rss);
+    let mc = matches!(run.solver, Solver::MonteCarlo { .. });
+    let baseline = baseline_bytes(rss, passive && !mc);
     let base = ("baseline".to_string(), f(baseline));
     // What Maket leaves for the later stages: the cell index, the entries (8 bytes), the facet
     // references (4 bytes), the facets and their BVH.
@@ -228,7 +240,6 @@ pub fn estimate(sim: &mut Simulation, report: &MaketReport, rss: Option<u64>) ->
     let eta = settings.image_oversampling.max(1) as usize;
     let image_pixels = n_images.saturating_mul(n_columns).saturating_mul(eta * eta);
     let mut products_held = 0.0;
-    let mc = matches!(run.solver, Solver::MonteCarlo { .. });
     if passive && !mc {
         let counts = radiative_counts(
             sim,
