@@ -328,6 +328,7 @@ pub fn spawn_scene(
         radiative.tracking.skip_empty = s.skip_empty;
         radiative.tracking.batch_walk = s.batch_walk;
         radiative.tracking.batch_f32 = s.batch_f32;
+        radiative.tracking.chunk_rays = s.chunk_rays;
         radiative.tracking.kernel_isa = s.kernel_isa;
         radiative.tracking.progress = s.progress;
     }

@@ -168,6 +168,7 @@ impl SceneOpts {
                 IsaArg::Baseline => crate::radiative::engine::KernelIsa::Baseline,
             },
             batch_f32: !self.batch_f64,
+            chunk_rays: crate::radiative::engine::CHUNK_RAYS,
             lidar_chunk_pulses: crate::lidar::simulate::DEFAULT_CHUNK_PULSES,
             lidar_first_order_columns: true,
             lidar_far_roulette: Default::default(),

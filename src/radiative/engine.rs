@@ -58,9 +58,11 @@
 //!   continuous-topography scenes) or isolated (lost); escapes through the top are the scene
 //!   exitance per direction; everything else is booked as lost (thresholds, crossings limit,
 //!   isolated sides, bottom leaks) so the budget closes.
-//! * **Determinism**: emitters are processed in fixed chunks (independent of the thread count)
-//!   and chunk results are merged in chunk order, so products are bit-identical on any number
-//!   of threads.
+//! * **Determinism and memory**: emitters are processed in fixed chunks (16 per pass, more
+//!   on large scenes so that no chunk holds more than `chunk_rays` rays; independent of the
+//!   thread count) and chunk results are merged in chunk order as they finish (`stream.rs`),
+//!   so products are bit-identical on any number of threads and only the chunks in flight
+//!   are held.
 
 mod accumulators;
 mod ctx;
@@ -70,6 +72,7 @@ mod hotspot;
 mod iterate;
 mod launch;
 mod merge;
+mod stream;
 #[cfg(test)]
 mod tests;
 
@@ -78,6 +81,7 @@ pub use crate::radiative::walk::batch::{batch_lanes, instruction_set, kernel_isa
 /// ([`crate::resources::tracking`]).
 pub use crate::resources::tracking::{KernelIsa, TrackOptics, TrackingParams};
 pub(in crate::radiative) use accumulators::*;
+pub use accumulators::{CHUNK_RAYS, DENSE_BYTES, dense_bytes};
 pub(in crate::radiative) use ctx::*;
 pub(in crate::radiative) use emit::*;
 pub(in crate::radiative) use geometry::*;
@@ -90,6 +94,8 @@ pub use iterate::run;
 pub(in crate::radiative) use iterate::*;
 pub use launch::{LaunchPlan, facet_outline_m, launch_plan, remap_wrong_side};
 pub(in crate::radiative) use merge::*;
+pub(in crate::radiative) use stream::*;
+pub use stream::{ahead, chunks_in_flight};
 
 use super::dda::{floor_i64, skip_field};
 use super::fastmath::{HalfBarycentres, attenuation};

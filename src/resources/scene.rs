@@ -83,6 +83,11 @@ pub struct RunSettings {
     /// see [`crate::radiative::engine::TrackingParams::batch_f32`]). Off: the double-precision
     /// batched walk on 8 lanes, whose products agree with the one-ray walk's to rounding.
     pub batch_f32: bool,
+    /// Largest number of nominal rays in one chunk of the flux tracking (default
+    /// [`crate::radiative::engine::CHUNK_RAYS`]; see
+    /// [`crate::radiative::engine::TrackingParams::chunk_rays`]): for tests of the chunk
+    /// scheduler on small scenes.
+    pub chunk_rays: usize,
     /// LiDAR pulses tracked per chunk; with an output folder, a scan of more pulses than one
     /// chunk streams its waveforms to disk chunk by chunk (memory bounded by a chunk, same
     /// products; [`crate::lidar::simulate::LidarChunks`]).
@@ -187,6 +192,7 @@ impl Default for RunSettings {
             batch_walk: true,
             kernel_isa: Default::default(),
             batch_f32: true,
+            chunk_rays: crate::radiative::engine::CHUNK_RAYS,
             lidar_chunk_pulses: DEFAULT_CHUNK_PULSES,
             lidar_far_roulette: Default::default(),
             lidar_first_order_columns: true,

@@ -207,6 +207,13 @@ pub struct TrackingParams {
     /// products).
     #[serde(skip)]
     pub progress: bool,
+    /// Largest number of nominal rays in one chunk of emitters (default
+    /// [`crate::radiative::engine::CHUNK_RAYS`]): bounds the memory of the chunks in flight on
+    /// large scenes. Scenes of up to 16 such chunks per pass are cut into 16 chunks whatever
+    /// this is; on larger ones it sets the chunking, hence the summation order (products
+    /// within ~1e-15 relative).
+    #[serde(skip)]
+    pub chunk_rays: usize,
 }
 
 /// Instruction set cap of the flux-tracking walks ([`TrackingParams::kernel_isa`]).
@@ -244,6 +251,7 @@ impl TrackingParams {
             kernel_isa: KernelIsa::Best,
             batch_f32: true,
             progress: false,
+            chunk_rays: crate::radiative::engine::CHUNK_RAYS,
         }
     }
     /// Fast look: 10 iterations, threshold 1e-2.

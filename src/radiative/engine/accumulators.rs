@@ -5,12 +5,21 @@
 
 use super::*;
 
-/// Emitters (or source rows) are split into this many chunks whatever the thread count, and
-/// chunk results are merged in chunk order: deterministic on any number of threads.
+/// Emitters (or source rows) are split into this many chunks whatever the thread count
+/// (more on large scenes, see [`chunk_len`]), and chunk results are merged in chunk order:
+/// deterministic on any number of threads.
 pub(in crate::radiative) const N_CHUNKS: usize = 16;
 
-/// Largest dense per-chunk accumulator, in f64 values (8 MiB); larger grids use hash maps.
-pub(in crate::radiative) const DENSE_LIMIT: usize = 1 << 20;
+/// Largest number of rays (nominal: emitters × rays per emitter) in one chunk: a chunk's event
+/// lists (facet, ground and image hits, at most one per ray, ≤ 68 B each with two channels) stay
+/// under ~70 MB, and only the chunks in flight ([`stream_chunks`]) are held.
+pub const CHUNK_RAYS: usize = 1 << 20;
+
+/// Largest dense turbid accumulator, bytes (one per worker thread, see [`stream_chunks`]);
+/// larger index spaces (the incident-face stores of big scenes) use hash maps. A constant, not a
+/// share of the machine's memory: the choice selects the walk kernel, and products must not
+/// depend on the machine.
+pub const DENSE_BYTES: usize = 512 << 20;
 
 /// Largest number of turbid sub-faces per face side D (`Subfaces`: 6 D² + 1 stores per cell;
 /// larger sub-cell factors are clamped to it).
@@ -275,7 +284,7 @@ impl TurAcc {
         np: usize,
         local: bool,
     ) -> Self {
-        if n_index * ns * w <= DENSE_LIMIT && n_index * np * 7 <= DENSE_LIMIT {
+        if dense_bytes(n_index, ns, w, np, local) <= DENSE_BYTES {
             TurAcc::Dense {
                 ns,
                 w,
@@ -416,17 +425,102 @@ impl TurAcc {
     }
 }
 
-/// Splits `n` items into at most [`N_CHUNKS`] contiguous ranges.
-pub(in crate::radiative) fn chunk_len(n: usize) -> usize {
-    n.div_ceil(N_CHUNKS).max(1)
+/// Bytes of a dense [`TurAcc`] of `n_index` indices, `ns` slots, `w` channels, `np` points
+/// records per index (`local`: with the single-precision walk's records), flags included.
+pub fn dense_bytes(n_index: usize, ns: usize, w: usize, np: usize, local: bool) -> usize {
+    let per = (ns * w + np * 7 + if local { 8 } else { 0 }) * 8 + 1;
+    n_index.saturating_mul(per)
+}
+
+/// Items per chunk when `n` items of `rays_per_item` nominal rays each are split into
+/// [`N_CHUNKS`] contiguous ranges, or into more when a range would hold more than
+/// `chunk_rays` ([`TrackingParams::chunk_rays`]) rays. A function of the scene and settings
+/// only (never of the thread count).
+pub(in crate::radiative) fn chunk_len(n: usize, rays_per_item: usize, chunk_rays: usize) -> usize {
+    let cap = (chunk_rays / rays_per_item.max(1)).max(1);
+    n.div_ceil(N_CHUNKS).clamp(1, cap)
+}
+
+/// One chunk's turbid records, compacted from the worker's accumulator at the chunk's end in the
+/// order the merge reads them ([`TurAcc::for_each_tur`], [`TurAcc::for_each_pts`],
+/// [`TurAcc::for_each_pts_local`]): power records (key, W values), points records (key, 7
+/// values) and the single-precision walk's local points records (entry, 7 values). Its size is
+/// proportional to what the chunk touched, not to the grid.
+#[derive(Default)]
+pub(in crate::radiative) struct CompactTur {
+    w: usize,
+    tur_key: Vec<u64>,
+    tur_val: Vec<f64>,
+    pts_key: Vec<u64>,
+    pts_val: Vec<f64>,
+    loc_key: Vec<u64>,
+    loc_val: Vec<f64>,
+}
+
+impl CompactTur {
+    /// Takes every record of `acc` (whose power records have `w` values), then resets `acc`.
+    pub(in crate::radiative) fn take_from(&mut self, acc: &mut TurAcc, w: usize) {
+        self.clear();
+        self.w = w;
+        acc.for_each_tur(|k, v| {
+            self.tur_key.push(k);
+            self.tur_val.extend_from_slice(v);
+        });
+        acc.for_each_pts(|k, v| {
+            self.pts_key.push(k);
+            self.pts_val.extend_from_slice(v);
+        });
+        acc.for_each_pts_local(|k, v| {
+            self.loc_key.push(k);
+            self.loc_val.extend_from_slice(v);
+        });
+        acc.reset();
+    }
+
+    pub(in crate::radiative) fn clear(&mut self) {
+        self.tur_key.clear();
+        self.tur_val.clear();
+        self.pts_key.clear();
+        self.pts_val.clear();
+        self.loc_key.clear();
+        self.loc_val.clear();
+    }
+
+    /// The power records as [`TurAcc::for_each_tur`] visited them.
+    pub(in crate::radiative) fn for_each_tur(&self, mut f: impl FnMut(u64, &[f64])) {
+        for (k, v) in self
+            .tur_key
+            .iter()
+            .zip(self.tur_val.chunks_exact(self.w.max(1)))
+        {
+            f(*k, v);
+        }
+    }
+
+    /// The points records as [`TurAcc::for_each_pts`] visited them.
+    pub(in crate::radiative) fn for_each_pts(&self, mut f: impl FnMut(u64, &[f64])) {
+        for (k, v) in self.pts_key.iter().zip(self.pts_val.chunks_exact(7)) {
+            f(*k, v);
+        }
+    }
+
+    /// The local points records as [`TurAcc::for_each_pts_local`] visited them.
+    pub(in crate::radiative) fn for_each_pts_local(&self, mut f: impl FnMut(u64, &[f64])) {
+        for (k, v) in self.loc_key.iter().zip(self.loc_val.chunks_exact(7)) {
+            f(*k, v);
+        }
+    }
 }
 
 /// Per-chunk results, merged in chunk order.
 #[derive(Default)]
 pub(in crate::radiative) struct ChunkOut {
-    /// Turbid interceptions and interception points (boxed: taken out for each ray's duration
-    /// by moving a pointer).
+    /// Turbid interceptions and interception points while the chunk runs: the worker's
+    /// accumulator, lent by [`stream_chunks`] (boxed: taken out for each ray's duration by
+    /// moving a pointer); `None` once the chunk has finished.
     pub(in crate::radiative) tur: Option<Box<TurAcc>>,
+    /// The finished chunk's turbid records, compacted from `tur`.
+    pub(in crate::radiative) ctur: CompactTur,
     /// Facet events: (facet-ref index, facet id, from_front, sub-cell, slot); values: W
     /// intercepted + hit(3) + weight.
     pub(in crate::radiative) fac_key: Vec<(u32, u32, bool, u32, u32)>,
@@ -477,6 +571,7 @@ impl ChunkOut {
         // Every field named, so that a new one cannot be forgotten here.
         let ChunkOut {
             tur,
+            ctur,
             fac_key,
             fac_val,
             gnd_key,
@@ -502,6 +597,7 @@ impl ChunkOut {
         if let Some(t) = tur.as_deref_mut() {
             t.reset();
         }
+        ctur.clear();
         fac_key.clear();
         fac_val.clear();
         gnd_key.clear();

@@ -68,15 +68,19 @@ pub(in crate::radiative) fn send(
 }
 
 /// Iteration i: scatters every store of iteration i−1 along every tiling direction; `first`:
-/// the stores are those of the launch (direct sun and sky).
+/// the stores are those of the launch (direct sun and sky). The chunks' outputs go to
+/// `merge_one` in chunk order ([`stream_chunks`]); `progress` counts the chunks.
+#[allow(clippy::too_many_arguments)]
 pub(in crate::radiative) fn emit(
     ctx: &Ctx,
     st: &Stores,
     first: bool,
     fractions: &[(Vec<f32>, Vec<f32>)],
     ground_fr: &[f64],
-    pool: &mut Vec<ChunkOut>,
-) -> Vec<ChunkOut> {
+    pools: &mut Pools,
+    progress: &indicatif::ProgressBar,
+    merge_one: impl FnMut(&ChunkOut) + Send,
+) {
     let w = ctx.w;
     let ns = ctx.n_slots;
     let n_dirs = ctx.n_dirs;
@@ -133,16 +137,17 @@ pub(in crate::radiative) fn emit(
             }
         })
         .collect();
-    // One output per chunk, recycled from the previous iterations' merged ones (emptied: the
-    // state `new_out` builds) or new.
-    let cl = chunk_len(active.len());
-    let outs: Vec<ChunkOut> = (0..active.len().div_ceil(cl))
-        .map(|_| pool.pop().unwrap_or_else(|| new_out(ctx)))
-        .collect();
-    active
-        .par_chunks(cl)
-        .zip(outs)
-        .map(|(chunk, mut out)| {
+    // Chunks of emitters, each of at most `CHUNK_RAYS` nominal rays (two per direction).
+    let cl = chunk_len(active.len(), 2 * n_dirs, ctx.inp.params.chunk_rays);
+    let n_chunks = active.len().div_ceil(cl);
+    progress.set_length(n_chunks as u64);
+    stream_chunks(
+        ctx,
+        n_chunks,
+        pools,
+        progress,
+        |i, out| {
+            let chunk = &active[i * cl..((i + 1) * cl).min(active.len())];
             let mut outgoing = vec![0.0; n_dirs * w];
             let mut pw = vec![0.0; w];
             let mut intercepted = vec![0.0; w];
@@ -151,30 +156,30 @@ pub(in crate::radiative) fn emit(
                 if k < n_t && !off {
                     let hs = first && ctx.inp.emitters.is_empty();
                     let recs = &st.trec.order[groups[k].clone()];
-                    emit_turbid_records(ctx, st, recs, hs, &mut scratch, &mut pw, &mut out);
+                    emit_turbid_records(ctx, st, recs, hs, &mut scratch, &mut pw, out);
                     continue;
                 }
                 outgoing.iter_mut().for_each(|v| *v = 0.0);
                 intercepted.iter_mut().for_each(|v| *v = 0.0);
                 let src = if k < n_t {
-                    match turbid_emitter(ctx, st, k, &mut outgoing, &mut intercepted, &mut out) {
+                    match turbid_emitter(ctx, st, k, &mut outgoing, &mut intercepted, out) {
                         Some(src) => src,
                         None => continue,
                     }
                 } else if k < n_t + n_f {
-                    facet_emitter(ctx, st, k - n_t, fractions, &mut outgoing, &mut out)
+                    facet_emitter(ctx, st, k - n_t, fractions, &mut outgoing, out)
                 } else {
-                    ground_emitter(ctx, st, k - n_t - n_f, ground_fr, &mut outgoing, &mut out)
+                    ground_emitter(ctx, st, k - n_t - n_f, ground_fr, &mut outgoing, out)
                 };
-                send_emitter(ctx, &src, k < n_t, first, &outgoing, &mut pw, &mut out);
+                send_emitter(ctx, &src, k < n_t, first, &outgoing, &mut pw, out);
             }
             // The rays still queued.
             let t_kernel = std::time::Instant::now();
-            ctx.flush(&mut out);
+            ctx.flush(out);
             out.kernel_seconds += t_kernel.elapsed().as_secs_f64();
-            out
-        })
-        .collect()
+        },
+        merge_one,
+    );
 }
 
 /// Where one emitter's rays start: the barycentres of the upper and lower halves of the

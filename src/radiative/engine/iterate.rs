@@ -12,11 +12,16 @@ pub fn run(inp: &RadiativeInput) -> RadiativeResult {
     let (w, n_dirs) = (ctx.w, ctx.n_dirs);
     let tiling = inp.dirs.tiling();
     let mut res = new_result(&ctx, plan, &source);
-    let outs = launch(&ctx, &plan);
     let mut stores = new_stores(&ctx);
     let mut last = vec![0.0; w]; // escaped in the last iteration
-    let mut pool: Vec<ChunkOut> = Vec::new();
-    merge(&ctx, outs, &mut stores, &mut res, &mut last, &mut pool);
+    let mut pools = Pools::default();
+    // One bar per pass (the launch, then each iteration): chunks merged, with an ETA.
+    let bar = crate::io::progress::progress_bar(inp.params.progress, 0, "flux tracking");
+    bar.set_message("flux tracking: sun and sky");
+    launch(&ctx, &plan, &mut pools, &bar, |o| {
+        merge_one(&ctx, o, &mut stores, &mut res, &mut last)
+    });
+    finish_merge(&ctx, &mut stores);
     res.escaped_per_iteration.push(last.clone());
     res.iterations = 1;
     // Facet fractions fallback (renormalised cosine) computed once if not provided.
@@ -48,30 +53,33 @@ pub fn run(inp: &RadiativeInput) -> RadiativeResult {
     let mut prev_estimate = f64::NAN;
     res.q = vec![0.0; w];
     let mut last_inc = Increments::new(&res);
-    let bar = crate::io::progress::progress_bar(
-        inp.params.progress,
-        inp.params.max_iterations as u64,
-        "flux tracking: iterations",
-    );
     while res.iterations < inp.params.max_iterations {
-        bar.set_position(res.iterations as u64);
+        bar.reset();
+        bar.set_message(format!(
+            "flux tracking: iteration {}/{}",
+            res.iterations + 1,
+            inp.params.max_iterations
+        ));
         let pend = prev_pending.clone();
         if pend.iter().sum::<f64>() <= 1e-15 * source.iter().sum::<f64>() {
             res.converged = true;
             break;
         }
         let before = Increments::new(&res);
-        let outs = emit(
-            &ctx,
-            &stores,
-            res.iterations == 1,
-            fractions,
-            &ground_fr,
-            &mut pool,
-        );
         let mut new_stores = new_stores(&ctx);
         let mut esc = vec![0.0; w];
-        merge(&ctx, outs, &mut new_stores, &mut res, &mut esc, &mut pool);
+        let first = res.iterations == 1;
+        emit(
+            &ctx,
+            &stores,
+            first,
+            fractions,
+            &ground_fr,
+            &mut pools,
+            &bar,
+            |o| merge_one(&ctx, o, &mut new_stores, &mut res, &mut esc),
+        );
+        finish_merge(&ctx, &mut new_stores);
         // Absorption at emission: intercepted − emitted, booked in `emit` via res? (see below)
         stores = new_stores;
         res.iterations += 1;
@@ -628,8 +636,15 @@ fn walk_info(ctx: &Ctx) -> WalkInfo {
 }
 
 /// Iteration 1: the sun and sky launch points on the top plane in fixed chunks of rows, then
-/// the other sources (emitters) in fixed chunks after them (physics.md §6.1, §6.2).
-fn launch(ctx: &Ctx, plan: &LaunchPlan) -> Vec<ChunkOut> {
+/// the other sources (emitters) in fixed chunks after them (physics.md §6.1, §6.2); the
+/// chunks' outputs go to `merge_one` in that order ([`stream_chunks`]).
+fn launch(
+    ctx: &Ctx,
+    plan: &LaunchPlan,
+    pools: &mut Pools,
+    progress: &indicatif::ProgressBar,
+    merge_one: impl FnMut(&ChunkOut) + Send,
+) {
     let inp = ctx.inp;
     let spec = inp.spec;
     let (w, nb, n_dirs, size) = (ctx.w, ctx.nb, ctx.n_dirs, ctx.size);
@@ -654,92 +669,100 @@ fn launch(ctx: &Ctx, plan: &LaunchPlan) -> Vec<ChunkOut> {
     if !sky_dirs.is_empty() {
         rows.extend((0..plan.sky_n.1).map(|j| (true, j)));
     }
-    let outs: Vec<ChunkOut> = rows
-        .par_chunks(chunk_len(rows.len()))
-        .map(|chunk| {
-            let mut out = new_out(ctx);
-            let mut pw = vec![0.0; w];
-            let t_kernel = std::time::Instant::now();
-            for &(sky, jy) in chunk {
-                let (nlx, nly) = if sky { plan.sky_n } else { plan.sun_n };
-                let da = area / (nlx * nly) as f64;
-                for ix in 0..nlx {
-                    let p = DVec3::new(
-                        spec.origin.x + (ix as f64 + 0.5) * size.0 / nlx as f64,
-                        spec.origin.y + (jy as f64 + 0.5) * size.1 / nly as f64,
-                        top,
-                    );
-                    // Continuous topography (issue #31): launch point and area of ray `ix` over
-                    // the direction's launch region (`GridSpec::topo_launch_point`).
-                    let topo_launch = |d: DVec3| -> (Option<DVec3>, f64) {
-                        if !topo {
-                            return (Some(p), da);
-                        }
-                        let (lx, ly) = spec.topo_launch_span(d);
-                        let u = (ix as f64 + 0.5) * (size.0 + lx) / nlx as f64;
-                        let v = (jy as f64 + 0.5) * (size.1 + ly) / nly as f64;
-                        // (Clamped at 0: a direction below the terrain's downhill slope.)
-                        let da =
-                            (size.0 + lx).max(0.0) * (size.1 + ly).max(0.0) / (nlx * nly) as f64;
-                        (spec.topo_launch_point(size, u, v, d), da)
-                    };
-                    if !sky {
-                        pw.iter_mut().for_each(|v| *v = 0.0);
-                        let (p, da) = topo_launch(inp.sun);
-                        for b in 0..nb {
-                            pw[b] = inp.e_dir[b] * da;
-                        }
-                        match p {
-                            Some(p) => ctx.trace(p, n_dirs, None, &mut pw, &mut out),
-                            None => add(&mut out.lost, &pw),
-                        }
-                        continue;
+    // Nominal rays per row: one per sun launch point, one per sky direction per sky point.
+    let row_rays = plan.sun_n.0.max(plan.sky_n.0 * sky_dirs.len());
+    let rl = chunk_len(rows.len(), row_rays, inp.params.chunk_rays);
+    let n_rows = rows.len().div_ceil(rl);
+    let el = chunk_len(inp.emitters.len(), 1, inp.params.chunk_rays);
+    let n_em = inp.emitters.len().div_ceil(el);
+    progress.set_length((n_rows + n_em) as u64);
+    let run_rows = |chunk: &[(bool, usize)], out: &mut ChunkOut| {
+        let mut pw = vec![0.0; w];
+        let t_kernel = std::time::Instant::now();
+        for &(sky, jy) in chunk {
+            let (nlx, nly) = if sky { plan.sky_n } else { plan.sun_n };
+            let da = area / (nlx * nly) as f64;
+            for ix in 0..nlx {
+                let p = DVec3::new(
+                    spec.origin.x + (ix as f64 + 0.5) * size.0 / nlx as f64,
+                    spec.origin.y + (jy as f64 + 0.5) * size.1 / nly as f64,
+                    top,
+                );
+                // Continuous topography (issue #31): launch point and area of ray `ix` over
+                // the direction's launch region (`GridSpec::topo_launch_point`).
+                let topo_launch = |d: DVec3| -> (Option<DVec3>, f64) {
+                    if !topo {
+                        return (Some(p), da);
                     }
-                    for &j in &sky_dirs {
-                        pw.iter_mut().for_each(|v| *v = 0.0);
-                        let (p, da) = topo_launch(ctx.omega[j]);
-                        // L_sky = E_diff/π; power = L ΔA ∫_{ΔΩ}|μ|dΩ (physics.md §6.1).
-                        for b in 0..nb {
-                            pw[nb + b] =
-                                inp.e_diff[b] / std::f64::consts::PI * da * tiling[j].projected_sr;
-                        }
-                        match p {
-                            Some(p) => ctx.trace(p, j, None, &mut pw, &mut out),
-                            None => add(&mut out.lost, &pw),
-                        }
+                    let (lx, ly) = spec.topo_launch_span(d);
+                    let u = (ix as f64 + 0.5) * (size.0 + lx) / nlx as f64;
+                    let v = (jy as f64 + 0.5) * (size.1 + ly) / nly as f64;
+                    // (Clamped at 0: a direction below the terrain's downhill slope.)
+                    let da = (size.0 + lx).max(0.0) * (size.1 + ly).max(0.0) / (nlx * nly) as f64;
+                    (spec.topo_launch_point(size, u, v, d), da)
+                };
+                if !sky {
+                    pw.iter_mut().for_each(|v| *v = 0.0);
+                    let (p, da) = topo_launch(inp.sun);
+                    for b in 0..nb {
+                        pw[b] = inp.e_dir[b] * da;
+                    }
+                    match p {
+                        Some(p) => ctx.trace(p, n_dirs, None, &mut pw, out),
+                        None => add(&mut out.lost, &pw),
+                    }
+                    continue;
+                }
+                for &j in &sky_dirs {
+                    pw.iter_mut().for_each(|v| *v = 0.0);
+                    let (p, da) = topo_launch(ctx.omega[j]);
+                    // L_sky = E_diff/π; power = L ΔA ∫_{ΔΩ}|μ|dΩ (physics.md §6.1).
+                    for b in 0..nb {
+                        pw[nb + b] =
+                            inp.e_diff[b] / std::f64::consts::PI * da * tiling[j].projected_sr;
+                    }
+                    match p {
+                        Some(p) => ctx.trace(p, j, None, &mut pw, out),
+                        None => add(&mut out.lost, &pw),
                     }
                 }
             }
-            ctx.flush(&mut out);
-            out.kernel_seconds += t_kernel.elapsed().as_secs_f64();
-            out
-        })
-        .collect();
+        }
+        ctx.flush(out);
+        out.kernel_seconds += t_kernel.elapsed().as_secs_f64();
+    };
     // Other sources, in fixed chunks after the launch rows.
-    let mut outs = outs;
-    outs.extend(
-        inp.emitters
-            .par_chunks(chunk_len(inp.emitters.len()))
-            .map(|chunk| {
-                let mut out = new_out(ctx);
-                let mut pw = vec![0.0; w];
-                for e in chunk {
-                    pw.iter_mut().for_each(|v| *v = 0.0);
-                    for (a, b) in pw.iter_mut().zip(&e.power) {
-                        *a = *b;
-                    }
-                    if e.dir <= n_dirs && pw.iter().any(|&v| v > 0.0) {
-                        ctx.trace(e.origin, e.dir, e.skip_facet, &mut pw, &mut out);
-                    } else {
-                        add(&mut out.lost, &pw);
-                    }
-                }
-                ctx.flush(&mut out);
-                out
-            })
-            .collect::<Vec<_>>(),
+    let run_emitters = |chunk: &[crate::radiative::engine::Emission], out: &mut ChunkOut| {
+        let mut pw = vec![0.0; w];
+        for e in chunk {
+            pw.iter_mut().for_each(|v| *v = 0.0);
+            for (a, b) in pw.iter_mut().zip(&e.power) {
+                *a = *b;
+            }
+            if e.dir <= n_dirs && pw.iter().any(|&v| v > 0.0) {
+                ctx.trace(e.origin, e.dir, e.skip_facet, &mut pw, out);
+            } else {
+                add(&mut out.lost, &pw);
+            }
+        }
+        ctx.flush(out);
+    };
+    stream_chunks(
+        ctx,
+        n_rows + n_em,
+        pools,
+        progress,
+        |i, out| {
+            if i < n_rows {
+                run_rows(&rows[i * rl..((i + 1) * rl).min(rows.len())], out);
+            } else {
+                let i = i - n_rows;
+                let n = inp.emitters.len();
+                run_emitters(&inp.emitters[i * el..((i + 1) * el).min(n)], out);
+            }
+        },
+        merge_one,
     );
-    outs
 }
 
 /// The orders after the last iteration (physics.md §6.4): extrapolated geometrically from the
@@ -770,21 +793,25 @@ fn extrapolate(ctx: &Ctx, stores: &Stores, last_inc: &Increments, res: &mut Radi
     }
 }
 
+/// An empty chunk output (its turbid accumulator is lent by [`stream_chunks`]).
 pub(in crate::radiative) fn new_out(ctx: &Ctx) -> ChunkOut {
-    let ne = ctx.inp.grid.turbid.len();
     ChunkOut {
         escaped: vec![0.0; ctx.n_dirs * ctx.w],
         lost: vec![0.0; ctx.w],
         ray_scale: 1.0,
-        tur: Some(Box::new(TurAcc::new(
-            ne * ctx.tstores,
-            ctx.n_slots,
-            ctx.w,
-            ctx.pts_per,
-            walk::select(ctx, false, true) == walk::WalkKind::BatchF32,
-        ))),
         ..Default::default()
     }
+}
+
+/// A worker's zeroed turbid accumulator over every accumulator index of the run.
+pub(in crate::radiative) fn new_acc(ctx: &Ctx) -> Box<TurAcc> {
+    Box::new(TurAcc::new(
+        ctx.inp.grid.turbid.len() * ctx.tstores,
+        ctx.n_slots,
+        ctx.w,
+        ctx.pts_per,
+        walk::select(ctx, false, true) == walk::WalkKind::BatchF32,
+    ))
 }
 
 pub(in crate::radiative) fn new_stores(ctx: &Ctx) -> Stores {

@@ -3,55 +3,47 @@
 
 use super::*;
 
-/// Merges chunk outputs (in order) into the stores and the result.
-/// Each output with a dense turbid accumulator is then emptied ([`ChunkOut::reset`]) into
-/// `pool`, for the next iteration's chunks (its arrays keep their allocations: no new zeroed
-/// accumulator, no regrowth of the event lists).
-pub(in crate::radiative) fn merge(
+/// Merges one chunk output into the stores and the result (called in chunk order by
+/// [`stream_chunks`]); `esc` gets the escaped power per channel.
+pub(in crate::radiative) fn merge_one(
     ctx: &Ctx,
-    outs: Vec<ChunkOut>,
+    out: &ChunkOut,
     st: &mut Stores,
     res: &mut RadiativeResult,
     esc: &mut [f64],
-    pool: &mut Vec<ChunkOut>,
 ) {
     let w = ctx.w;
     let mut scratch = crate::radiative::images::SpreadScratch::default();
-    for mut out in outs {
-        debug_assert!(out.queue.is_empty(), "every queued ray walked");
-        res.rays += out.rays;
-        res.crossings += out.crossings;
-        res.skipped += out.skipped;
-        res.kernel_seconds += out.kernel_seconds;
-        add(&mut res.escaped, &out.escaped);
-        for (k, v) in out.escaped.iter().enumerate() {
-            esc[k % w] += v;
-        }
-        add(&mut res.lost, &out.lost);
-        merge_images(ctx, &out, res, &mut scratch);
-        merge_turbid(ctx, &out, st, res);
-        merge_facets(ctx, &out, st, res);
-        merge_ground(ctx, &out, st, res);
-        for (k, &(e, ch)) in out.absorbed_turbid.iter().enumerate() {
-            res.absorbed_turbid[e as usize * w + ch] += out.absorbed_val[k];
-        }
-        let off = out.absorbed_turbid.len();
-        for (k, &(f, ch)) in out.absorbed_facet.iter().enumerate() {
-            res.absorbed_facet[f as usize * w + ch] += out.absorbed_val[off + k];
-        }
-        let off = off + out.absorbed_facet.len();
-        for (k, &(c, ch)) in out.absorbed_ground.iter().enumerate() {
-            res.absorbed_ground[c as usize * w + ch] += out.absorbed_val[off + k];
-        }
-        // Dense accumulators only: recycling every output made the sparse (incident-face
-        // store) runs slower and larger (forest Default, `--subfaces subfaces`, 2 threads on a
-        // loaded host: 93.5 s / 652 MiB before, 188.5 s / 1143 MiB with every output recycled;
-        // a recycled sparse map keeps its largest capacity).
-        if let Some(TurAcc::Dense { .. }) = out.tur.as_deref() {
-            out.reset();
-            pool.push(out);
-        }
+    debug_assert!(out.queue.is_empty(), "every queued ray walked");
+    res.rays += out.rays;
+    res.crossings += out.crossings;
+    res.skipped += out.skipped;
+    res.kernel_seconds += out.kernel_seconds;
+    add(&mut res.escaped, &out.escaped);
+    for (k, v) in out.escaped.iter().enumerate() {
+        esc[k % w] += v;
     }
+    add(&mut res.lost, &out.lost);
+    merge_images(ctx, out, res, &mut scratch);
+    merge_turbid(ctx, out, st, res);
+    merge_facets(ctx, out, st, res);
+    merge_ground(ctx, out, st, res);
+    for (k, &(e, ch)) in out.absorbed_turbid.iter().enumerate() {
+        res.absorbed_turbid[e as usize * w + ch] += out.absorbed_val[k];
+    }
+    let off = out.absorbed_turbid.len();
+    for (k, &(f, ch)) in out.absorbed_facet.iter().enumerate() {
+        res.absorbed_facet[f as usize * w + ch] += out.absorbed_val[off + k];
+    }
+    let off = off + out.absorbed_facet.len();
+    for (k, &(c, ch)) in out.absorbed_ground.iter().enumerate() {
+        res.absorbed_ground[c as usize * w + ch] += out.absorbed_val[off + k];
+    }
+}
+
+/// After the last chunk of a pass: the scattering points of the stores sorted and turned into
+/// barycentres.
+pub(in crate::radiative) fn finish_merge(ctx: &Ctx, st: &mut Stores) {
     st.fac_pts.finish(ctx.inp.grid.facet_ids.len());
     st.trec.finish();
     let spec = ctx.inp.spec;
@@ -97,8 +89,9 @@ fn merge_images(
 /// (sub-)face record) and the intercepted products.
 fn merge_turbid(ctx: &Ctx, out: &ChunkOut, st: &mut Stores, res: &mut RadiativeResult) {
     let (w, ns) = (ctx.w, ctx.n_slots);
+    let acc = &out.ctur;
     if ctx.subfaces != TurbidSubfaces::Off {
-        if let Some(acc) = &out.tur {
+        {
             let tr = &mut st.trec;
             acc.for_each_tur(|key, v| {
                 let t = (key / ns as u64) as u32;
@@ -125,7 +118,7 @@ fn merge_turbid(ctx: &Ctx, out: &ChunkOut, st: &mut Stores, res: &mut RadiativeR
                 p[7] += v[6];
             });
         }
-    } else if let Some(acc) = &out.tur {
+    } else {
         acc.for_each_tur(|key, v| {
             let e = key as usize / ns;
             let base = key as usize * w;
@@ -135,9 +128,7 @@ fn merge_turbid(ctx: &Ctx, out: &ChunkOut, st: &mut Stores, res: &mut RadiativeR
             }
         });
     }
-    if let Some(acc) = &out.tur
-        && ctx.subfaces == TurbidSubfaces::Off
-    {
+    if ctx.subfaces == TurbidSubfaces::Off {
         // Barycentres of the first and second halves of the intercepted energy.
         acc.for_each_pts(|e, v| {
             let pts = &mut st.tur_pts[e as usize];
