@@ -28,7 +28,7 @@ pub const BASELINE_BYTES: u64 = 23 << 19;
 /// solver: the code of the stages still to run (the walks' instruction-set variants are the
 /// largest part), the worker threads' stacks and allocator arenas, the libraries' lazy tables
 /// (measured on the smallest example scenes; docs/performance.md "Memory").
-pub const BASELINE_GROWTH_BYTES: u64 = 3 << 20;
+pub const BASELINE_GROWTH_BYTES: u64 = 2 << 20;
 
 /// [`BASELINE_GROWTH_BYTES`] of runs without the flux tracking (Monte Carlo solver, LiDAR-only
 /// scenes): less code is touched (measured on the smallest example scenes).

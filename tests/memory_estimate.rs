@@ -10,30 +10,6 @@ use std::process::Command;
 /// thread count it runs with; fixed so that the measured peaks are reproducible.
 const THREADS: &str = "2";
 
-/// Example scenes whose estimate is outside the goal's band today, with the reason and the ratio
-/// measured (release and test binaries alike). The test checks that they stay within
-/// [`KNOWN_MISS_BAND`] and fails when one comes back inside the goal's band (then it leaves
-/// this list). Both misses are in the flux tracking's chunk event lists (docs/performance.md,
-/// "Memory"): which share of the rays ends in a facet or ground hit (0.71 on the disk canopy,
-/// whose upward rays meet leaves; 0.11 on `mesh_import`, an isolated scene whose rays leave
-/// through its sides) and how far the lists' allocations outgrow their lengths as chunks reuse
-/// them across iterations; that term is being restructured (issue #32: chunks merged as they
-/// finish), after which it is recalibrated.
-const KNOWN_MISSES: [(&str, &str); 2] = [
-    (
-        "disk_canopy",
-        "0.69–0.71: upward rays meeting leaves, event lists outgrowing their length",
-    ),
-    (
-        "mesh_import",
-        "1.40–1.47: isolated scene, rays leaving through the sides record no event",
-    ),
-];
-
-/// The band a known miss must stay within (its measured ratio ± ~0.1): a regression guard
-/// for the scenes outside the goal's band, not the goal.
-const KNOWN_MISS_BAND: std::ops::RangeInclusive<f64> = 0.6..=1.6;
-
 fn out_root(name: &str) -> PathBuf {
     let d = std::env::temp_dir().join(format!("lumenscape-mem-{}-{name}", std::process::id()));
     let _ = std::fs::remove_dir_all(&d);
@@ -109,24 +85,15 @@ fn the_peak_estimate_is_within_25_percent_of_the_measured_peak_on_every_example_
             m["estimate_peak_stage"],
             measured as f64 / 1048576.0
         );
-        let known = KNOWN_MISSES.iter().find(|k| k.0 == name);
-        match known {
-            None if !(0.8..=1.25).contains(&ratio) => misses.push(row.clone()),
-            Some(k) if (0.8..=1.25).contains(&ratio) => misses.push(format!(
-                "{row}: inside the goal's band now, remove it from KNOWN_MISSES ({})",
-                k.1
-            )),
-            Some(k) if !KNOWN_MISS_BAND.contains(&ratio) => {
-                misses.push(format!("{row}: a known miss ({}) further off", k.1))
-            }
-            _ => {}
+        if !(0.8..=1.25).contains(&ratio) {
+            misses.push(row.clone());
         }
         rows.push(row);
     }
     let _ = std::fs::remove_dir_all(&root);
     assert!(
         misses.is_empty(),
-        "estimate outside [0.8, 1.25] × measured (known misses: outside {KNOWN_MISS_BAND:?}) on:\n{}\nall scenes:\n{}",
+        "estimate outside [0.8, 1.25] × measured on:\n{}\nall scenes:\n{}",
         misses.join("\n"),
         rows.join("\n")
     );

@@ -85,7 +85,7 @@ pub fn plan_grid(
         boundary: info.boundary,
         topography_offset,
     };
-    let est = memory_estimate(info, &spec, top, facets, max_memory_bytes, objects);
+    let est = memory_estimate(info, &spec, top, terrain, facets, max_memory_bytes, objects);
     let peak = est.peak_bytes;
     let over_limit = (peak > max_memory_bytes).then(|| {
         format!(
@@ -205,6 +205,7 @@ fn memory_estimate(
     info: &SceneInfo,
     spec: &GridSpec,
     top: f64,
+    terrain: &Terrain,
     facets: &FacetStore,
     max_memory_bytes: u64,
     objects: &TurbidObjects,
@@ -253,8 +254,22 @@ fn memory_estimate(
         }
     }
     for p in plots.iter() {
+        // The layer follows the terrain: from the lowest ground under its footprint's vertices
+        // plus its bottom to the highest plus its top (within the grid).
         let (lo, hi) = p.footprint_bounds();
-        turbid_max = turbid_max.saturating_add(bbox_cells(lo.extend(z0), hi.extend(top)));
+        let (g_lo, g_hi) = p
+            .footprint
+            .iter()
+            .map(|v| terrain.height(v.x, v.y))
+            .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), g| {
+                (a.min(g), b.max(g))
+            });
+        let (za, zb) = if g_lo.is_finite() && g_hi.is_finite() {
+            ((g_lo + p.bottom).max(z0), (g_hi + p.top).min(top))
+        } else {
+            (z0, top)
+        };
+        turbid_max = turbid_max.saturating_add(bbox_cells(lo.extend(za), hi.extend(zb.max(za))));
     }
     for m in meshes.iter() {
         for t in m

@@ -75,8 +75,11 @@ pub struct RadiativeCounts {
 /// * `interception stores`: two generations (the one being scattered, the one being filled)
 ///   of `entries × stores × slots × channels` f64 and the point records, facet front/back
 ///   stores per reference, ground stores per column.
-/// * `chunk accumulators`: the [`N_CHUNKS`](engine) dense per-chunk turbid accumulators of at
-///   most 8 MiB each, and the per-thread exit groups of the face stores.
+/// * `turbid accumulators`: one dense turbid accumulator per worker thread
+///   ([`engine::dense_bytes`], at most [`engine::DENSE_BYTES`]), and the compacted turbid
+///   records of the chunks held (as many as for [`chunk_event_bytes`]; a chunk's rays cross
+///   the whole scene, so each holds up to every entry's records: an 8-byte key and the same
+///   values).
 /// * `chunk events`: [`chunk_event_bytes`].
 /// * `products`: absorbed and intercepted power per turbid entry, facet and column, the
 ///   increments of the extrapolation (three copies) and the images (result and two snapshots).
@@ -100,9 +103,12 @@ pub fn memory_terms(c: &RadiativeCounts) -> Vec<(&'static str, f64)> {
         * (entries * (ts * slots * w + tp * 8.0)
             + f(c.facet_refs) * (2.0 * w + 4.0)
             + cols * (w + 4.0));
-    let chunks = 16.0
-        * 8.0
-        * ((entries * ts * slots * w).min(f(1 << 20)) + (entries * tp * 8.0).min(f(1 << 20)));
+    // Per index: slots × channels power values, 7 point values per record, 8 values of the
+    // single-precision walk's local points, one flag byte.
+    let per_index = (slots * w + tp * 7.0 + 8.0) * 8.0 + 1.0;
+    let accumulator = (entries * ts * per_index).min(f(engine::DENSE_BYTES));
+    let compact = entries * ts * (per_index + 16.0);
+    let held = f(engine::ahead(c.threads));
     let exit_groups = if ts > 1.0 {
         f(c.threads) * 8.0 * nd * ts * (w + 4.0)
     } else {
@@ -114,7 +120,10 @@ pub fn memory_terms(c: &RadiativeCounts) -> Vec<(&'static str, f64)> {
         ("phase tables", tables),
         ("facet fractions", fractions),
         ("interception stores", stores),
-        ("chunk accumulators", chunks + exit_groups),
+        (
+            "turbid accumulators",
+            f(c.threads) * accumulator + held.min(16.0) * compact + exit_groups,
+        ),
         ("chunk events", chunk_event_bytes(c)),
         ("products", products),
     ]
@@ -125,17 +134,21 @@ pub fn memory_terms(c: &RadiativeCounts) -> Vec<(&'static str, f64)> {
 /// the example scenes (docs/performance.md, "Memory").
 pub const UPWARD_HIT_SHARE: f64 = 0.25;
 
-/// Event lists of the flux tracking's chunks, bytes: every chunk of an iteration keeps the
-/// facet, ground and image hits of its rays (per hit a key of 12–20 bytes and the channel
-/// powers, hit point and weight: 8 (W + 4) bytes) until the iteration's chunks are merged, so
-/// the lists of a whole iteration are resident at once (their allocations are reused by the
-/// next iteration). The largest iteration is the launch (each sun ray and each sky ray per
-/// downward direction ends in one hit) or the first scattering iteration: every turbid entry
-/// sends a ray pair along every direction, every two-sided facet scattering point a ray along
-/// every direction, one-sided ones along the directions of their normal's hemisphere, ground
-/// sub-columns along every upward direction; every downward ray and a share
-/// [`UPWARD_HIT_SHARE`] of the upward ones end in a hit, and each emitter adds one image event
-/// per image direction.
+/// Event lists of the flux tracking's chunks in flight, bytes. A chunk keeps the facet,
+/// ground and image hits of its rays (per hit a key of 12–20 bytes and the channel powers,
+/// hit point and weight: 8 (W + 4) bytes) until it is merged; chunks are merged in order as
+/// they finish, so at most [`engine::chunks_in_flight`] chunks of a pass are held (and their
+/// recycled allocations); the finished chunks waiting for their turn and the running ones
+/// rarely reach that bound together, and [`engine::ahead`] chunks (2 per thread + 2) are
+/// taken (on the example scenes the event memory measured is 50–85 % of the in-flight
+/// bound). A pass is cut into 16 chunks, or into more of at most
+/// [`engine::CHUNK_RAYS`] nominal rays (2 N per scattering emitter). The largest pass is the
+/// launch (each sun ray and each sky ray per downward direction ends in one hit) or a
+/// scattering iteration: every turbid entry sends a ray pair along every direction, every
+/// two-sided facet scattering point a ray along every direction, one-sided ones along the
+/// directions of their normal's hemisphere, ground sub-columns along every upward direction;
+/// every downward ray and a share [`UPWARD_HIT_SHARE`] of the upward ones end in a hit, and
+/// each emitter adds one image event per image direction.
 pub fn chunk_event_bytes(c: &RadiativeCounts) -> f64 {
     let f = |x: usize| x as f64;
     let w = f(c.n_bands) * if c.sky { 2.0 } else { 1.0 };
@@ -147,13 +160,32 @@ pub fn chunk_event_bytes(c: &RadiativeCounts) -> f64 {
     } else {
         0.0
     };
-    let launch = f(c.sun_points) + f(c.sky_points) * n_down;
+    let hit = 16.0 + 8.0 * (w + 4.0);
+    let image = 36.0 + 8.0 * w;
+    let in_flight = f(engine::ahead(c.threads));
+    // Share of a pass held: the chunks in flight out of the pass's chunks.
+    let held = |items: f64, nominal_rays: f64| {
+        let chunks = items
+            .min(16.0)
+            .max((nominal_rays / f(engine::CHUNK_RAYS)).ceil())
+            .max(1.0);
+        (in_flight / chunks).min(1.0)
+    };
+    let launch_rays = f(c.sun_points) + f(c.sky_points) * n_down;
+    let rows = (f(c.sun_points).sqrt()
+        + if c.sky_points > 0 {
+            f(c.sky_points).sqrt()
+        } else {
+            0.0
+        })
+    .max(1.0);
+    let launch = launch_rays * hit * held(rows, launch_rays);
     let two_sided = 2.0 * f(c.turbid_entries) + f(c.facet_points);
     let emitters = two_sided + ground_points;
     let down = n_down * two_sided + c.one_sided_rays.0;
     let up = n_up * (two_sided + ground_points) + c.one_sided_rays.1;
-    let hit = 16.0 + 8.0 * (w + 4.0);
-    let image = 36.0 + 8.0 * w;
-    let scatter = (down + UPWARD_HIT_SHARE * up) * hit + emitters * f(c.n_images) * image;
-    (launch * hit).max(scatter)
+    let scatter_items = f(c.turbid_entries) + f(c.facet_refs) + f(c.n_columns);
+    let scatter = ((down + UPWARD_HIT_SHARE * up) * hit + emitters * f(c.n_images) * image)
+        * held(scatter_items, scatter_items * 2.0 * nd);
+    launch.max(scatter)
 }
