@@ -12,83 +12,11 @@
 //! it with the measured peak on every example scene.
 
 use crate::resources::maket_report::MaketReport;
-use crate::simulation::Simulation;
-use bevy_ecs::prelude::Resource;
-use serde::Serialize;
-
-/// Resident memory of the process before any scene-dependent allocation, bytes, where the
-/// system does not report the current resident set: the binary's code and data pages, the
-/// Rust and C runtimes, the allocator's arenas, the worker threads' stacks and the ECS world
-/// (measured on the smallest example scenes, whose heap stays below 3 MiB: 12.2–12.4 MiB
-/// peaks, less their modelled terms; docs/performance.md "Memory").
-pub const BASELINE_BYTES: u64 = 23 << 19;
-
-/// What the process adds to its resident set after the estimate (`VmRSS` after loading the
-/// scene, before planning the grid) besides the stages' own data, bytes, with the flux-tracking
-/// solver: the code of the stages still to run (the walks' instruction-set variants are the
-/// largest part), the worker threads' stacks and allocator arenas, the libraries' lazy tables
-/// (measured on the smallest example scenes; docs/performance.md "Memory").
-pub const BASELINE_GROWTH_BYTES: u64 = 2 << 20;
-
-/// [`BASELINE_GROWTH_BYTES`] of runs without the flux tracking (Monte Carlo solver, LiDAR-only
-/// scenes): less code is touched (measured on the smallest example scenes).
-pub const BASELINE_GROWTH_NO_FLUX_BYTES: u64 = 3 << 19;
-
-/// The process baseline from `rss` (the resident set before planning, [`current_rss_bytes`]):
-/// `rss` plus the growth still to come ([`BASELINE_GROWTH_BYTES`], or
-/// [`BASELINE_GROWTH_NO_FLUX_BYTES`] when no flux tracking runs), or [`BASELINE_BYTES`] where
-/// the system does not report it.
-pub fn baseline_bytes(rss: Option<u64>, flux_tracking: bool) -> u64 {
-    let growth = if flux_tracking {
-        BASELINE_GROWTH_BYTES
-    } else {
-        BASELINE_GROWTH_NO_FLUX_BYTES
-    };
-    rss.map_or(BASELINE_BYTES, |b| b + growth)
-}
-
-/// One named term of a stage's estimate.
-#[derive(Debug, Clone, Serialize)]
-pub struct MemoryTerm {
-    /// What the term is (see the stage's `memory_terms` documentation).
-    pub name: String,
-    /// Bytes.
-    pub bytes: u64,
-}
-
-/// The estimate of one stage: everything resident while it runs.
-#[derive(Debug, Clone, Serialize)]
-pub struct StageMemory {
-    /// Stage: `Maket`, `Radiative` (with Direction and Phase), `Photon`, `LiDAR` or `Output`.
-    pub stage: String,
-    /// Resident bytes during the stage (the sum of `terms`).
-    pub bytes: u64,
-    /// The terms, including the baseline and what earlier stages hold.
-    pub terms: Vec<MemoryTerm>,
-}
-
-/// The memory estimate of a run: per stage and the peak over the stages (resource inserted by
-/// `lumenscape run`, written into `summary.json`).
-#[derive(Debug, Clone, Serialize, Resource)]
-pub struct MemoryPlan {
-    /// Process baseline, bytes ([`baseline_bytes`]).
-    pub baseline_bytes: u64,
-    /// Worker threads the estimate assumes.
-    pub threads: usize,
-    /// Stages that will run, in order.
-    pub stages: Vec<StageMemory>,
-    /// Largest stage estimate, bytes.
-    pub peak_bytes: u64,
-    /// The stage of the peak.
-    pub peak_stage: String,
-}
-
-impl MemoryPlan {
-    /// The first stage whose estimate is above `limit` bytes, if any.
-    pub fn over(&self, limit: u64) -> Option<&StageMemory> {
-        self.stages.iter().find(|s| s.bytes > limit)
-    }
-}
+pub use crate::resources::memory::{
+    BASELINE_BYTES, BASELINE_GROWTH_BYTES, BASELINE_GROWTH_NO_FLUX_BYTES, MemoryPlan, MemoryTerm,
+    StageMemory, baseline_bytes, current_rss_bytes, peak_rss_bytes,
+};
+use bevy_ecs::world::World;
 
 /// Bytes (saturating) of an `f64` estimate.
 fn to_bytes(x: f64) -> u64 {
@@ -113,32 +41,6 @@ fn stage(name: &str, terms: Vec<(String, f64)>) -> StageMemory {
             })
             .collect(),
     }
-}
-
-/// The peak resident set of this process so far (`VmHWM` of `/proc/self/status`), bytes;
-/// `None` where that file does not exist (other systems than Linux).
-pub fn peak_rss_bytes() -> Option<u64> {
-    proc_status_kb("VmHWM:")
-}
-
-/// The current resident set of this process (`VmRSS` of `/proc/self/status`), bytes; `None`
-/// where that file does not exist.
-pub fn current_rss_bytes() -> Option<u64> {
-    proc_status_kb("VmRSS:")
-}
-
-/// A `kB` field of `/proc/self/status`, bytes.
-fn proc_status_kb(key: &str) -> Option<u64> {
-    let s = std::fs::read_to_string("/proc/self/status").ok()?;
-    let line = s.lines().find(|l| l.starts_with(key))?;
-    let kb: u64 = line
-        .trim_start_matches(key)
-        .trim()
-        .trim_end_matches("kB")
-        .trim()
-        .parse()
-        .ok()?;
-    Some(kb * 1024)
 }
 
 /// Writer buffers of the Output stage, bytes: `density.csv` (one line of ~40 bytes per turbid
@@ -166,19 +68,19 @@ pub fn output_terms(
     t
 }
 
-/// The memory estimate of running `sim` (after [`Simulation::plan`]; `report` its plan
-/// report; `rss` the process's resident set before planning, [`current_rss_bytes`]): one
-/// [`StageMemory`] per stage that will run, and the peak.
-pub fn estimate(sim: &mut Simulation, report: &MaketReport, rss: Option<u64>) -> MemoryPlan {
+/// The memory estimate of running the scene of `world` (after the Maket plan systems;
+/// `report` the plan report; `rss` the process's resident set before planning,
+/// [`current_rss_bytes`]): one [`StageMemory`] per stage that will run, and the peak.
+pub fn estimate(world: &World, report: &MaketReport, rss: Option<u64>) -> MemoryPlan {
     use crate::resources::scene::{RunSettings, SceneInfo, SkipPassive, Solver};
     use crate::resources::tracking::{
         DirectionRequest, REFERENCE_MIN_DIRECTIONS, RadiativeSettings,
     };
     let threads = rayon::current_num_threads();
-    let run = sim.resource::<RunSettings>().clone();
-    let info = sim.resource::<SceneInfo>().clone();
-    let settings = sim.resource::<RadiativeSettings>().clone();
-    let passive = sim.get_resource::<SkipPassive>().is_none();
+    let run = world.resource::<RunSettings>().clone();
+    let info = world.resource::<SceneInfo>().clone();
+    let settings = world.resource::<RadiativeSettings>().clone();
+    let passive = world.get_resource::<SkipPassive>().is_none();
     let est = &report.memory;
     let f = |x: u64| x as f64;
     let n_bands = info.bands.len();
@@ -212,7 +114,7 @@ pub fn estimate(sim: &mut Simulation, report: &MaketReport, rss: Option<u64>) ->
     )];
 
     // Direction set and images (flux tracking).
-    let mut params = sim.resource::<DirectionRequest>().0.clone();
+    let mut params = world.resource::<DirectionRequest>().0.clone();
     if settings.preset == crate::scene::desc::Preset::Reference {
         params.count = params.count.max(REFERENCE_MIN_DIRECTIONS);
     }
@@ -242,7 +144,7 @@ pub fn estimate(sim: &mut Simulation, report: &MaketReport, rss: Option<u64>) ->
     let mut products_held = 0.0;
     if passive && !mc {
         let counts = radiative_counts(
-            sim,
+            world,
             report,
             &settings,
             (n_dirs, n_down, slots, n_images, image_pixels),
@@ -270,13 +172,14 @@ pub fn estimate(sim: &mut Simulation, report: &MaketReport, rss: Option<u64>) ->
             channels: w,
             batches,
         });
-        products_held = 2.0 * 8.0 * f((entries + n_facets + n_columns) as u64) * w as f64;
+        products_held =
+            2.0 * 8.0 * (entries as f64 + n_facets as f64 + n_columns as f64) * w as f64;
         let mut all = vec![base.clone(), held.clone()];
         all.extend(terms.into_iter().map(|(n, b)| (n.to_string(), b)));
         stages.push(stage("Photon", all));
     }
     let products = ("passive products".to_string(), products_held);
-    if let Some(lidars) = sim.get_resource::<crate::resources::lidar::LidarInstruments>() {
+    if let Some(lidars) = world.get_resource::<crate::resources::lidar::LidarInstruments>() {
         let height = report.z_range_m[1] - report.z_range_m[0];
         // Instruments run one after the other: the largest one's terms.
         let mut worst: Vec<(&'static str, f64)> = Vec::new();
@@ -329,7 +232,7 @@ pub fn estimate(sim: &mut Simulation, report: &MaketReport, rss: Option<u64>) ->
 /// turbid stores of the `turbid_subfaces` mode, and the engine's own launch plan (launch
 /// points, sub-cell factor D of the scattering points).
 fn radiative_counts(
-    sim: &mut Simulation,
+    world: &World,
     report: &MaketReport,
     settings: &crate::resources::tracking::RadiativeSettings,
     dirs: (usize, usize, usize, usize, usize),
@@ -338,15 +241,16 @@ fn radiative_counts(
     use crate::resources::grid::GridSpec;
     use crate::scene::desc::TurbidSubfaces;
     let (n_dirs, n_down, slots, n_images, image_pixels) = dirs;
-    let info = sim.resource::<crate::resources::scene::SceneInfo>().clone();
+    let info = world
+        .resource::<crate::resources::scene::SceneInfo>()
+        .clone();
     let sky = info.illumination.skyl.iter().any(|&s| s > 0.0);
     let sun = info.illumination.sun_zenith_deg < 90.0;
-    let spec = sim.get_resource::<GridSpec>().cloned();
+    let spec = world.get_resource::<GridSpec>().cloned();
     let empty = FacetStore::default();
-    let facets = sim.get_resource::<FacetStore>().unwrap_or(&empty);
+    let facets = world.get_resource::<FacetStore>().unwrap_or(&empty);
     let flat_ground = !facets.facets.iter().any(|f| f.kind == FacetKind::Ground)
-        && sim
-            .world
+        && world
             .iter_entities()
             .any(|e| e.contains::<crate::components::Ground>());
     let (size, cell, scene_d) = spec.as_ref().map_or(((1.0, 1.0), (1.0, 1.0, 1.0), 1), |g| {
@@ -425,8 +329,16 @@ fn radiative_counts(
         n_columns: report.cells[0].saturating_mul(report.cells[1]),
         flat_ground,
         subcells: plan.subcells as usize,
-        sun_points: if sun { plan.sun_n.0 * plan.sun_n.1 } else { 0 },
-        sky_points: if sky { plan.sky_n.0 * plan.sky_n.1 } else { 0 },
+        sun_points: if sun {
+            plan.sun_n.0.saturating_mul(plan.sun_n.1)
+        } else {
+            0
+        },
+        sky_points: if sky {
+            plan.sky_n.0.saturating_mul(plan.sky_n.1)
+        } else {
+            0
+        },
         n_images,
         image_pixels,
         threads: rayon::current_num_threads(),

@@ -168,7 +168,7 @@ impl Simulation {
     /// warnings planning builds are dropped again (the Maket stage builds them), so that a run
     /// after this one is unchanged. `lumenscape run` inserts the result as a resource (written
     /// into `summary.json`) after checking it against `--max-memory`.
-    pub fn memory_plan(&mut self) -> Result<crate::memory::MemoryPlan, StageError> {
+    pub fn memory_plan(&mut self) -> Result<crate::resources::memory::MemoryPlan, StageError> {
         let warnings = self
             .world
             .get_resource::<crate::resources::scene::Warnings>()
@@ -176,7 +176,7 @@ impl Simulation {
         let rss = crate::memory::current_rss_bytes();
         let planned = self.plan();
         let report = self.plan_report();
-        let plan = report.map(|r| crate::memory::estimate(self, &r, rss));
+        let plan = report.map(|r| crate::memory::estimate(&self.world, &r, rss));
         self.world
             .remove_resource::<crate::resources::facets::FacetStore>();
         if let Some(w) = warnings {

@@ -42,7 +42,7 @@ pub fn write_radiative_products(
     grid: Res<CellGrid>,
     facets: Res<FacetStore>,
     mats: Res<Materials>,
-    memory: Option<Res<crate::memory::MemoryPlan>>,
+    memory: Option<Res<crate::resources::memory::MemoryPlan>>,
     mut errors: ResMut<StageErrors>,
 ) {
     if let Err(e) = write_radiative(
@@ -67,7 +67,7 @@ pub fn write_lidar_products(
     out: Res<OutputDir>,
     products: Res<crate::lidar::run::LidarProducts>,
     info: Res<crate::resources::scene::SceneInfo>,
-    memory: Option<Res<crate::memory::MemoryPlan>>,
+    memory: Option<Res<crate::resources::memory::MemoryPlan>>,
     mut errors: ResMut<StageErrors>,
 ) {
     let names: Vec<String> = info.bands.iter().map(|b| b.name.clone()).collect();

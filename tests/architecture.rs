@@ -27,6 +27,7 @@ const LAYERS: &[&str] = &[
     "radiative",  // Radiative engine: flux tracking
     "photon",     // Photon engine: Monte Carlo
     "lidar",      // LiDAR engine (on top of the photon walk)
+    "memory",     // the memory estimate per stage, from the engines' terms
     "output",     // product writers
     "systems",    // ECS glue, one file per stage
     "simulation", // the World and the stage loop

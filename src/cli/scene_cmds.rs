@@ -55,8 +55,9 @@ pub fn parse_memory(s: &str) -> Result<u64, String> {
 pub struct SceneOpts {
     /// Scene file (RON).
     pub scene: PathBuf,
-    /// Refuse scenes whose Maket grid would need more memory than this (e.g. 4G, 500M, 50%).
-    /// Default: 75% of the machine's RAM.
+    /// Refuse scenes where any stage's memory estimate (Maket, flux tracking, Monte Carlo,
+    /// LiDAR, output; `check` prints them) is above this (e.g. 4G, 500M, 50%), before anything
+    /// is allocated. Default: 75% of the machine's RAM.
     #[arg(long, value_parser = parse_memory)]
     pub max_memory: Option<u64>,
     /// No progress bars.
@@ -313,7 +314,7 @@ pub fn print_report(r: &MaketReport, out: &mut dyn Write) -> std::io::Result<()>
     }
     writeln!(
         out,
-        "memory estimate (peak): {} (limit {})",
+        "Maket grid memory estimate (build peak, without the process baseline): {} (limit {})",
         human_bytes(r.memory.peak_bytes),
         human_bytes(r.memory.limit_bytes)
     )?;
@@ -328,7 +329,7 @@ pub fn print_report(r: &MaketReport, out: &mut dyn Write) -> std::io::Result<()>
 
 /// Prints the memory estimate per stage (the terms of each) and the peak.
 pub fn print_memory(
-    m: &crate::memory::MemoryPlan,
+    m: &crate::resources::memory::MemoryPlan,
     limit: u64,
     out: &mut dyn Write,
 ) -> std::io::Result<()> {
@@ -362,7 +363,11 @@ pub fn print_memory(
 }
 
 /// The refusal of a run whose stage `s` is estimated above `limit` bytes (`--max-memory`).
-fn over_limit_error(scene: &Path, s: &crate::memory::StageMemory, limit: u64) -> CliError {
+fn over_limit_error(
+    scene: &Path,
+    s: &crate::resources::memory::StageMemory,
+    limit: u64,
+) -> CliError {
     CliError {
         message: format!(
             "{}: the {} stage needs an estimated {} ({} bytes), above the limit of {} (--max-memory): use larger cells, fewer directions or a smaller scene, or raise --max-memory",
@@ -380,7 +385,7 @@ fn over_limit_error(scene: &Path, s: &crate::memory::StageMemory, limit: u64) ->
 /// invalid or a stage's estimate is above `--max-memory`.
 pub fn check(args: &CheckArgs, out: &mut dyn Write) -> Result<(), CliError> {
     let mut sim = args.opts.load()?;
-    let rss = crate::memory::current_rss_bytes();
+    let rss = crate::resources::memory::current_rss_bytes();
     let planned = sim.plan();
     if !sim
         .world
@@ -393,7 +398,7 @@ pub fn check(args: &CheckArgs, out: &mut dyn Write) -> Result<(), CliError> {
         });
     }
     let report = sim.plan_report().expect("planning inserted its resources");
-    let mem = crate::memory::estimate(&mut sim, &report, rss);
+    let mem = crate::memory::estimate(&sim.world, &report, rss);
     let limit = report.memory.limit_bytes;
     if args.json {
         let mut v = serde_json::to_value(&report)?;

@@ -26,7 +26,7 @@ pub fn write_lidar(
     dir: &Path,
     runs: &[LidarRun],
     band_names: &[String],
-    memory: Option<&crate::memory::MemoryPlan>,
+    memory: Option<&crate::resources::memory::MemoryPlan>,
 ) -> Result<(), String> {
     for run in runs {
         let d = dir.join("lidar").join(&run.desc.name);
@@ -170,7 +170,7 @@ pub fn write_lidar(
 fn write_summary(
     path: &Path,
     run: &LidarRun,
-    memory: Option<&crate::memory::MemoryPlan>,
+    memory: Option<&crate::resources::memory::MemoryPlan>,
 ) -> Result<(), String> {
     use serde::Serialize;
     /// One pulse (fields in key order).
@@ -249,7 +249,7 @@ fn write_summary(
         // Through a `Value`, so that its keys are sorted as everywhere else in the file.
         instrument: serde_json::to_value(&run.desc)
             .map_err(|e| format!("{}: {e}", path.display()))?,
-        memory: memory.map(crate::output::radiative::memory_record),
+        memory: memory.map(|m| m.record()),
         notes: &run.notes,
         per_pulse: PerPulse(run),
         photon_counting_detections: run.counted_totals().0,

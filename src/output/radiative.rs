@@ -24,7 +24,7 @@ pub fn write_radiative(
     grid: &CellGrid,
     facets: &FacetStore,
     mats: &Materials,
-    memory: Option<&crate::memory::MemoryPlan>,
+    memory: Option<&crate::resources::memory::MemoryPlan>,
 ) -> Result<(), String> {
     std::fs::create_dir_all(dir.join("budget"))
         .map_err(|e| format!("{}: cannot create output folder: {e}", dir.display()))?;
@@ -46,7 +46,7 @@ fn write_summary(
     info: &crate::resources::scene::SceneInfo,
     settings: &crate::resources::tracking::RadiativeSettings,
     dirs: &crate::resources::tracking::Directions,
-    memory: Option<&crate::memory::MemoryPlan>,
+    memory: Option<&crate::resources::memory::MemoryPlan>,
 ) -> Result<(), String> {
     let mut summary = serde_json::json!({
         "schema_version": 1,
@@ -91,7 +91,7 @@ fn write_summary(
         "bands": p.bands,
     });
     if let Some(m) = memory {
-        summary["memory"] = memory_record(m);
+        summary["memory"] = m.record();
     }
     write_atomic(
         &dir.join("summary.json"),
@@ -504,22 +504,4 @@ fn write_png(path: &std::path::Path, nx: usize, ny: usize, v: &[f64]) -> Result<
             .map_err(|e| format!("{}: {e}", path.display()))?;
     }
     write_atomic(path, &buf)
-}
-
-/// The `memory` record of `summary.json` (and of a LiDAR-only run's `lidar.json`): the
-/// estimate per stage and its peak, and the peak resident set measured so far (`VmHWM`;
-/// `null` where the system does not report it).
-pub fn memory_record(m: &crate::memory::MemoryPlan) -> serde_json::Value {
-    serde_json::json!({
-        "estimate_peak_bytes": m.peak_bytes,
-        "estimate_peak_stage": m.peak_stage,
-        "measured_peak_rss_bytes": crate::memory::peak_rss_bytes(),
-        "threads": m.threads,
-        "baseline_bytes": m.baseline_bytes,
-        "stages": m.stages.iter().map(|s| serde_json::json!({
-            "stage": s.stage,
-            "bytes": s.bytes,
-            "terms": s.terms.iter().map(|t| serde_json::json!({"name": t.name, "bytes": t.bytes})).collect::<Vec<_>>(),
-        })).collect::<Vec<_>>(),
-    })
 }

@@ -5,5 +5,6 @@ pub mod grid;
 pub mod lidar;
 pub mod maket_report;
 pub mod materials;
+pub mod memory;
 pub mod scene;
 pub mod tracking;
