@@ -175,3 +175,40 @@ fn check_json_carries_the_estimate_per_stage() {
         assert!(bytes.abs_diff(sum) <= s["terms"].as_array().unwrap().len() as u64);
     }
 }
+
+#[test]
+fn the_plans_counts_bound_what_the_maket_builds_on_every_example_scene() {
+    use lumenscape::resources::grid::CellGrid;
+    use lumenscape::resources::maket_report::MaketReport;
+    use lumenscape::resources::scene::RunSettings;
+    use lumenscape::simulation::{Simulation, Stage};
+    let mut scenes: Vec<PathBuf> = std::fs::read_dir("assets/scenes")
+        .unwrap()
+        .flatten()
+        .map(|e| e.path())
+        .filter(|p| p.extension().is_some_and(|e| e == "ron"))
+        .collect();
+    scenes.sort();
+    for s in &scenes {
+        let mut sim = Simulation::load(s, RunSettings::default()).unwrap();
+        sim.run_stage(Stage::Maket).unwrap();
+        let est = sim.resource::<MaketReport>().memory.clone();
+        let grid = sim.resource::<CellGrid>();
+        // Turbid entries: an upper bound (crowns of one material sharing a cell merge; plots
+        // and turbid meshes are counted by bounding box), tight for crowns.
+        assert!(
+            grid.turbid.len() as u64 <= est.turbid_entries_max,
+            "{}: {} turbid entries, planned at most {}",
+            s.display(),
+            grid.turbid.len(),
+            est.turbid_entries_max
+        );
+        // Facet references: the assignment's own test, so exactly its count.
+        assert_eq!(
+            grid.facet_ids.len() as u64,
+            est.facet_refs_max,
+            "{}: facet references",
+            s.display()
+        );
+    }
+}
