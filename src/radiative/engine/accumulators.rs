@@ -15,11 +15,12 @@ pub(in crate::radiative) const N_CHUNKS: usize = 16;
 /// under ~70 MB, and only the chunks in flight ([`stream_chunks`]) are held.
 pub const CHUNK_RAYS: usize = 1 << 20;
 
-/// Largest dense turbid accumulator, bytes (one per worker thread, see [`stream_chunks`]);
-/// larger index spaces (the incident-face stores of big scenes) use hash maps. A constant, not a
-/// share of the machine's memory: the choice selects the walk kernel, and products must not
-/// depend on the machine.
-pub const DENSE_BYTES: usize = 512 << 20;
+/// Largest dense turbid accumulator, bytes of address space (one per worker thread, see
+/// [`stream_chunks`]; allocated zeroed, resident only where a chunk's records are written: a
+/// prefix of its rows, and 4 B per index); larger index spaces (the incident-face stores of big
+/// scenes) use hash maps. A constant, not a share of the machine's memory: the choice selects
+/// the walk kernel, and products must not depend on the machine.
+pub const DENSE_BYTES: usize = 4 << 30;
 
 /// Largest number of turbid sub-faces per face side D (`Subfaces`: 6 D² + 1 stores per cell;
 /// larger sub-cell factors are clamped to it).
@@ -88,7 +89,10 @@ impl KeyAcc {
 /// Σw·p_second (3), Σw), written once per cell crossing. The accumulator index is the turbid
 /// entry, or (entry × stores + incident (sub-)face store) with [`TurbidSubfaces`] `Faces` /
 /// `Subfaces`; P is 1, or the slot count with `Blend` (points per incidence slot). Dense (small
-/// grids, the common case): flat arrays with one first-touch flag per index, checked once per
+/// grids, the common case): flat arrays of records in first-touch order ([`record`]: the
+/// index → record map is checked once per crossing; the arrays are allocated zeroed for every
+/// index, but only the rows of the touched records are ever written, so only those pages are
+/// resident), checked once per
 /// crossing for both records (every power record of an index comes with a points record);
 /// records are visited per touched index, slots ascending, skipping all-zero slots. Sparse
 /// (large grids): [`KeyAcc`] hash maps.
@@ -104,7 +108,9 @@ pub(in crate::radiative) enum TurAcc {
         /// at 0), added to `pts` in scene coordinates at the merge
         /// ([`TurAcc::for_each_pts_local`]); empty when that walk does not run.
         pts_loc: Vec<f64>,
-        flag: Vec<bool>,
+        /// Record of each index plus one (0: not touched in this chunk).
+        rec: Vec<u32>,
+        /// The touched indices, by record.
         touched: Vec<u32>,
     },
     Sparse {
@@ -123,8 +129,23 @@ pub(in crate::radiative) struct DenseView<'a> {
     pub(in crate::radiative) np: usize,
     pub(in crate::radiative) tur: &'a mut [f64],
     pub(in crate::radiative) pts: &'a mut [f64],
-    pub(in crate::radiative) flag: &'a mut [bool],
+    pub(in crate::radiative) rec: &'a mut [u32],
     pub(in crate::radiative) touched: &'a mut Vec<u32>,
+}
+
+/// The record of accumulator index `e` in a dense accumulator (`rec`: record + 1 per index, 0
+/// when untouched; `touched`: the indices by record), created as the next row at `e`'s first
+/// touch. Records are rows in first-touch order, so a chunk's records fill a prefix of the
+/// arrays however large the grid.
+#[inline(always)]
+pub(in crate::radiative) fn record(rec: &mut [u32], touched: &mut Vec<u32>, e: usize) -> usize {
+    let r = rec[e];
+    if r != 0 {
+        return r as usize - 1;
+    }
+    touched.push(e as u32);
+    rec[e] = touched.len() as u32;
+    touched.len() - 1
 }
 
 impl DenseView<'_> {
@@ -143,14 +164,13 @@ impl DenseView<'_> {
         p2: DVec3,
         wt: f64,
     ) {
-        let e = e as usize;
-        self.add_power(e, slot, pw, f1, f2);
-        let pi = (e * self.np + q as usize) * 7;
+        let r = self.add_power(e as usize, slot, pw, f1, f2);
+        let pi = (r * self.np + q as usize) * 7;
         add_points(&mut self.pts[pi..pi + 7], p1, p2, wt);
     }
 
-    /// The power part of a booking: `pw[ch] · f1 · f2` W per channel into (index `e`, `slot`),
-    /// and `e` marked touched.
+    /// The power part of a booking: `pw[ch] · f1 · f2` W per channel into (index `e`, `slot`);
+    /// returns `e`'s record.
     #[inline(always)]
     pub(in crate::radiative) fn add_power(
         &mut self,
@@ -159,16 +179,14 @@ impl DenseView<'_> {
         pw: &[f64],
         f1: f64,
         f2: f64,
-    ) {
-        if !self.flag[e] {
-            self.flag[e] = true;
-            self.touched.push(e as u32);
-        }
+    ) -> usize {
+        let r = record(self.rec, self.touched, e);
         let w = self.w;
-        let s = (e * self.ns + slot as usize) * w;
-        for (r, v) in self.tur[s..s + w].iter_mut().zip(pw) {
-            *r += v * f1 * f2;
+        let s = (r * self.ns + slot as usize) * w;
+        for (x, v) in self.tur[s..s + w].iter_mut().zip(pw) {
+            *x += v * f1 * f2;
         }
+        r
     }
 
     /// [`DenseView::add`] with `turbid_subfaces: Off` (index = entry, one points record).
@@ -185,9 +203,8 @@ impl DenseView<'_> {
         p2: DVec3,
         wt: f64,
     ) {
-        let e = e as usize;
-        self.add_power(e, slot, pw, f1, f2);
-        add_points(&mut self.pts[e * 7..e * 7 + 7], p1, p2, wt);
+        let r = self.add_power(e as usize, slot, pw, f1, f2);
+        add_points(&mut self.pts[r * 7..r * 7 + 7], p1, p2, wt);
     }
 }
 
@@ -202,7 +219,7 @@ impl TurAcc {
                 np,
                 tur,
                 pts,
-                flag,
+                rec,
                 touched,
                 ..
             } => Some(DenseView {
@@ -211,7 +228,7 @@ impl TurAcc {
                 np: *np,
                 tur,
                 pts,
-                flag,
+                rec,
                 touched,
             }),
             TurAcc::Sparse { .. } => None,
@@ -230,7 +247,7 @@ impl TurAcc {
                 tur,
                 pts,
                 pts_loc,
-                flag,
+                rec,
                 touched,
             } => Some((
                 DenseView {
@@ -239,7 +256,7 @@ impl TurAcc {
                     np: *np,
                     tur,
                     pts,
-                    flag,
+                    rec,
                     touched,
                 },
                 pts_loc,
@@ -249,24 +266,21 @@ impl TurAcc {
     }
 
     /// Back to the state [`TurAcc::new`] builds: the dense arrays zeroed on the touched
-    /// indices (the only ones written), the sparse maps emptied.
+    /// records (the only rows written), the sparse maps emptied.
     pub(in crate::radiative) fn reset(&mut self) {
         if let TurAcc::Dense {
             pts_loc, touched, ..
         } = self
             && !pts_loc.is_empty()
         {
-            for &e in touched.iter() {
-                pts_loc[e as usize * 8..(e as usize + 1) * 8].fill(0.0);
-            }
+            pts_loc[..touched.len() * 8].fill(0.0);
         }
         if let Some(v) = self.view() {
-            let (rec, prec) = (v.ns * v.w, v.np * 7);
+            let n = v.touched.len();
+            v.tur[..n * v.ns * v.w].fill(0.0);
+            v.pts[..n * v.np * 7].fill(0.0);
             for &e in v.touched.iter() {
-                let e = e as usize;
-                v.tur[e * rec..(e + 1) * rec].fill(0.0);
-                v.pts[e * prec..(e + 1) * prec].fill(0.0);
-                v.flag[e] = false;
+                v.rec[e as usize] = 0;
             }
             v.touched.clear();
         } else if let TurAcc::Sparse { tur, pts, .. } = self {
@@ -296,7 +310,7 @@ impl TurAcc {
                 } else {
                     Vec::new()
                 },
-                flag: vec![false; n_index],
+                rec: vec![0; n_index],
                 touched: Vec::new(),
             }
         } else {
@@ -372,10 +386,10 @@ impl TurAcc {
                 touched,
                 ..
             } => {
-                for &e in touched {
+                for (r, &e) in touched.iter().enumerate() {
                     for slot in 0..*ns {
                         let key = e as usize * *ns + slot;
-                        let v = &tur[key * *w..(key + 1) * *w];
+                        let v = &tur[(r * *ns + slot) * *w..(r * *ns + slot + 1) * *w];
                         if v.iter().any(|&x| x != 0.0) {
                             f(key as u64, v);
                         }
@@ -393,10 +407,10 @@ impl TurAcc {
             TurAcc::Dense {
                 np, pts, touched, ..
             } => {
-                for &e in touched {
+                for (r, &e) in touched.iter().enumerate() {
                     for q in 0..*np {
                         let key = e as usize * *np + q;
-                        let v = &pts[key * 7..key * 7 + 7];
+                        let v = &pts[(r * *np + q) * 7..(r * *np + q) * 7 + 7];
                         if *np == 1 || v[6] != 0.0 {
                             f(key as u64, v);
                         }
@@ -415,8 +429,8 @@ impl TurAcc {
         } = self
             && !pts_loc.is_empty()
         {
-            for &e in touched {
-                let v = &pts_loc[e as usize * 8..e as usize * 8 + 7];
+            for (r, &e) in touched.iter().enumerate() {
+                let v = &pts_loc[r * 8..r * 8 + 7];
                 if v[6] != 0.0 {
                     f(e as u64, v);
                 }
@@ -426,9 +440,10 @@ impl TurAcc {
 }
 
 /// Bytes of a dense [`TurAcc`] of `n_index` indices, `ns` slots, `w` channels, `np` points
-/// records per index (`local`: with the single-precision walk's records), flags included.
+/// records per index (`local`: with the single-precision walk's records), the record map
+/// included.
 pub fn dense_bytes(n_index: usize, ns: usize, w: usize, np: usize, local: bool) -> usize {
-    let per = (ns * w + np * 7 + if local { 8 } else { 0 }) * 8 + 1;
+    let per = (ns * w + np * 7 + if local { 8 } else { 0 }) * 8 + 4;
     n_index.saturating_mul(per)
 }
 

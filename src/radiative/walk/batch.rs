@@ -31,7 +31,7 @@ use crate::radiative::dda::DirStart;
 use crate::radiative::dda::{DdaL, Exit};
 use crate::radiative::engine::{ChunkOut, Ctx, TurAcc};
 #[cfg(target_arch = "x86_64")]
-use crate::radiative::engine::{DenseView, add};
+use crate::radiative::engine::{DenseView, add, record};
 #[cfg(target_arch = "x86_64")]
 use crate::radiative::fastmath::{HalfBarycentres, attenuation_l};
 #[cfg(target_arch = "x86_64")]
@@ -334,7 +334,7 @@ impl Ctx<'_> {
         // channel powers of (entry, slot) and the seven point sums of an entry.
         let tur: &mut [[f64; W]] = view.tur.as_chunks_mut::<W>().0;
         let pts: &mut [[f64; 7]] = view.pts.as_chunks_mut::<7>().0;
-        let flag = &mut *view.flag;
+        let rec = &mut *view.rec;
         let touched = &mut *view.touched;
         let mut ln = InFlight::<W, L> {
             dda: DdaL::default(),
@@ -440,11 +440,7 @@ impl Ctx<'_> {
                 if hit & (1 << l) == 0 {
                     continue;
                 }
-                let e = idx[l] as usize;
-                if !flag[e] {
-                    flag[e] = true;
-                    touched.push(e as u32);
-                }
+                let e = record(rec, touched, idx[l] as usize);
                 let r = &mut tur[e * ns + ln.slot[l]];
                 for c in 0..W {
                     r[c] += gain[c][l];

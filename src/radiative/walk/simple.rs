@@ -250,7 +250,7 @@ impl Ctx<'_> {
         let ns = view.ns;
         let tur = &mut *view.tur;
         let pts = &mut *view.pts;
-        let flag = &mut *view.flag;
+        let rec = &mut *view.rec;
         let touched = &mut *view.touched;
         out.rays += 1;
         let Some(mut dda) = Dda::new(spec, p, d) else {
@@ -280,11 +280,7 @@ impl Ctx<'_> {
                         let p1 = o + d * (t0 + s1);
                         let p2 = o + d * (t0 + s2);
                         let wt = psum * frac;
-                        let e = sc.idx as usize;
-                        if !flag[e] {
-                            flag[e] = true;
-                            touched.push(e as u32);
-                        }
+                        let e = record(rec, touched, sc.idx as usize);
                         let s = (e * ns + slot) * W;
                         let r: &mut [f64; W] = (&mut tur[s..s + W]).try_into().expect("W");
                         for c in 0..W {

@@ -25,7 +25,7 @@
 
 use super::{ChunkOut, Ctx, Queued};
 use crate::radiative::dda::{Dda, Exit, exit_of};
-use crate::radiative::engine::{DenseView, TurAcc, add};
+use crate::radiative::engine::{DenseView, TurAcc, add, record};
 use crate::radiative::fastmath::{HB_ALLOC, HB_POLY_DEG, HalfBarycentres};
 use crate::resources::grid::GridSpec;
 use crate::scene::desc::BoundaryMode;
@@ -586,7 +586,7 @@ impl Ctx<'_> {
         let ns = view.ns;
         let tur: &mut [[f64; W]] = view.tur.as_chunks_mut::<W>().0;
         let pts_loc: &mut [[[f64; 4]; 2]] = loc.as_chunks_mut::<4>().0.as_chunks_mut::<2>().0;
-        let flag = &mut *view.flag;
+        let rec = &mut *view.rec;
         let touched = &mut *view.touched;
         let mut ln = Wide::<W>::new();
         let grid4 = Grid4::new(spec);
@@ -709,11 +709,7 @@ impl Ctx<'_> {
                 if hit & (1 << l) == 0 {
                     continue;
                 }
-                let e = idx[l] as usize;
-                if !flag[e] {
-                    flag[e] = true;
-                    touched.push(e as u32);
-                }
+                let e = record(rec, touched, idx[l] as usize);
                 let r = &mut tur[e * ns + ln.slot[l]];
                 for c in 0..W {
                     r[c] += gain[c][l];
