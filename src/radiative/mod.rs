@@ -103,9 +103,11 @@ pub fn memory_terms(c: &RadiativeCounts) -> Vec<(&'static str, f64)> {
         * (entries * (ts * slots * w + tp * 8.0)
             + f(c.facet_refs) * (2.0 * w + 4.0)
             + cols * (w + 4.0));
-    // Per index: slots × channels power values, 7 point values per record, 8 values of the
-    // single-precision walk's local points, one flag byte.
-    let per_index = (slots * w + tp * 7.0 + 8.0) * 8.0 + 1.0;
+    // Per index ([`engine::dense_bytes`]): slots × channels power values, 7 point values per
+    // record, 8 values of the single-precision walk's local points, and its 4-byte record
+    // number; a chunk's records fill a prefix, and its rays cross the whole scene, so every
+    // entry's record is taken.
+    let per_index = (slots * w + tp * 7.0 + 8.0) * 8.0 + 4.0;
     let accumulator = (entries * ts * per_index).min(f(engine::DENSE_BYTES));
     let compact = entries * ts * (per_index + 16.0);
     let held = f(engine::ahead(c.threads));
