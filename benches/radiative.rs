@@ -17,6 +17,13 @@
 //! time), `-- --avx2` / `-- --baseline` cap the walks' instruction set (`--avx2`: the batched
 //! walk on 4 lanes instead of 8, products equal to ~1e-15)).
 //!
+//! Scale rows (not in the default run, one per process so that the peak RSS is the row's):
+//! `--row "stand 200 m"` and `--row "stand 1 km"`, the seeded stands of the Maket bench (400 and
+//! 10 000 trees, 4 m minimum spacing, 1 m cells, 12 m grid), default preset, 100 directions plus
+//! the principal plane as exact views; they print wall and CPU seconds, peak RSS, crossings per
+//! CPU-second and, with `--mc N`, the worst principal-plane BRF difference against a Monte Carlo
+//! run of N photons on the same scene (in % and in the Monte Carlo standard errors).
+//!
 //! Throughput columns: `Mcross/s/core` is visited cell crossings (empty cells jumped over by
 //! empty-space skipping are not counted; the forest line prints them apart) / (wall time of
 //! the engine run × threads), i.e. including emission, merging and extrapolation; `kernel` is
@@ -34,7 +41,7 @@ use lumenscape::simulation::Simulation;
 use std::time::Instant;
 
 mod common;
-use common::peak_rss_mib;
+use common::{cpu_seconds, peak_rss_mib};
 
 /// Spawns and runs every stage of `desc` with `preset`: (wall seconds, products).
 fn run_timed(
@@ -310,6 +317,11 @@ fn main() {
             p.bands.iter().map(|b| b.energy_closure).fold(0.0, f64::max),
         );
     }
+    for (name, size, n) in [("stand 200 m", 200.0, 200), ("stand 1 km", 1000.0, 5000)] {
+        if only.as_deref() == Some(name) {
+            scale_row(name, size, n, &args);
+        }
+    }
     // Orthographic images: the forest with nadir and the principal/orthogonal planes every 15°
     // (21 exact views, 21 images), η = 1, 2, 4 (footprints spread over Δx/η pixels).
     let mut fi = f.clone();
@@ -335,4 +347,73 @@ fn main() {
             (p.raw.images.len() * 8) as f64 / (1 << 20) as f64
         );
     }
+}
+
+/// One scale row (see the module doc): the Maket bench's seeded stand of `2 n` trees on `size`
+/// m, flux tracking at the default preset, and with `--mc N` the worst principal-plane BRF
+/// difference against N Monte Carlo photons.
+fn scale_row(name: &str, size: f64, n: usize, args: &[String]) {
+    use lumenscape::resources::scene::Solver;
+    use lumenscape::scene::generators::principal_plane_directions;
+    let mut d = forest::forest(&forest::ForestParams {
+        size_m: size,
+        cell_m: 1.0,
+        species: vec![forest::broadleaf(n), forest::conifer(n)],
+        min_spacing_m: 4.0,
+        seed: 11,
+        ..Default::default()
+    });
+    d.directions = Some(principal_plane_directions(
+        d.illumination.sun_azimuth_deg.unwrap_or(0.0),
+    ));
+    let (c0, t0) = (cpu_seconds(), Instant::now());
+    let (_, p) = run_timed(&d, Preset::Default);
+    let (wall, cpu) = (t0.elapsed().as_secs_f64(), cpu_seconds() - c0);
+    println!(
+        "{name}, {} trees, Default: wall {wall:.1} s, CPU {cpu:.1} s, peak RSS {:.0} MiB, {} iterations, {:.2} G crossings, {:.1} M crossings per CPU-s, closure {:.1e}",
+        2 * n,
+        peak_rss_mib(),
+        p.iterations,
+        p.crossings as f64 / 1e9,
+        p.crossings as f64 / cpu / 1e6,
+        p.bands.iter().map(|b| b.energy_closure).fold(0.0, f64::max),
+    );
+    let Some(photons) = args
+        .iter()
+        .position(|a| a == "--mc")
+        .and_then(|i| args.get(i + 1))
+        .and_then(|v| v.parse::<f64>().ok())
+    else {
+        return;
+    };
+    let t1 = Instant::now();
+    let mut sim = Simulation::from_desc(
+        &d,
+        &SceneSource::generated(),
+        RunSettings {
+            solver: Solver::MonteCarlo {
+                photons: photons as u64,
+                sampler: lumenscape::resources::scene::SamplerKind::Continuous,
+            },
+            ..Default::default()
+        },
+    )
+    .expect("scene");
+    sim.run(None).expect("run");
+    let m = sim.resource::<RadiativeProducts>().clone();
+    let (mut worst_rel, mut worst_z): (f64, f64) = (0.0, 0.0);
+    for (bm, bf) in m.bands.iter().zip(&p.bands) {
+        for (e, f) in bm.brf.iter().zip(&bf.brf) {
+            if e.estimator == Some("peel-off") {
+                worst_rel = worst_rel.max((f.brf / e.brf - 1.0).abs());
+                worst_z = worst_z.max((f.brf - e.brf).abs() / e.brf_se.unwrap_or(f64::NAN));
+            }
+        }
+    }
+    println!(
+        "{name}: Monte Carlo {photons:.0} photons in {:.1} s; worst principal-plane |FT − MC| {:.2} % = {:.1} σ",
+        t1.elapsed().as_secs_f64(),
+        100.0 * worst_rel,
+        worst_z
+    );
 }

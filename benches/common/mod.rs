@@ -23,3 +23,19 @@ pub fn no_hotspot(d: &mut lumenscape::scene::desc::SceneDesc) {
         }
     }
 }
+
+/// CPU time of this process so far (user + system, all threads), seconds, from
+/// /proc/self/stat (clock ticks of 1/100 s, Linux's `USER_HZ`); NaN elsewhere.
+#[allow(dead_code)]
+pub fn cpu_seconds() -> f64 {
+    std::fs::read_to_string("/proc/self/stat")
+        .ok()
+        .and_then(|s| {
+            // Fields after the command name (which may contain spaces) start at state (field 3).
+            let rest = &s[s.rfind(')')? + 2..];
+            let f: Vec<&str> = rest.split_whitespace().collect();
+            let ticks = f.get(11)?.parse::<f64>().ok()? + f.get(12)?.parse::<f64>().ok()?;
+            Some(ticks / 100.0)
+        })
+        .unwrap_or(f64::NAN)
+}

@@ -84,8 +84,8 @@ pub struct RunSettings {
     /// batched walk on 8 lanes, whose products agree with the one-ray walk's to rounding.
     pub batch_f32: bool,
     /// Largest number of nominal rays in one chunk of the flux tracking (default
-    /// [`crate::radiative::engine::CHUNK_RAYS`]; see
-    /// [`crate::radiative::engine::TrackingParams::chunk_rays`]): for tests of the chunk
+    /// [`crate::resources::tracking::CHUNK_RAYS`]; see
+    /// [`crate::resources::tracking::TrackingParams::chunk_rays`]): for tests of the chunk
     /// scheduler on small scenes.
     pub chunk_rays: usize,
     /// LiDAR pulses tracked per chunk; with an output folder, a scan of more pulses than one
@@ -192,7 +192,7 @@ impl Default for RunSettings {
             batch_walk: true,
             kernel_isa: Default::default(),
             batch_f32: true,
-            chunk_rays: crate::radiative::engine::CHUNK_RAYS,
+            chunk_rays: crate::resources::tracking::CHUNK_RAYS,
             lidar_chunk_pulses: DEFAULT_CHUNK_PULSES,
             lidar_far_roulette: Default::default(),
             lidar_first_order_columns: true,

@@ -207,14 +207,19 @@ pub struct TrackingParams {
     /// products).
     #[serde(skip)]
     pub progress: bool,
-    /// Largest number of nominal rays in one chunk of emitters (default
-    /// [`crate::radiative::engine::CHUNK_RAYS`]): bounds the memory of the chunks in flight on
+    /// Largest number of nominal rays in one chunk of emitters (default [`CHUNK_RAYS`]): bounds the memory of the chunks in flight on
     /// large scenes. Scenes of up to 16 such chunks per pass are cut into 16 chunks whatever
     /// this is; on larger ones it sets the chunking, hence the summation order (products
     /// within ~1e-15 relative).
     #[serde(skip)]
     pub chunk_rays: usize,
 }
+
+/// Default of [`TrackingParams::chunk_rays`]: the largest number of rays (nominal: emitters ×
+/// rays per emitter) in one chunk of the flux tracking. A chunk's event lists (facet, ground
+/// and image hits, at most one per ray, ≤ 68 B each with two channels) stay under ~70 MB, and
+/// only the chunks in flight are held.
+pub const CHUNK_RAYS: usize = 1 << 20;
 
 /// Instruction set cap of the flux-tracking walks ([`TrackingParams::kernel_isa`]).
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
@@ -251,7 +256,7 @@ impl TrackingParams {
             kernel_isa: KernelIsa::Best,
             batch_f32: true,
             progress: false,
-            chunk_rays: crate::radiative::engine::CHUNK_RAYS,
+            chunk_rays: CHUNK_RAYS,
         }
     }
     /// Fast look: 10 iterations, threshold 1e-2.

@@ -10,10 +10,7 @@ use super::*;
 /// deterministic on any number of threads.
 pub(in crate::radiative) const N_CHUNKS: usize = 16;
 
-/// Largest number of rays (nominal: emitters × rays per emitter) in one chunk: a chunk's event
-/// lists (facet, ground and image hits, at most one per ray, ≤ 68 B each with two channels) stay
-/// under ~70 MB, and only the chunks in flight ([`stream_chunks`]) are held.
-pub const CHUNK_RAYS: usize = 1 << 20;
+pub use crate::resources::tracking::CHUNK_RAYS;
 
 /// Largest dense turbid accumulator, bytes of address space (one per worker thread, see
 /// [`stream_chunks`]; allocated zeroed, resident only where a chunk's records are written: a
