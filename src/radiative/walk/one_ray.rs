@@ -8,6 +8,50 @@ use crate::radiative::fastmath::{HalfBarycentres, attenuation};
 use crate::scene::desc::{BoundaryMode, TurbidSubfaces};
 use glam::DVec3;
 
+/// Extinction coefficient of turbid entry `e` along a segment of length `ell` (m) starting at
+/// distance `s0` (m) from the ray's origin, m⁻¹: `G u_f`, or with the hotspot correlation of a
+/// first-order sun ray (`HS`, physics.md §3.5) `u_f (G − b ∫e^{−c s} ds / ℓ)`, floored at 0.
+/// `gd`: G per material along the direction; `hsv`: (b, c) per material.
+#[inline(always)]
+fn extinction<const HS: bool>(e: &Ent, gd: &[f64], hsv: &[[f64; 2]], s0: f64, ell: f64) -> f64 {
+    let g = gd[e.tm as usize];
+    if HS {
+        let [b, c] = hsv[e.tm as usize];
+        if b > 0.0 {
+            let corr = b * hotspot_integral(c, s0, ell) / ell;
+            return e.density * (g - corr).max(0.0);
+        }
+    }
+    g * e.density
+}
+
+/// How a ray left through a side of the grid ([`Ctx::side_exit`]).
+enum Side {
+    /// Wrapped in place: the traversal goes on.
+    Wrapped,
+    /// Re-entered on the opposite side at this point (a new traversal).
+    Reentered(DVec3),
+    /// Lost or escaped: the ray ends.
+    Ended,
+}
+
+/// The per-ray constants of [`Ctx::trace_w`] that its turbid segments read.
+#[derive(Clone, Copy)]
+struct RayConsts<'a> {
+    /// Unit propagation vector.
+    d: DVec3,
+    /// Incidence slot of the direction.
+    slot: u32,
+    /// `turbid_subfaces: Off` (one store per entry and slot).
+    off: bool,
+    /// G of every turbid material along the direction.
+    gd: &'a [f64],
+    /// Hotspot terms (b, c) per turbid material (empty unless hotspot-correlated).
+    hsv: &'a [[f64; 2]],
+    /// Ray-power threshold, W.
+    min_ray: f64,
+}
+
 impl Ctx<'_> {
     /// [`Ctx::trace`] for `W` channels (`W = 0`: any count, read from `self.w`); `HS`: with the
     /// hotspot correlation of a first-order sun ray (see [`Ctx::trace_hotspot`]).
@@ -41,13 +85,17 @@ impl Ctx<'_> {
         };
         let min_ray = self.min_ray * self.ray_factor[dir] * out.ray_scale;
         let off = self.subfaces == TurbidSubfaces::Off;
+        let ray = RayConsts {
+            d,
+            slot,
+            off,
+            gd,
+            hsv,
+            min_ray,
+        };
         let t_tol = spec.hit_tolerance();
         // Distance travelled from the ray's origin to the current restart point, m.
         let mut s_base = 0.0;
-        let hb = HalfBarycentres::get();
-        // Repetitive boundary without altitude offset: re-entries move the DDA in place.
-        let wrap_in_place =
-            spec.boundary != BoundaryMode::Isolated && spec.topography_offset == (0.0, 0.0);
         out.rays += 1;
         let mut n_cross = 0u64;
         let mut n_skip = 0u64;
@@ -92,74 +140,20 @@ impl Ctx<'_> {
                                 break 'cell e;
                             }
                         }
-                    } else if t1 > t0 {
-                        let ell = t1 - t0;
-                        let ents = &self.ents[cr.ent_lo as usize..cr.ent_hi as usize];
-                        // Distance of the segment from the ray's origin, m.
-                        let s0 = if HS { s_base + t0 } else { 0.0 };
-                        // Extinction coefficient of one entry along this segment, m⁻¹.
-                        let k_of = |e: &Ent| -> f64 {
-                            let g = gd[e.tm as usize];
-                            if HS {
-                                let [b, c] = hsv[e.tm as usize];
-                                if b > 0.0 {
-                                    let corr = b * hotspot_integral(c, s0, ell) / ell;
-                                    return e.density * (g - corr).max(0.0);
-                                }
-                            }
-                            g * e.density
-                        };
-                        let mut k = 0.0;
-                        for e in ents {
-                            k += k_of(e);
-                        }
-                        if k > 0.0 {
-                            let x = k * ell;
-                            // (1 − e^{−kℓ}, e^{−kℓ})
-                            let (frac, tr) = attenuation(x);
-                            // Interception points: barycentres of the two halves of the intercepted
-                            // energy.
-                            let (s1, s2) = hb.eval(x, ell);
-                            let p1 = dda.point(t0 + s1);
-                            let p2 = dda.point(t0 + s2);
-                            let wsum = psum * frac;
-                            if off {
-                                if let [e] = ents {
-                                    // One material: share = k/k = 1 exactly.
-                                    tur.add_entry(e.idx, slot, pw, frac, 1.0, p1, p2, wsum);
-                                } else {
-                                    for e in ents {
-                                        let share = k_of(e) / k;
-                                        tur.add_entry(
-                                            e.idx,
-                                            slot,
-                                            pw,
-                                            frac,
-                                            share,
-                                            p1,
-                                            p2,
-                                            wsum * share,
-                                        );
-                                    }
-                                }
-                            } else {
-                                // Incident (sub-)face stores, or per-slot points.
-                                let q0 = dda.point(t0);
-                                for e in ents {
-                                    let share = if ents.len() == 1 { 1.0 } else { k_of(e) / k };
-                                    let eq = self.acc_index(e.idx, q0, d, slot);
-                                    tur.add(eq, slot, pw, frac, share, p1, p2, wsum * share);
-                                }
-                            }
-                            for v in pw.iter_mut() {
-                                *v *= tr;
-                            }
-                            psum = pw.iter().sum();
-                            if psum < min_ray {
-                                add(&mut out.lost, pw);
-                                break 'restart;
-                            }
-                        }
+                    } else if t1 > t0
+                        && !self.turbid_segment::<HS>(
+                            &self.ents[cr.ent_lo as usize..cr.ent_hi as usize],
+                            &dda,
+                            (t0, t1),
+                            &ray,
+                            s_base,
+                            pw,
+                            &mut psum,
+                            tur,
+                            out,
+                        )
+                    {
+                        break 'restart;
                     }
                     if let Some((r, f, th)) = hit {
                         let hp = dda.point(th);
@@ -187,52 +181,163 @@ impl Ctx<'_> {
                         break 'restart;
                     }
                     Exit::Side(axis, s) => {
-                        if spec.boundary == BoundaryMode::Isolated {
-                            add(&mut out.lost, pw);
-                            break 'restart;
-                        }
-                        if wrap_in_place {
-                            crossings += dda.wrap_sides();
-                            if crossings > self.inp.params.max_crossings {
-                                add(&mut out.lost, pw);
-                                break 'restart;
-                            }
-                            // The facet skipped at the start is in another tile now.
-                            skip_facet = None;
-                            continue;
-                        }
-                        crossings += 1;
-                        if crossings > self.inp.params.max_crossings {
-                            add(&mut out.lost, pw);
-                            break 'restart;
-                        }
-                        s_base += dda.t;
-                        let q = match self.reenter(
-                            dda.point(dda.t),
-                            d,
+                        // The facet skipped at the start is in another tile now.
+                        skip_facet = None;
+                        match self.side_exit(
+                            &mut dda,
                             (axis, s),
+                            dir,
                             &mut crossings,
                             &mut s_base,
+                            pw,
+                            out,
                         ) {
-                            Ok(q) => q,
-                            Err(q) => {
-                                self.escape(q, dir, pw, out);
-                                break 'restart;
+                            Side::Wrapped => continue,
+                            Side::Reentered(q) => {
+                                p = q;
+                                continue 'restart;
                             }
-                        };
-                        if q.z < spec.origin.z {
-                            add(&mut out.lost, pw);
-                            break 'restart;
+                            Side::Ended => break 'restart,
                         }
-                        p = q;
-                        skip_facet = None;
-                        continue 'restart;
                     }
                 }
             }
         }
         out.crossings += n_cross;
         out.skipped += n_skip;
+    }
+
+    /// Turbid attenuation of the ray over `[t0, t1]` of a cell with the turbid entries `ents`
+    /// (physics.md §3.6; DART 5 paper §3): `k = Σ_m G_m(Ω) u_m` (hotspot-corrected when `HS`,
+    /// physics.md §3.5), the intercepted `1 − e^{−kℓ}` booked per entry in proportion to its
+    /// extinction with the two half-barycentre points, `pw` and `psum` attenuated. Returns
+    /// false when the ray's power fell under the threshold (booked as lost).
+    #[allow(clippy::too_many_arguments)]
+    #[inline(always)]
+    fn turbid_segment<const HS: bool>(
+        &self,
+        ents: &[Ent],
+        dda: &Dda,
+        (t0, t1): (f64, f64),
+        ray: &RayConsts,
+        s_base: f64,
+        pw: &mut [f64],
+        psum: &mut f64,
+        tur: &mut TurAcc,
+        out: &mut ChunkOut,
+    ) -> bool {
+        let RayConsts {
+            d,
+            slot,
+            off,
+            gd,
+            hsv,
+            min_ray,
+        } = *ray;
+        let hb = HalfBarycentres::get();
+        let ell = t1 - t0;
+        // Distance of the segment from the ray's origin, m.
+        let s0 = if HS { s_base + t0 } else { 0.0 };
+        // Extinction coefficient of one entry along this segment, m⁻¹.
+        let k_of = |e: &Ent| -> f64 { extinction::<HS>(e, gd, hsv, s0, ell) };
+        let mut k = 0.0;
+        for e in ents {
+            k += k_of(e);
+        }
+        if k > 0.0 {
+            let x = k * ell;
+            // (1 − e^{−kℓ}, e^{−kℓ})
+            let (frac, tr) = attenuation(x);
+            // Interception points: barycentres of the two halves of the intercepted
+            // energy.
+            let (s1, s2) = hb.eval(x, ell);
+            let p1 = dda.point(t0 + s1);
+            let p2 = dda.point(t0 + s2);
+            let wsum = *psum * frac;
+            if off {
+                if let [e] = ents {
+                    // One material: share = k/k = 1 exactly.
+                    tur.add_entry(e.idx, slot, pw, frac, 1.0, p1, p2, wsum);
+                } else {
+                    for e in ents {
+                        let share = k_of(e) / k;
+                        tur.add_entry(e.idx, slot, pw, frac, share, p1, p2, wsum * share);
+                    }
+                }
+            } else {
+                // Incident (sub-)face stores, or per-slot points.
+                let q0 = dda.point(t0);
+                for e in ents {
+                    let share = if ents.len() == 1 { 1.0 } else { k_of(e) / k };
+                    let eq = self.acc_index(e.idx, q0, d, slot);
+                    tur.add(eq, slot, pw, frac, share, p1, p2, wsum * share);
+                }
+            }
+            for v in pw.iter_mut() {
+                *v *= tr;
+            }
+            *psum = pw.iter().sum();
+            if *psum < min_ray {
+                add(&mut out.lost, pw);
+                return false;
+            }
+        }
+        true
+    }
+
+    /// The ray left the grid through side `(axis, s)` at `dda.t`: lost (isolated scene, or
+    /// more than `max_crossings` wraps), wrapped in place (repetitive scene without altitude
+    /// offset: the traversal goes on), re-entered on the opposite side at the returned point
+    /// (continuous topography, [`Ctx::reenter`]), or escaped through the top while re-entering.
+    #[allow(clippy::too_many_arguments)]
+    #[inline(always)]
+    fn side_exit(
+        &self,
+        dda: &mut Dda,
+        (axis, s): (usize, i64),
+        dir: usize,
+        crossings: &mut u32,
+        s_base: &mut f64,
+        pw: &mut [f64],
+        out: &mut ChunkOut,
+    ) -> Side {
+        let spec = self.inp.spec;
+        if spec.boundary == BoundaryMode::Isolated {
+            add(&mut out.lost, pw);
+            return Side::Ended;
+        }
+        if spec.topography_offset == (0.0, 0.0) {
+            *crossings += dda.wrap_sides();
+            if *crossings > self.inp.params.max_crossings {
+                add(&mut out.lost, pw);
+                return Side::Ended;
+            }
+            return Side::Wrapped;
+        }
+        *crossings += 1;
+        if *crossings > self.inp.params.max_crossings {
+            add(&mut out.lost, pw);
+            return Side::Ended;
+        }
+        *s_base += dda.t;
+        let q = match self.reenter(
+            dda.point(dda.t),
+            self.omega[dir],
+            (axis, s),
+            crossings,
+            s_base,
+        ) {
+            Ok(q) => q,
+            Err(q) => {
+                self.escape(q, dir, pw, out);
+                return Side::Ended;
+            }
+        };
+        if q.z < spec.origin.z {
+            add(&mut out.lost, pw);
+            return Side::Ended;
+        }
+        Side::Reentered(q)
     }
 
     /// The nearest facet of cell record `cr` that the ray from `o` along `d` hits within the
