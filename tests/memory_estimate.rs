@@ -101,8 +101,9 @@ fn the_peak_estimate_is_within_25_percent_of_the_measured_peak_on_every_example_
 
 #[test]
 fn run_and_check_refuse_a_stage_estimate_above_the_limit_before_allocating() {
-    // default.ron: the Maket grid is a few hundred KiB, the flux tracking's estimate > 100 MiB:
-    // 60M passes the Maket stage's own check and must be refused for the Radiative stage.
+    // default.ron: the Maket stage's estimate is the ~10 MiB baseline plus a few hundred KiB,
+    // the flux tracking's ~60 MiB (37 MiB of them chunk events): 30M passes the Maket stage's
+    // check and must be refused for the Radiative stage.
     let root = out_root("refusal");
     let out = root.join("out");
     let o = lumenscape(&[
@@ -110,7 +111,7 @@ fn run_and_check_refuse_a_stage_estimate_above_the_limit_before_allocating() {
         "-q",
         "assets/scenes/default.ron",
         "--max-memory",
-        "60M",
+        "30M",
         "--out",
         out.to_str().unwrap(),
     ]);
@@ -118,12 +119,12 @@ fn run_and_check_refuse_a_stage_estimate_above_the_limit_before_allocating() {
     assert!(!o.status.success(), "refused run exits non-zero: {err}");
     assert!(err.contains("Radiative stage"), "names the stage: {err}");
     assert!(err.contains("--max-memory"), "names the limit: {err}");
-    assert!(err.contains("60.0 MiB"), "states the limit: {err}");
+    assert!(err.contains("30.0 MiB"), "states the limit: {err}");
     assert!(!out.exists(), "no output folder for a refused run");
     let staged = std::fs::read_dir(&root).map_or(0, |d| d.count());
     assert_eq!(staged, 0, "no staging folder left beside it");
 
-    let o = lumenscape(&["check", "assets/scenes/default.ron", "--max-memory", "60M"]);
+    let o = lumenscape(&["check", "assets/scenes/default.ron", "--max-memory", "30M"]);
     assert!(!o.status.success());
     let err = String::from_utf8_lossy(&o.stderr);
     assert!(
@@ -139,7 +140,7 @@ fn run_and_check_refuse_a_stage_estimate_above_the_limit_before_allocating() {
         "check",
         "assets/scenes/default.ron",
         "--max-memory",
-        "60M",
+        "30M",
         "--solver",
         "monte-carlo",
     ]);
