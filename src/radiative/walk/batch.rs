@@ -363,20 +363,8 @@ impl Ctx<'_> {
         while ln.act != 0 {
             // Cell records, lane by lane; the lanes in empty cells at distance r > 1 jump over
             // the empty box around them (an event).
-            let mut dens = [0.0; L];
-            let mut idx = [0u32; L];
-            let mut tms = [0u64; L];
-            // Lanes in cells at tm > 1 (for an empty cell, its skip distance), as bits: formed
-            // in scalar registers (a vector load of the lanes' just-stored values would wait
-            // for the stores to retire: no store-to-load forwarding from several stores).
-            let mut far = 0u32;
-            for l in 0..L {
-                let sc = scells[ln.dda.lin[l] as usize];
-                dens[l] = sc.density;
-                idx[l] = sc.idx;
-                tms[l] = sc.tm as u64;
-                far |= ((sc.tm > 1) as u32) << l;
-            }
+            let (mut dens, mut idx, mut tms) = ([0.0; L], [0u32; L], [0u64; L]);
+            let far = cell_records(scells, &ln.dda.lin, &mut dens, &mut idx, &mut tms);
             let dens = s.ld(dens);
             let occ = s.gt(dens, zero);
             // Empty cells at distance r = tm > 1 (an empty cell's tm is its skip distance).
@@ -478,62 +466,111 @@ impl Ctx<'_> {
             if ev == 0 {
                 continue;
             }
-            for l in 0..L {
-                if ev & (1 << l) == 0 {
-                    continue;
-                }
-                let lane_pw: [f64; W] = std::array::from_fn(|c| ln.pw[c][l]);
-                let finished = if (dead | over) & (1 << l) != 0 {
-                    add(&mut out.lost, &lane_pw);
-                    true
-                } else if skip & (1 << l) != 0 && {
-                    // Empty cell at distance r = tm: jump over the empty box around it.
-                    let mut d = ln.dda.lane(l);
-                    let h = tms[l] as i64 - 1;
-                    let (e, faces) = d.skip_to(h, d.skip_exit(h));
-                    n_skip += faces - 1;
-                    ln.dda.set_lane(l, &d);
-                    e == Exit::Inside
-                } {
-                    false
-                } else {
-                    match ln.dda.exit_kind(l) {
-                        Exit::Inside => false,
-                        Exit::Top => {
-                            out.foot = ln.foot[l];
-                            self.escape(ln.dda.point(l), ln.dirs[l], &lane_pw, out);
-                            true
-                        }
-                        Exit::Bottom => {
-                            let slot = ln.slot[l] as u32;
-                            self.bottom(ln.dda.point(l), slot, &lane_pw, ln.psum[l], out);
-                            true
-                        }
-                        Exit::Side(..) => {
-                            if isolated {
-                                add(&mut out.lost, &lane_pw);
-                                true
-                            } else {
-                                ln.wraps[l] += ln.dda.wrap_sides(l) as f64;
-                                if ln.wraps[l] > max_crossings as f64 {
-                                    add(&mut out.lost, &lane_pw);
-                                    true
-                                } else {
-                                    false
-                                }
-                            }
-                        }
-                    }
-                };
-                if finished {
-                    ln.refill(v3, self, l, queue, out);
-                }
-            }
+            n_skip += self.lane_events(v3, &mut ln, (ev, dead | over, skip), &tms, queue, out);
         }
         out.foot = foot_saved;
         out.crossings += n_cross;
         out.skipped += n_skip;
     }
+
+    /// The scalar events of the lanes in `ev` after a crossing (physics.md §6.3): lanes in
+    /// `lost` (power under the threshold, or past the wrap limit) are booked as lost; lanes in
+    /// `skip` jump over the empty box around their cell (`tms`: the cells' records, an empty
+    /// cell's being its skip distance); the others escape through the top, reach the bottom or
+    /// leave through a side (lost in isolated scenes, else wrapped up to `max_crossings`).
+    /// Each finished lane is refilled from `queue`. Returns the empty cells jumped over.
+    #[allow(clippy::too_many_arguments)]
+    #[inline(always)]
+    fn lane_events<const W: usize, const L: usize>(
+        &self,
+        v3: V3,
+        ln: &mut InFlight<W, L>,
+        (ev, lost, skip): (u32, u32, u32),
+        tms: &[u64; L],
+        queue: &[Queued],
+        out: &mut ChunkOut,
+    ) -> u64 {
+        let isolated = self.inp.spec.boundary == BoundaryMode::Isolated;
+        let max_crossings = self.inp.params.max_crossings;
+        let mut n_skip = 0u64;
+        for l in 0..L {
+            if ev & (1 << l) == 0 {
+                continue;
+            }
+            let lane_pw: [f64; W] = std::array::from_fn(|c| ln.pw[c][l]);
+            let finished = if lost & (1 << l) != 0 {
+                add(&mut out.lost, &lane_pw);
+                true
+            } else if skip & (1 << l) != 0 && {
+                // Empty cell at distance r = tm: jump over the empty box around it.
+                let mut d = ln.dda.lane(l);
+                let h = tms[l] as i64 - 1;
+                let (e, faces) = d.skip_to(h, d.skip_exit(h));
+                n_skip += faces - 1;
+                ln.dda.set_lane(l, &d);
+                e == Exit::Inside
+            } {
+                false
+            } else {
+                match ln.dda.exit_kind(l) {
+                    Exit::Inside => false,
+                    Exit::Top => {
+                        out.foot = ln.foot[l];
+                        self.escape(ln.dda.point(l), ln.dirs[l], &lane_pw, out);
+                        true
+                    }
+                    Exit::Bottom => {
+                        let slot = ln.slot[l] as u32;
+                        self.bottom(ln.dda.point(l), slot, &lane_pw, ln.psum[l], out);
+                        true
+                    }
+                    Exit::Side(..) => {
+                        if isolated {
+                            add(&mut out.lost, &lane_pw);
+                            true
+                        } else {
+                            ln.wraps[l] += ln.dda.wrap_sides(l) as f64;
+                            if ln.wraps[l] > max_crossings as f64 {
+                                add(&mut out.lost, &lane_pw);
+                                true
+                            } else {
+                                false
+                            }
+                        }
+                    }
+                }
+            };
+            if finished {
+                ln.refill(v3, self, l, queue, out);
+            }
+        }
+        n_skip
+    }
+}
+
+/// The cell records of the lanes' cells `lin` into `dens` (densities), `idx` (accumulator
+/// indices) and `tms` (records: an empty cell's is its skip distance); returns, as bits, the
+/// lanes in cells whose record is > 1. The bits are formed in scalar registers: a vector load
+/// of the lanes' just-stored values would wait for the stores to retire (no store-to-load
+/// forwarding from several stores).
+#[cfg(target_arch = "x86_64")]
+#[inline(always)]
+fn cell_records<const L: usize>(
+    scells: &[crate::radiative::engine::SimpleCell],
+    lin: &[i64; L],
+    dens: &mut [f64; L],
+    idx: &mut [u32; L],
+    tms: &mut [u64; L],
+) -> u32 {
+    let mut far = 0u32;
+    for l in 0..L {
+        let sc = scells[lin[l] as usize];
+        dens[l] = sc.density;
+        idx[l] = sc.idx;
+        tms[l] = sc.tm as u64;
+        far |= ((sc.tm > 1) as u32) << l;
+    }
+    far
 }
 
 /// Per-lane state of the batched walk: traversal, active lanes (bit l), channel powers
