@@ -44,9 +44,8 @@ fn memory_record(dir: &Path) -> serde_json::Value {
     v["memory"].clone()
 }
 
-#[test]
-fn the_peak_estimate_is_within_25_percent_of_the_measured_peak_on_every_example_scene() {
-    let root = out_root("examples");
+/// The example scenes (assets/scenes/*.ron), sorted.
+fn example_scenes() -> Vec<PathBuf> {
     let mut scenes: Vec<PathBuf> = std::fs::read_dir("assets/scenes")
         .unwrap()
         .flatten()
@@ -54,6 +53,13 @@ fn the_peak_estimate_is_within_25_percent_of_the_measured_peak_on_every_example_
         .filter(|p| p.extension().is_some_and(|e| e == "ron"))
         .collect();
     scenes.sort();
+    scenes
+}
+
+#[test]
+fn the_peak_estimate_is_within_25_percent_of_the_measured_peak_on_every_example_scene() {
+    let root = out_root("examples");
+    let scenes = example_scenes();
     assert!(scenes.len() >= 10, "example scenes: {scenes:?}");
     let mut rows = Vec::new();
     let mut misses = Vec::new();
@@ -183,13 +189,7 @@ fn the_plans_counts_bound_what_the_maket_builds_on_every_example_scene() {
     use lumenscape::resources::maket_report::MaketReport;
     use lumenscape::resources::scene::RunSettings;
     use lumenscape::simulation::{Simulation, Stage};
-    let mut scenes: Vec<PathBuf> = std::fs::read_dir("assets/scenes")
-        .unwrap()
-        .flatten()
-        .map(|e| e.path())
-        .filter(|p| p.extension().is_some_and(|e| e == "ron"))
-        .collect();
-    scenes.sort();
+    let scenes = example_scenes();
     for s in &scenes {
         let mut sim = Simulation::load(s, RunSettings::default()).unwrap();
         sim.run_stage(Stage::Maket).unwrap();
