@@ -13,7 +13,7 @@ pub(in crate::radiative) const N_CHUNKS: usize = 16;
 pub use crate::resources::tracking::CHUNK_RAYS;
 
 /// Largest dense turbid accumulator, bytes of address space (one per worker thread, see
-/// [`stream_chunks`]; allocated zeroed, resident only where a chunk's records are written: a
+/// `stream_chunks`; allocated zeroed, resident only where a chunk's records are written: a
 /// prefix of its rows, and 4 B per index); larger index spaces (the incident-face stores of big
 /// scenes) use hash maps. A constant, not a share of the machine's memory: the choice selects
 /// the walk kernel, and products must not depend on the machine.
@@ -436,7 +436,7 @@ impl TurAcc {
     }
 }
 
-/// Bytes of a dense [`TurAcc`] of `n_index` indices, `ns` slots, `w` channels, `np` points
+/// Bytes of a dense turbid accumulator (`TurAcc`) of `n_index` indices, `ns` slots, `w` channels, `np` points
 /// records per index (`local`: with the single-precision walk's records), the record map
 /// included.
 pub fn dense_bytes(n_index: usize, ns: usize, w: usize, np: usize, local: bool) -> usize {
