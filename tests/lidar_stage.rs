@@ -18,37 +18,6 @@ use lumenscape::simulation::Simulation;
 
 const C: f64 = 299_792_458.0;
 
-fn lidar(name: &str, altitude_m: f64, pulses: PulsePattern, photons: u32) -> LidarDesc {
-    LidarDesc {
-        name: name.into(),
-        band: "red".into(),
-        platform: LidarPlatform::Airborne {
-            altitude_m,
-            view_zenith_deg: 0.0,
-            view_azimuth_deg: 0.0,
-            pulses,
-        },
-        footprint_radius_m: Some(0.3),
-        divergence_mrad: None,
-        edge_intensity: 0.368,
-        fov_radius_m: None,
-        pulse_energy_j: 1.0,
-        pulse_fwhm_ns: 2.0,
-        aperture_m2: 0.1,
-        bin_ns: 1.0,
-        photons_per_pulse: Some(photons),
-        max_order: 100,
-        gate_margin_m: 10.0,
-        photon_counting: None,
-        beam: None,
-        returns: ReturnsMethod::GaussianDecomposition,
-        sampler: LidarSampler::Discrete,
-        estimator: Default::default(),
-        scattering_photons_per_pulse: None,
-        fusion: false,
-    }
-}
-
 /// A 4 m periodic scene with Lambertian soil ρ_g and optionally a turbid layer (spherical
 /// LAD, ρ_L = τ_L = 0.45, 2 m thick).
 fn scene(lai: f64, soil: f64, l: LidarDesc) -> SceneDesc {

@@ -43,15 +43,6 @@ fn run_scene(
     )
 }
 
-fn exact(zenith_deg: f64, azimuth_deg: f64) -> ExactDirection {
-    ExactDirection {
-        zenith_deg,
-        azimuth_deg,
-        label: None,
-        solid_angle_sr: None,
-    }
-}
-
 fn with_eta(desc: &SceneDesc, eta: u32) -> SceneDesc {
     let mut d = desc.clone();
     d.radiative = Some(RadiativeDesc {
@@ -107,7 +98,11 @@ fn pixel_reflectance(r: &RadiativeResult, k: usize, projected_sr: f64, sky: bool
 fn every_image_sums_to_its_direction_exitance_for_any_eta() {
     let mut d = small_forest();
     d.directions = Some(DirectionParams {
-        exact: vec![exact(0.0, 0.0), exact(30.0, 225.0), exact(55.0, 100.0)],
+        exact: vec![
+            ExactDirection::new(0.0, 0.0),
+            ExactDirection::new(30.0, 225.0),
+            ExactDirection::new(55.0, 100.0),
+        ],
         ..Default::default()
     });
     let mut escaped_eta1: Option<Vec<u64>> = None;
@@ -155,7 +150,11 @@ fn flat_lambertian_ground_images_are_rho_in_every_pixel_for_any_eta() {
             d.illumination.sun_zenith_deg = Some(sza);
             d.illumination.skyl = vec![skyl];
             d.directions = Some(DirectionParams {
-                exact: vec![exact(0.0, 0.0), exact(20.0, 60.0), exact(50.0, 200.0)],
+                exact: vec![
+                    ExactDirection::new(0.0, 0.0),
+                    ExactDirection::new(20.0, 60.0),
+                    ExactDirection::new(50.0, 200.0),
+                ],
                 ..Default::default()
             });
             let (p, set) = run_scene(&with_eta(&d, eta), None, None);
@@ -230,7 +229,10 @@ fn plate_scene(eta: u32, subcells: u32) -> (RadiativeResult, DirectionSet, Vec<u
         facet_ids,
     };
     let dirs = DirectionSet::new(&DirectionParams {
-        exact: vec![exact(0.0, 0.0), exact(40.0, 30.0)],
+        exact: vec![
+            ExactDirection::new(0.0, 0.0),
+            ExactDirection::new(40.0, 30.0),
+        ],
         ..Default::default()
     })
     .unwrap();
@@ -388,7 +390,10 @@ fn exr_images_carry_the_oversampled_pixel_size() {
     let mut d = base_scene((4.0, 3.0), (1.0, 0.5, 1.0), BoundaryMode::Repetitive);
     d.objects.push(flat_ground());
     d.directions = Some(DirectionParams {
-        exact: vec![exact(0.0, 0.0), exact(35.0, 120.0)],
+        exact: vec![
+            ExactDirection::new(0.0, 0.0),
+            ExactDirection::new(35.0, 120.0),
+        ],
         ..Default::default()
     });
     let d = with_eta(&d, 3);

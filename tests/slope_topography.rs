@@ -35,15 +35,6 @@ use lumenscape::simulation::Simulation;
 
 const SZA: f64 = 30.0;
 
-fn exact(zenith_deg: f64, azimuth_deg: f64) -> ExactDirection {
-    ExactDirection {
-        zenith_deg,
-        azimuth_deg,
-        label: None,
-        solid_angle_sr: None,
-    }
-}
-
 /// A 20 m continuous-topography scene of 1 m cells over the plane z = g_x x + g_y y (a 5 m
 /// raster), Lambertian soil ρ, sun (30°, `saz`), exact views nadir and (40°, 300°), images
 /// with oversampling `eta`.
@@ -69,7 +60,10 @@ fn slope_scene(g: (f64, f64), rho: f64, saz: f64, eta: u32) -> SceneDesc {
     d.illumination.sun_zenith_deg = Some(SZA);
     d.illumination.sun_azimuth_deg = Some(saz);
     d.directions = Some(DirectionParams {
-        exact: vec![exact(0.0, 0.0), exact(40.0, 300.0)],
+        exact: vec![
+            ExactDirection::new(0.0, 0.0),
+            ExactDirection::new(40.0, 300.0),
+        ],
         ..Default::default()
     });
     d.radiative = Some(RadiativeDesc {
@@ -262,34 +256,12 @@ fn nadir_lidar_over_a_bare_slope_returns_rho_cos_alpha_over_pi() {
                 .collect(),
         }),
     }));
-    d.lidars = Some(vec![LidarDesc {
-        name: "slope".into(),
-        band: "red".into(),
-        platform: LidarPlatform::Airborne {
-            altitude_m: h,
-            view_zenith_deg: 0.0,
-            view_azimuth_deg: 0.0,
-            pulses: PulsePattern::Single((2.0, 2.0)),
-        },
-        footprint_radius_m: Some(0.3),
-        divergence_mrad: None,
-        edge_intensity: 0.368,
-        fov_radius_m: None,
-        pulse_energy_j: 1.0,
-        pulse_fwhm_ns: 2.0,
-        aperture_m2: 0.1,
-        bin_ns: 1.0,
-        photons_per_pulse: Some(2000),
-        max_order: 100,
-        gate_margin_m: 10.0,
-        photon_counting: None,
-        beam: None,
-        returns: lumenscape::lidar::returns::ReturnsMethod::GaussianDecomposition,
-        sampler: LidarSampler::Discrete,
-        estimator: Default::default(),
-        scattering_photons_per_pulse: None,
-        fusion: false,
-    }]);
+    d.lidars = Some(vec![lidar(
+        "slope",
+        h,
+        PulsePattern::Single((2.0, 2.0)),
+        2000,
+    )]);
     let mut sim = Simulation::from_desc(&d, &SceneSource::generated(), RunSettings::default())
         .unwrap_or_else(|e| panic!("{e}"));
     sim.run(None).unwrap_or_else(|e| panic!("{e}"));

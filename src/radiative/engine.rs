@@ -94,8 +94,8 @@ pub use iterate::run;
 pub(in crate::radiative) use iterate::*;
 pub use launch::{LaunchPlan, facet_outline_m, launch_plan, remap_wrong_side};
 pub(in crate::radiative) use merge::*;
+pub use stream::ahead;
 pub(in crate::radiative) use stream::*;
-pub use stream::{ahead, chunks_in_flight};
 
 use super::dda::{floor_i64, skip_field};
 use super::fastmath::{HalfBarycentres, attenuation};

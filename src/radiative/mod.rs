@@ -107,7 +107,13 @@ pub fn memory_terms(c: &RadiativeCounts) -> Vec<(&'static str, f64)> {
     // record, 8 values of the single-precision walk's local points, and its 4-byte record
     // number; a chunk's records fill a prefix, and its rays cross the whole scene, so every
     // entry's record is taken.
-    let per_index = (slots * w + tp * 7.0 + 8.0) * 8.0 + 4.0;
+    let per_index = f(engine::dense_bytes(
+        1,
+        c.slots,
+        w as usize,
+        c.turbid_stores.1.max(1),
+        true,
+    ));
     let accumulator = (entries * ts * per_index).min(f(engine::DENSE_BYTES));
     let compact = entries * ts * (per_index + 16.0);
     let held = f(engine::ahead(c.threads));

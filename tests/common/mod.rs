@@ -298,3 +298,36 @@ pub fn assert_same_products(
         }
     }
 }
+
+/// A nadir airborne LiDAR in band `red` (0.3 m footprint, 1 J Gaussian pulses of 2 ns, 1 ns
+/// bins, discrete sampler, Gaussian decomposition) at `altitude_m` above the lowest ground.
+pub fn lidar(name: &str, altitude_m: f64, pulses: PulsePattern, photons: u32) -> LidarDesc {
+    LidarDesc {
+        name: name.into(),
+        band: "red".into(),
+        platform: LidarPlatform::Airborne {
+            altitude_m,
+            view_zenith_deg: 0.0,
+            view_azimuth_deg: 0.0,
+            pulses,
+        },
+        footprint_radius_m: Some(0.3),
+        divergence_mrad: None,
+        edge_intensity: 0.368,
+        fov_radius_m: None,
+        pulse_energy_j: 1.0,
+        pulse_fwhm_ns: 2.0,
+        aperture_m2: 0.1,
+        bin_ns: 1.0,
+        photons_per_pulse: Some(photons),
+        max_order: 100,
+        gate_margin_m: 10.0,
+        photon_counting: None,
+        beam: None,
+        returns: lumenscape::lidar::returns::ReturnsMethod::GaussianDecomposition,
+        sampler: LidarSampler::Discrete,
+        estimator: Default::default(),
+        scattering_photons_per_pulse: None,
+        fusion: false,
+    }
+}

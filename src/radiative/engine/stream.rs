@@ -32,12 +32,6 @@ pub fn ahead(threads: usize) -> usize {
     2 * threads.max(1) + 2
 }
 
-/// Most chunk outputs held at once on `threads` workers (finished and waiting for their turn
-/// to be merged, or running): see [`ahead`].
-pub fn chunks_in_flight(threads: usize) -> usize {
-    ahead(threads) + threads.max(1)
-}
-
 /// Runs the chunks `0..n` of one pass: `work(i, out)` fills chunk `i`'s output on some worker
 /// thread, then `merge_one(out)` is called for the outputs in the order 0, 1, …, n−1 (under a
 /// lock, by whichever worker finished the chunk that completes the prefix), and `progress`
