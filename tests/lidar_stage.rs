@@ -6,7 +6,6 @@
 mod common;
 use common::*;
 use lumenscape::io::las_out::read_las;
-use lumenscape::lidar::returns::ReturnsMethod;
 use lumenscape::lidar::run::{LidarProducts, LidarRun};
 use lumenscape::lidar::waveform::{
     FirstOrderCanopy, GapCorrelation, Waveform, analytic_first_order,
