@@ -145,7 +145,7 @@ pub const UPWARD_HIT_SHARE: f64 = 0.25;
 /// Event lists of the flux tracking's chunks in flight, bytes. A chunk keeps the facet,
 /// ground and image hits of its rays (per hit a key of 12–20 bytes and the channel powers,
 /// hit point and weight: 8 (W + 4) bytes) until it is merged; chunks are merged in order as
-/// they finish, so at most [`engine::chunks_in_flight`] chunks of a pass are held (and their
+/// they finish, so at most [`engine::ahead`] + threads chunks of a pass are held (and their
 /// recycled allocations); the finished chunks waiting for their turn and the running ones
 /// rarely reach that bound together, and [`engine::ahead`] chunks (2 per thread + 2) are
 /// taken (on the example scenes the event memory measured is 50–85 % of the in-flight
