@@ -167,6 +167,7 @@ pub fn estimate(world: &World, report: &MaketReport, rss: Option<u64>) -> Memory
             turbid_materials,
             turbid_entries: entries,
             n_facets,
+            facet_refs: refs,
             n_columns,
             n_dirs,
             channels: w,
@@ -190,6 +191,7 @@ pub fn estimate(world: &World, report: &MaketReport, rss: Option<u64>) -> Memory
                 turbid_materials,
                 height,
                 run.lidar_chunk_pulses,
+                refs,
             );
             if t.iter().map(|x| x.1).sum::<f64>() > worst.iter().map(|x| x.1).sum::<f64>() {
                 worst = t;

@@ -1,6 +1,7 @@
 //! Geometry: polygons, triangles, crown shapes and their cell overlaps, terrain, facet shapes.
 
 pub mod crown;
+pub mod facet_packs;
 pub mod polygon;
 pub mod quadrature;
 pub mod shapes;

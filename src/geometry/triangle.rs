@@ -1,4 +1,4 @@
-//! Triangles: exact triangle–box overlap (separating-axis test, Akenine-Möller 2001), clipping of
+//! Triangles: Möller–Trumbore ray–triangle intersection, exact triangle–box overlap (separating-axis test, Akenine-Möller 2001), clipping of
 //! a triangle to a box (Sutherland–Hodgman in 3D) for the area a facet puts in each cell, and
 //! degeneracy checks.
 
@@ -25,6 +25,31 @@ pub fn is_degenerate(t: &[DVec3; 3]) -> bool {
         .max((t[2] - t[1]).length_squared())
         .max((t[0] - t[2]).length_squared());
     l == 0.0 || 2.0 * area(t) <= 1e-12 * l
+}
+
+/// Möller–Trumbore ray–triangle intersection (Möller & Trumbore 1997), both faces; distance or
+/// `None`.
+#[inline]
+pub fn intersect(v: &[DVec3; 3], o: DVec3, d: DVec3) -> Option<f64> {
+    let e1 = v[1] - v[0];
+    let e2 = v[2] - v[0];
+    let p = d.cross(e2);
+    let det = e1.dot(p);
+    if det.abs() < 1e-300 {
+        return None;
+    }
+    let inv = 1.0 / det;
+    let s = o - v[0];
+    let u = s.dot(p) * inv;
+    if !(-1e-12..=1.0 + 1e-12).contains(&u) {
+        return None;
+    }
+    let q = s.cross(e1);
+    let vv = d.dot(q) * inv;
+    if vv < -1e-12 || u + vv > 1.0 + 1e-12 {
+        return None;
+    }
+    Some(e2.dot(q) * inv)
 }
 
 /// Exact overlap test of a triangle and the closed box `[lo, hi]` (touching counts as overlap,

@@ -26,6 +26,8 @@ pub struct PhotonCounts {
     pub turbid_entries: usize,
     /// Facets.
     pub n_facets: usize,
+    /// Facet references (facet–cell pairs).
+    pub facet_refs: usize,
     /// Grid columns.
     pub n_columns: usize,
     /// Tiling directions.
@@ -38,7 +40,8 @@ pub struct PhotonCounts {
 
 /// Memory the Photon stage (passive Monte Carlo) holds at its peak, bytes, as named terms:
 ///
-/// * `photon context`: per cell the facet bounding box (6 f64) and, when cells × turbid
+/// * `photon context`: the facet packs of the scan prefilter
+///   ([`crate::radiative::packs_bytes`]), per cell the facet bounding box (6 f64) and, when cells × turbid
 ///   materials ≤ 2²³, the column tables of the first-flight sampler (two f64 per cell and
 ///   material, one flag per cell).
 /// * `batch tallies`: a wave of up to 16 batches is held until merged; each keeps absorbed and
@@ -55,7 +58,7 @@ pub fn memory_terms(c: &PhotonCounts) -> Vec<(&'static str, f64)> {
     } else {
         0.0
     };
-    let context = n_cells * 48.0 + columns;
+    let context = n_cells * 48.0 + columns + crate::radiative::packs_bytes(c.facet_refs);
     let tally = |n: usize| (f(n) * w).min(f(1 << 18)) * 8.0;
     let wave = f(c.batches.clamp(1, 16));
     let summary = 8.0 * w * (f(c.n_dirs) * 4.0 + 16.0);

@@ -80,6 +80,8 @@ pub struct RadiativeCounts {
 ///   records of the chunks held (as many as for [`chunk_event_bytes`]; a chunk's rays cross
 ///   the whole scene, so each holds up to every entry's records: an 8-byte key and the same
 ///   values).
+/// * `facet packs`: the facets of each cell in `f32` for the scan prefilter
+///   ([`FacetPacks::bytes_for`](crate::geometry::facet_packs::FacetPacks::bytes_for) per reference).
 /// * `chunk events`: [`chunk_event_bytes`].
 /// * `products`: absorbed and intercepted power per turbid entry, facet and column, the
 ///   increments of the extrapolation (three copies) and the images (result and two snapshots).
@@ -132,9 +134,19 @@ pub fn memory_terms(c: &RadiativeCounts) -> Vec<(&'static str, f64)> {
             "turbid accumulators",
             f(c.threads) * accumulator + held.min(16.0) * compact + exit_groups,
         ),
+        ("facet packs", packs_bytes(c.facet_refs)),
         ("chunk events", chunk_event_bytes(c)),
         ("products", products),
     ]
+}
+
+/// Bytes of the facet packs of `refs` facet references (none without facets).
+pub fn packs_bytes(refs: usize) -> f64 {
+    if refs == 0 {
+        0.0
+    } else {
+        crate::geometry::facet_packs::FacetPacks::bytes_for(refs) as f64
+    }
 }
 
 /// Share of the upward rays of a scattering iteration that meet a facet (an event) before

@@ -43,6 +43,12 @@ impl GridSpec {
         [i, j, idx / (self.n[0] * self.n[1])]
     }
 
+    /// Lower corner of the cell with linear index `c`, m.
+    pub fn cell_lo(&self, c: usize) -> DVec3 {
+        let [i, j, k] = self.ijk(c);
+        self.origin + DVec3::new(i as f64, j as f64, k as f64) * self.cell
+    }
+
     /// Lower and upper corners of cell (i, j, k) (integer indices may lie outside the grid for
     /// periodic objects).
     pub fn cell_box(&self, i: i64, j: i64, k: i64) -> (DVec3, DVec3) {

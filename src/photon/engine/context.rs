@@ -98,10 +98,28 @@ pub(crate) struct Ctx<'a> {
     /// holds every point of the cell's facets near the cell ([`facet_boxes`]); a ray segment
     /// that misses it hits none of them ([`Ctx::facet_hit`], [`Ctx::facet_behind`]).
     pub(crate) facet_box: std::sync::Arc<[[f64; 6]]>,
+    /// The facets of each cell in `f32` for the prefilter of the facet scans
+    /// ([`Ctx::facet_hit`], [`Ctx::facet_behind`]); empty when the scene has none.
+    pub(crate) packs: std::sync::Arc<crate::geometry::facet_packs::FacetPacks>,
     /// Discrete sampler: the upward tiling directions (their ids) and an alias table of their
     /// projected solid angles `∫ μ dΩ` (π in all), for the Lambertian flat ground's reflection
     /// ([`Ctx::ground_direction`]); `None` with the continuous sampler.
     pub(crate) ground_dirs: Option<(AliasTable, Vec<u32>)>,
+}
+
+/// The facets of each cell packed for the scan prefilter
+/// ([`FacetPacks`](crate::geometry::facet_packs::FacetPacks)); empty without facets.
+pub(crate) fn facet_packs(inp: &PhotonInput) -> crate::geometry::facet_packs::FacetPacks {
+    let grid = inp.grid;
+    if grid.facet_ids.is_empty() || grid.facet_start.len() != inp.spec.n_cells() + 1 {
+        return Default::default();
+    }
+    crate::geometry::facet_packs::FacetPacks::new(
+        &grid.facet_start,
+        &grid.facet_ids,
+        |c| inp.spec.cell_lo(c),
+        |f| inp.facets[f as usize].v,
+    )
 }
 
 /// Per cell, the bounding box of the cell's facets (their vertices' box, widened by a margin
@@ -351,6 +369,7 @@ impl<'a> Ctx<'a> {
             far_roulette: (0.0, 0.0),
             empty: std::sync::Arc::from(Vec::new()),
             facet_box: std::sync::Arc::from(facet_boxes(inp)),
+            packs: std::sync::Arc::new(facet_packs(inp)),
             ground_dirs: None,
         };
         if inp.params.sampler.is_discrete() {

@@ -132,9 +132,10 @@ impl Ctx<'_> {
             return None;
         }
         let mut hit: Option<(u32, f64)> = None;
-        for &f in grid.facets_of(c) {
+        let test = |r: usize| {
+            let f = grid.facet_ids[r];
             if Some(f) == skip {
-                continue;
+                return;
             }
             let fa = &self.inp.facets[f as usize];
             if let Some(t) = intersect(&fa.v, o, d)
@@ -147,8 +148,32 @@ impl Ctx<'_> {
                     hit = Some((f, t));
                 }
             }
-        }
+        };
+        self.scan_facets(c, o, d, (t0, t1), test);
         hit
+    }
+
+    /// Calls `test(r)` in increasing order for the facet references `r` of cell `c` that the
+    /// segment `[t0, t1]` (± the hit tolerance) of the ray from `o` along `d` may cross: all
+    /// those it does cross ([`FacetPacks::scan`](crate::geometry::facet_packs::FacetPacks::scan)).
+    #[inline]
+    fn scan_facets(
+        &self,
+        c: usize,
+        o: DVec3,
+        d: DVec3,
+        (t0, t1): (f64, f64),
+        test: impl FnMut(usize),
+    ) {
+        let grid = self.inp.grid;
+        let tol = self.inp.spec.hit_tolerance();
+        let refs = (
+            grid.facet_start[c] as usize,
+            grid.facet_start[c + 1] as usize,
+        );
+        let corner = || self.inp.spec.cell_lo(c);
+        let seg = (-tol, t1 - t0 + tol);
+        self.packs.scan(refs, corner, o + d * t0, d, seg, test);
     }
 
     /// True if the segment `[t0, t1]` of the ray from `o` along `d` in cell `c` crosses a
@@ -160,12 +185,18 @@ impl Ctx<'_> {
         {
             return false;
         }
-        self.inp.grid.facets_of(c).iter().any(|&f| {
-            let fa = &self.inp.facets[f as usize];
-            !fa.two_sided
+        let grid = self.inp.grid;
+        let mut behind = false;
+        self.scan_facets(c, o, d, (t0, t1), |r| {
+            if behind {
+                return;
+            }
+            let fa = &self.inp.facets[grid.facet_ids[r] as usize];
+            behind = !fa.two_sided
                 && (fa.v[1] - fa.v[0]).cross(fa.v[2] - fa.v[0]).dot(d) >= 0.0
-                && intersect(&fa.v, o, d).is_some_and(|t| t >= t0 - tol && t <= t1 + tol)
-        })
+                && intersect(&fa.v, o, d).is_some_and(|t| t >= t0 - tol && t <= t1 + tol);
+        });
+        behind
     }
 
     /// The tracked turbid material of cell `c` whose share of the extinction `Σ_m G_m u_m`

@@ -103,6 +103,9 @@ pub(in crate::radiative) struct Ctx<'a> {
     pub(in crate::radiative) scells32: Vec<u64>,
     /// Where the walks dispatch ([`TrackingParams::kernel_isa`] on this CPU).
     pub(in crate::radiative) arch: pulp::Arch,
+    /// The facets of each cell in `f32` for the prefilter of [`Ctx::trace_w`]'s facet scan
+    /// (empty when the scene has none).
+    pub(in crate::radiative) packs: crate::geometry::facet_packs::FacetPacks,
 }
 
 /// Smallest empty-space distance from which the flux-tracking walks jump

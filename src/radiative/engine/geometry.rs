@@ -189,30 +189,7 @@ pub fn barycentre(k: f64, ell: f64) -> f64 {
     1.0 / k - ell * (-x).exp() / (-(-x).exp_m1())
 }
 
-/// Möller–Trumbore ray–triangle intersection (Möller & Trumbore 1997), both faces; distance or
-/// `None`.
-#[inline]
-pub fn intersect(v: &[DVec3; 3], o: DVec3, d: DVec3) -> Option<f64> {
-    let e1 = v[1] - v[0];
-    let e2 = v[2] - v[0];
-    let p = d.cross(e2);
-    let det = e1.dot(p);
-    if det.abs() < 1e-300 {
-        return None;
-    }
-    let inv = 1.0 / det;
-    let s = o - v[0];
-    let u = s.dot(p) * inv;
-    if !(-1e-12..=1.0 + 1e-12).contains(&u) {
-        return None;
-    }
-    let q = s.cross(e1);
-    let vv = d.dot(q) * inv;
-    if vv < -1e-12 || u + vv > 1.0 + 1e-12 {
-        return None;
-    }
-    Some(e2.dot(q) * inv)
-}
+pub use crate::geometry::triangle::intersect;
 
 pub(in crate::radiative) fn cell_centre(spec: &GridSpec, c: usize) -> DVec3 {
     let [i, j, k] = spec.ijk(c);

@@ -120,7 +120,7 @@ impl Ctx<'_> {
                     let mut hit: Option<(u32, u32, f64)> = None;
                     if cr.fac_lo != cr.fac_hi {
                         let o = dda.point(0.0);
-                        hit = self.nearest_facet(cr, o, d, (t0, t1), t_tol, skip_facet);
+                        hit = self.nearest_facet(c, cr, o, d, (t0, t1), t_tol, skip_facet);
                         if let Some((_, _, th)) = hit {
                             t1 = th.max(t0);
                         }
@@ -340,12 +340,18 @@ impl Ctx<'_> {
         Side::Reentered(q)
     }
 
-    /// The nearest facet of cell record `cr` that the ray from `o` along `d` hits within the
-    /// segment `[t0, t1]` (± `t_tol`), from its front or on a two-sided facet, ignoring
-    /// `skip_facet`: (facet ref, facet, distance).
+    /// The nearest facet of cell `c` (record `cr`) that the ray from `o` along `d` hits within
+    /// the segment `[t0, t1]` (± `t_tol`), from its front or on a two-sided facet, ignoring
+    /// `skip_facet`: (facet ref, facet, distance). The exact test runs in reference order on
+    /// the references that the `f32` prefilter ([`FacetPacks`]) keeps: the result is the
+    /// plain scan's.
+    ///
+    /// [`FacetPacks`]: crate::geometry::facet_packs::FacetPacks
     #[inline(always)]
+    #[allow(clippy::too_many_arguments)]
     fn nearest_facet(
         &self,
+        c: usize,
         cr: CellRec,
         o: DVec3,
         d: DVec3,
@@ -355,10 +361,10 @@ impl Ctx<'_> {
     ) -> Option<(u32, u32, f64)> {
         let grid = self.inp.grid;
         let mut hit: Option<(u32, u32, f64)> = None;
-        for r in cr.fac_lo as usize..cr.fac_hi as usize {
+        let test = |r: usize| {
             let f = grid.facet_ids[r];
             if Some(f) == skip_facet {
-                continue;
+                return;
             }
             let fa = &self.inp.facets[f as usize];
             if let Some(t) = intersect(&fa.v, o, d)
@@ -372,7 +378,11 @@ impl Ctx<'_> {
                     hit = Some((r as u32, f, t));
                 }
             }
-        }
+        };
+        let refs = (cr.fac_lo as usize, cr.fac_hi as usize);
+        let corner = || self.inp.spec.cell_lo(c);
+        let seg = (-t_tol, t1 - t0 + t_tol);
+        self.packs.scan(refs, corner, o + d * t0, d, seg, test);
         hit
     }
 
