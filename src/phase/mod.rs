@@ -521,14 +521,15 @@ pub fn fluid_table(
 /// Exact projected solid angle of the part of sector `d` on the front side of a plane of unit
 /// normal `normal`: `∫_{ΔΩ} max(0, n·Ω) dΩ` (sr). The azimuth integral is analytic; the μ
 /// integral uses tanh–sinh split at every kink (tangent latitudes μ = ±n_h and the plane's
-/// crossings of the sector's bounding meridians), accurate to ~1e-13. Fictive directions use
-/// `max(0, n·Ω_v) ΔΩ_v`.
+/// crossings of the sector's bounding meridians), accurate to ~1e-13; sectors on one side of
+/// the plane (most of them) take the closed form `max(0, n·∫Ω dΩ)` instead. Fictive
+/// directions use `max(0, n·Ω_v) ΔΩ_v`.
 pub fn projected_solid_angle(d: &Direction, normal: DVec3) -> f64 {
     projected_solid_angle_rule(d, normal, true)
 }
 
-/// [`projected_solid_angle`] with the 145-node tanh–sinh rule instead of the 73-node one (the
-/// check of the latter's accuracy).
+/// [`projected_solid_angle`] with the 145-node tanh–sinh rule on every sector (no closed form
+/// for one-sided sectors): the check of the 73-node rule and of the closed form.
 pub fn projected_solid_angle_fine(d: &Direction, normal: DVec3) -> f64 {
     projected_solid_angle_rule(d, normal, false)
 }
@@ -551,6 +552,9 @@ fn projected_solid_angle_rule(d: &Direction, normal: DVec3, coarse: bool) -> f64
         };
     }
     let phin = n.y.atan2(n.x);
+    if coarse && let Some(v) = one_sided(d, n, nh, phin) {
+        return v;
+    }
     let mut breaks = vec![nh, -nh];
     for phi in [pa, pb] {
         let c = nh * (phi - phin).cos();
@@ -573,6 +577,67 @@ fn projected_solid_angle_rule(d: &Direction, normal: DVec3, coarse: bool) -> f64
     } else {
         tanh_sinh_pieces(d.mu_min, d.mu_max, &breaks, f)
     }
+}
+
+/// [`projected_solid_angle`] of a sector that lies on one side of the plane: `n·∫_{ΔΩ} Ω dΩ`
+/// in closed form on the front side, 0 on the back side, `None` when the plane cuts the
+/// sector. With `S(μ) = ½(μ√(1−μ²) + asin μ)`, `∫Ω dΩ` over μ ∈ [a, b], φ ∈ [φ₁, φ₂] is
+/// `((S(b)−S(a))(sin φ₂ − sin φ₁), (S(b)−S(a))(cos φ₁ − cos φ₂), (b²−a²)(φ₂−φ₁)/2)`. The
+/// side test takes the extremes of `n·Ω = n_z μ + n_h √(1−μ²) cos(φ−φ_n)` over the sector:
+/// at its corners, on its meridians where `μ = ±n_z/√(n_z² + c²)` (c = n_h cos(φ−φ_n)), on
+/// its latitude circles at φ = φ_n and φ_n + π, and inside at Ω = ±n.
+fn one_sided(d: &Direction, n: DVec3, nh: f64, phin: f64) -> Option<f64> {
+    let (a, b) = (d.mu_min, d.mu_max);
+    let (pa, pb) = (d.phi_min, d.phi_max);
+    let dphi = pb - pa;
+    let in_range = |phi: f64| (phi - pa).rem_euclid(2.0 * PI) <= dphi;
+    let sq = |mu: f64| (1.0 - mu * mu).max(0.0).sqrt();
+    let (mut lo, mut hi) = (f64::INFINITY, f64::NEG_INFINITY);
+    let mut take = |g: f64| {
+        lo = lo.min(g);
+        hi = hi.max(g);
+    };
+    for phi in [pa, pb] {
+        let c = nh * (phi - phin).cos();
+        for mu in [a, b] {
+            take(n.z * mu + c * sq(mu));
+        }
+        let r = (n.z * n.z + c * c).sqrt();
+        if r > 0.0 {
+            for mu in [n.z / r, -n.z / r] {
+                if (a..=b).contains(&mu) {
+                    take(n.z * mu + c * sq(mu));
+                }
+            }
+        }
+    }
+    for (phi, cos) in [(phin, 1.0), (phin + PI, -1.0)] {
+        if in_range(phi) {
+            for mu in [a, b] {
+                take(n.z * mu + cos * nh * sq(mu));
+            }
+        }
+    }
+    for (m, g) in [(n, 1.0), (-n, -1.0)] {
+        let phi = m.y.atan2(m.x);
+        if (a..=b).contains(&m.z) && in_range(phi) {
+            take(g);
+        }
+    }
+    if hi <= 0.0 {
+        return Some(0.0);
+    }
+    if lo < 0.0 {
+        return None;
+    }
+    let s = |mu: f64| 0.5 * (mu * sq(mu) + mu.clamp(-1.0, 1.0).asin());
+    let sx = s(b) - s(a);
+    let v = DVec3::new(
+        sx * (pb.sin() - pa.sin()),
+        sx * (pa.cos() - pb.cos()),
+        0.5 * (b * b - a * a) * dphi,
+    );
+    Some(n.dot(v).max(0.0))
 }
 
 /// `∫_{t_a}^{t_a+Δ} max(0, A + B cos t) dt` for `B ≥ 0`, `Δ ≤ 2π` (closed form).
