@@ -198,7 +198,9 @@ impl FacetPacks {
         let reach = ld(&self.reach);
         let size = ld(&self.size);
         let d = q.d;
-        let mut ok = [false; L];
+        // Lane l's verdict as bit l (an integer per lane: reduced to one word with vector ORs;
+        // a bool array compiles to a byte-by-byte gather).
+        let mut ok = [0u32; L];
         for l in 0..L {
             let s = [q.o[0] - v0[0][l], q.o[1] - v0[1][l], q.o[2] - v0[2][l]];
             let (a1, a2) = (
@@ -233,13 +235,9 @@ impl FacetPacks {
                 & (u + v <= a + e_det + 2.0 * e_uv)
                 & (t >= q.t_lo * a - e_t)
                 & (t <= q.t_hi * a + e_t);
-            ok[l] = (a <= e_det) | inside;
+            ok[l] = (((a <= e_det) | inside) as u32) << l;
         }
-        let mut bits = 0u32;
-        for (l, &b) in ok.iter().enumerate() {
-            bits |= (b as u32) << l;
-        }
-        bits
+        ok.iter().fold(0, |a, &b| a | b)
     }
 }
 
