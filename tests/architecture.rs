@@ -1,7 +1,8 @@
 //! The floor plan's rules (docs/architecture.md), checked on the source text so that a change that
 //! breaks them fails here with the file and the line, not in a reviewer's head:
 //! - the top-level modules form layers, and a module imports only from the layers below it (so
-//!   there is no import circle);
+//!   there is no import circle), and a type's inherent methods are written in the module that
+//!   defines it (so no call reaches a higher layer unseen);
 //! - each DART stage has its engine in `src/<stage>/` with no ECS machinery, and its glue in
 //!   `systems/<stage>.rs`, which exports the stage's system set; only `src/simulation.rs`
 //!   imports `systems`;
@@ -114,8 +115,15 @@ fn sources() -> Vec<(String, PathBuf, String)> {
 /// The code lines of a file (1-based line numbers): comments stripped, unit-test modules left out.
 fn code_lines(text: &str) -> Vec<(usize, String)> {
     let mut out = Vec::new();
-    for (i, line) in text.lines().enumerate() {
+    let lines: Vec<&str> = text.lines().collect();
+    for (i, line) in lines.iter().enumerate() {
         if line.trim_start().starts_with("#[cfg(test)]") {
+            // `#[cfg(test)] mod tests;` (a file of its own) is skipped, an inline module ends
+            // the code.
+            let next = lines.get(i + 1).map_or("", |l| l.trim());
+            if next.starts_with("mod ") && next.ends_with(';') {
+                continue;
+            }
             break;
         }
         let code = line.split("//").next().unwrap_or("");
@@ -410,4 +418,96 @@ fn only_the_command_line_reads_the_environment() {
         }
     }
     assert!(bad.is_empty(), "environment reads:\n{}", bad.join("\n"));
+}
+
+/// The name a type definition line defines (`pub(crate) struct Name<..>`, `enum Name {`), if any.
+fn defined_type(code: &str) -> Option<String> {
+    let t = code.trim_start();
+    let t = if let Some(r) = t.strip_prefix("pub") {
+        // `pub`, `pub(crate)`, `pub(in path)`.
+        let r = r.trim_start();
+        match r.strip_prefix('(') {
+            Some(r) => r.split_once(')')?.1.trim_start(),
+            None => r,
+        }
+    } else {
+        t
+    };
+    let rest = ["struct ", "enum ", "union "]
+        .iter()
+        .find_map(|k| t.strip_prefix(k))?;
+    let name: String = rest
+        .chars()
+        .take_while(|c| c.is_alphanumeric() || *c == '_')
+        .collect();
+    (!name.is_empty()).then_some(name)
+}
+
+/// The type of an inherent `impl` line (`impl<..> path::Name<..> {`), if it is one (trait
+/// impls, `impl .. for ..`, are not).
+fn inherent_impl_type(code: &str) -> Option<String> {
+    let t = code.trim_start().strip_prefix("impl")?;
+    if code.contains(" for ") || !code.trim_end().ends_with('{') {
+        return None;
+    }
+    let mut rest = t;
+    if rest.starts_with('<') {
+        let mut depth = 0;
+        let end = rest.char_indices().find_map(|(i, c)| {
+            match c {
+                '<' => depth += 1,
+                '>' => depth -= 1,
+                _ => {}
+            }
+            (depth == 0).then_some(i)
+        })?;
+        rest = &rest[end + 1..];
+    } else if !rest.starts_with(' ') {
+        return None;
+    }
+    let path: String = rest
+        .trim_start()
+        .chars()
+        .take_while(|c| c.is_alphanumeric() || *c == '_' || *c == ':')
+        .collect();
+    let name = path.rsplit("::").next()?.to_string();
+    (!name.is_empty()).then_some(name)
+}
+
+/// Methods of a type are written in the module that defines it: an inherent `impl` of a type
+/// of another module (e.g. a `scene` type given methods in `lidar`) lets the defining module
+/// call code of a higher layer with no `crate::` path that the import rule would see.
+#[test]
+fn inherent_impls_live_with_their_type() {
+    let srcs = sources();
+    let mut defined: BTreeMap<String, BTreeSet<String>> = BTreeMap::new();
+    for (module, _, text) in &srcs {
+        for (_, code) in code_lines(text) {
+            if let Some(name) = defined_type(&code) {
+                defined.entry(name).or_default().insert(module.clone());
+            }
+        }
+    }
+    let mut bad = Vec::new();
+    for (module, path, text) in &srcs {
+        for (line, code) in code_lines(text) {
+            let Some(name) = inherent_impl_type(&code) else {
+                continue;
+            };
+            if let Some(owners) = defined.get(&name)
+                && !owners.contains(module)
+            {
+                bad.push(format!(
+                    "{}:{line}: `{module}` adds methods to `{name}` of `{}`",
+                    path.display(),
+                    owners.iter().cloned().collect::<Vec<_>>().join("`, `")
+                ));
+            }
+        }
+    }
+    assert!(
+        bad.is_empty(),
+        "inherent impls away from their type:\n{}",
+        bad.join("\n")
+    );
 }

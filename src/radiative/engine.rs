@@ -109,26 +109,21 @@ use crate::scene::desc::{BoundaryMode, TurbidSubfaces};
 use glam::DVec3;
 use rayon::prelude::*;
 
-/// The `pulp` dispatch target of a [`KernelIsa`] cap (the type is a setting, in
+/// The `pulp` dispatch target of a [`KernelIsa`] cap on this CPU (the type is a setting, in
 /// `resources::tracking`; its dispatch belongs to the walks).
-impl KernelIsa {
-    /// The `pulp` dispatch target for this cap on this CPU.
-    pub(crate) fn arch(self) -> pulp::Arch {
-        #[cfg(target_arch = "x86_64")]
-        {
-            match self {
-                KernelIsa::Best => pulp::Arch::new(),
-                KernelIsa::Avx2 => {
-                    pulp::x86::V3::try_new().map_or(pulp::Arch::Scalar, pulp::Arch::V3)
-                }
-                KernelIsa::Baseline => pulp::Arch::Scalar,
-            }
+pub(crate) fn isa_arch(isa: KernelIsa) -> pulp::Arch {
+    #[cfg(target_arch = "x86_64")]
+    {
+        match isa {
+            KernelIsa::Best => pulp::Arch::new(),
+            KernelIsa::Avx2 => pulp::x86::V3::try_new().map_or(pulp::Arch::Scalar, pulp::Arch::V3),
+            KernelIsa::Baseline => pulp::Arch::Scalar,
         }
-        #[cfg(not(target_arch = "x86_64"))]
-        {
-            let _ = self;
-            pulp::Arch::new()
-        }
+    }
+    #[cfg(not(target_arch = "x86_64"))]
+    {
+        let _ = isa;
+        pulp::Arch::new()
     }
 }
 

@@ -1086,6 +1086,84 @@ impl BeamProfile {
             BeamProfile::Tabulated { .. } => "tabulated",
         }
     }
+
+    /// Checks the profile's own parameters: the Gaussian's edge intensity in (0, 1); the rules
+    /// of [`BeamProfile::Tabulated`] (at least two points, finite radii from x₀ ≥ 0 strictly
+    /// increasing, finite intensities ≥ 0 not all zero) and a finite, positive energy
+    /// `∫ I(x) x dx` (the radii neither overflow nor underflow it). The message names the
+    /// offending parameter or table point. The LiDAR's sampler table
+    /// (`lidar::pulse::sampler::RadialTable`) starts with this check.
+    pub fn check(&self) -> Result<(), String> {
+        match self {
+            &BeamProfile::Gaussian { edge_intensity: s } => {
+                if s > 0.0 && s < 1.0 {
+                    Ok(())
+                } else {
+                    Err(format!("edge_intensity = {s}: must lie in (0, 1)"))
+                }
+            }
+            BeamProfile::Uniform => Ok(()),
+            BeamProfile::Tabulated { points } => Self::check_table(points),
+        }
+    }
+
+    /// The table rules of [`BeamProfile::check`] on the `points` of a
+    /// [`BeamProfile::Tabulated`]. The energy is summed over the segments as the
+    /// exact integral of the linear intensity times x, `(h/3)(c₀ + c₁ + c₂)` with the Bernstein
+    /// coefficients `c = (I_a a, (I_a b + I_b a)/2, I_b b)` of the intensities over their maximum
+    /// (the terms of the sampler's cumulative table).
+    pub fn check_table(points: &[(f64, f64)]) -> Result<(), String> {
+        let bad = |i: usize, msg: &str| {
+            format!(
+                "beam profile table: point {i} ({}, {}): {msg}",
+                points[i].0, points[i].1
+            )
+        };
+        if points.len() < 2 {
+            return Err(format!(
+                "beam profile table: needs at least 2 points (normalised radius, intensity), got {}",
+                points.len()
+            ));
+        }
+        let mut max_i: f64 = 0.0;
+        for (i, &(x, v)) in points.iter().enumerate() {
+            if !x.is_finite() {
+                return Err(bad(i, "normalised radius must be finite"));
+            }
+            if i == 0 && x < 0.0 {
+                return Err(bad(i, "normalised radius must be >= 0"));
+            }
+            if i > 0 && !(x > points[i - 1].0) {
+                return Err(bad(
+                    i,
+                    "normalised radii must be strictly increasing (this one is not greater than the previous one)",
+                ));
+            }
+            if !(v.is_finite() && v >= 0.0) {
+                return Err(bad(i, "relative intensity must be finite and >= 0"));
+            }
+            max_i = max_i.max(v);
+        }
+        if !(max_i > 0.0) {
+            return Err(
+                "beam profile table: all intensities are zero (the beam carries no energy)".into(),
+            );
+        }
+        let total: f64 = points
+            .windows(2)
+            .map(|s| {
+                let ((a, ia), (b, ib)) = (s[0], s[1]);
+                let (ia, ib) = (ia / max_i, ib / max_i);
+                (b - a) / 3.0 * (ia * a + 0.5 * (ia * b + ib * a) + ib * b)
+            })
+            .sum();
+        if !(total.is_finite() && total > 0.0) {
+            return Err(format!(
+                "beam profile table: total energy {total:e} is not finite and > 0 (normalised radii out of range?)"
+            ));
+        }
+        Ok(())
+    }
 }
 
 /// How discrete returns are extracted from a waveform (scene files: `GaussianDecomposition`
@@ -1217,4 +1295,71 @@ pub fn footprint_polygon(fp: &FootprintDesc) -> Vec<glam::DVec2> {
         p.reverse();
     }
     p
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// The beam profile's parameter rules: what passes, and the message naming what does not.
+    #[test]
+    fn beam_profile_check() {
+        let table = |points: &[(f64, f64)]| {
+            BeamProfile::Tabulated {
+                points: points.to_vec(),
+            }
+            .check()
+        };
+        assert_eq!(BeamProfile::default().check(), Ok(()));
+        assert_eq!(BeamProfile::Uniform.check(), Ok(()));
+        assert_eq!(table(&[(0.0, 1.0), (0.8, 1.0), (1.0, 0.0)]), Ok(()));
+        assert_eq!(table(&[(0.5, 0.0), (1.0, 2.0)]), Ok(()));
+        for s in [0.0, 1.0, -0.5, f64::NAN] {
+            let e = BeamProfile::Gaussian { edge_intensity: s }
+                .check()
+                .unwrap_err();
+            assert!(e.contains("edge_intensity") && e.contains("(0, 1)"), "{e}");
+        }
+        let cases: &[(&[(f64, f64)], &str)] = &[
+            (
+                &[(0.0, 1.0)],
+                "needs at least 2 points (normalised radius, intensity), got 1",
+            ),
+            (
+                &[(0.0, 1.0), (f64::INFINITY, 1.0)],
+                "point 1 (inf, 1): normalised radius must be finite",
+            ),
+            (
+                &[(-0.1, 1.0), (1.0, 1.0)],
+                "point 0 (-0.1, 1): normalised radius must be >= 0",
+            ),
+            (
+                &[(0.0, 1.0), (0.5, 1.0), (0.5, 1.0)],
+                "point 2 (0.5, 1): normalised radii must be strictly increasing",
+            ),
+            (
+                &[(0.0, 1.0), (1.0, -0.5)],
+                "point 1 (1, -0.5): relative intensity must be finite and >= 0",
+            ),
+            (
+                &[(0.0, 0.0), (1.0, 0.0)],
+                "all intensities are zero (the beam carries no energy)",
+            ),
+            (
+                &[(0.0, 1.0), (1e200, 1.0)],
+                "total energy inf is not finite and > 0",
+            ),
+            (
+                &[(0.0, 1.0), (1e-170, 1.0)],
+                "total energy 0e0 is not finite and > 0",
+            ),
+        ];
+        for (points, text) in cases {
+            let e = table(points).unwrap_err();
+            assert!(
+                e.starts_with("beam profile table: ") && e.contains(text),
+                "{points:?}: {e}"
+            );
+        }
+    }
 }

@@ -17,7 +17,6 @@ mod tests;
 
 pub use moments::{FOOTPRINT_MOMENTS_CACHE, FootprintMoments};
 pub use sampler::FootprintSampler;
-use sampler::RadialTable;
 
 /// `FWHM = 2√(2 ln 2) σ` for a Gaussian.
 pub const FWHM_PER_SIGMA: f64 = 2.354_820_045_030_949_3;
@@ -314,23 +313,9 @@ impl FootprintProfile {
     }
 }
 
-/// The beam profile is a scene field ([`crate::scene::desc::BeamProfile`]); its checks against
-/// the footprint model stay here.
+/// The beam profile is a scene field ([`crate::scene::desc::BeamProfile`], whose
+/// [`BeamProfile::check`] holds its parameter rules).
 pub use crate::scene::desc::BeamProfile;
-
-impl BeamProfile {
-    /// Checks the parameters (edge intensity in (0, 1); table rules of
-    /// [`BeamProfile::Tabulated`]); the error names the offending parameter or table point.
-    pub fn validate(&self) -> Result<(), LidarError> {
-        match self {
-            BeamProfile::Gaussian { edge_intensity } => {
-                FootprintProfile::from_edge_intensity(1.0, *edge_intensity).map(|_| ())
-            }
-            BeamProfile::Uniform => Ok(()),
-            BeamProfile::Tabulated { points } => RadialTable::new(points).map(|_| ()),
-        }
-    }
-}
 
 /// Checks a truncation radius: > 0 or +∞.
 fn check_truncation(truncation_radius_m: f64) -> Result<(), LidarError> {

@@ -122,44 +122,10 @@ pub(crate) fn invert_segment_cdf_low(w: [f64; 3], v: f64) -> (f64, u32) {
 }
 
 impl RadialTable {
-    /// Validates the table (see [`BeamProfile::Tabulated`]) and integrates it exactly.
+    /// Checks the table ([`BeamProfile::check_table`]) and integrates it exactly.
     pub(crate) fn new(points: &[(f64, f64)]) -> Result<Self, LidarError> {
-        let bad = |i: usize, msg: &str| {
-            LidarError::InvalidInput(format!(
-                "beam profile table: point {i} ({}, {}): {msg}",
-                points[i].0, points[i].1
-            ))
-        };
-        if points.len() < 2 {
-            return Err(LidarError::InvalidInput(format!(
-                "beam profile table: needs at least 2 points (normalised radius, intensity), got {}",
-                points.len()
-            )));
-        }
-        let mut max_i: f64 = 0.0;
-        for (i, &(x, v)) in points.iter().enumerate() {
-            if !x.is_finite() {
-                return Err(bad(i, "normalised radius must be finite"));
-            }
-            if i == 0 && x < 0.0 {
-                return Err(bad(i, "normalised radius must be >= 0"));
-            }
-            if i > 0 && !(x > points[i - 1].0) {
-                return Err(bad(
-                    i,
-                    "normalised radii must be strictly increasing (this one is not greater than the previous one)",
-                ));
-            }
-            if !(v.is_finite() && v >= 0.0) {
-                return Err(bad(i, "relative intensity must be finite and >= 0"));
-            }
-            max_i = max_i.max(v);
-        }
-        if !(max_i > 0.0) {
-            return Err(LidarError::InvalidInput(
-                "beam profile table: all intensities are zero (the beam carries no energy)".into(),
-            ));
-        }
+        BeamProfile::check_table(points).map_err(LidarError::InvalidInput)?;
+        let max_i = points.iter().fold(0.0f64, |m, p| m.max(p.1));
         let x: Vec<f64> = points.iter().map(|p| p.0).collect();
         let intensity: Vec<f64> = points.iter().map(|p| p.1 / max_i).collect();
         let mut cum = Vec::with_capacity(x.len());
@@ -171,6 +137,8 @@ impl RadialTable {
             cum.push(acc.value());
         }
         let total = acc.value();
+        // The check's plain sum of the same terms has passed; the compensated one can differ
+        // only at the rounding level next to the largest f64.
         if !(total.is_finite() && total > 0.0) {
             return Err(LidarError::InvalidInput(format!(
                 "beam profile table: total energy {total:e} is not finite and > 0 (normalised radii out of range?)"

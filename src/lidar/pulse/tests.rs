@@ -183,7 +183,7 @@ fn beam_profile_defaults() {
             edge_intensity: DART_EDGE_RELATIVE_INTENSITY
         }
     );
-    assert!(BeamProfile::default().validate().is_ok());
+    assert!(BeamProfile::default().check().is_ok());
     // Segment masses add up to the closed form of a constant table: x²/2.
     let t = RadialTable::new(&[(0.0, 2.0), (0.3, 2.0), (1.0, 2.0)]).unwrap();
     assert!((t.total() - 0.5).abs() < 1e-16);

@@ -194,7 +194,7 @@ fn context<'a>(inp: &'a RadiativeInput<'a>) -> (Ctx<'a>, LaunchPlan, Vec<f64>) {
     };
     let (tstores, face_d, pts_per) = subface_layout(inp, plan.subcells, n_slots);
     // Where the walks dispatch (the batched walk only where it has AVX2 + FMA).
-    let arch = inp.params.kernel_isa.arch();
+    let arch = super::isa_arch(inp.params.kernel_isa);
     let mut ctx = Ctx {
         inp,
         w,

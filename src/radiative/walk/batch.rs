@@ -136,7 +136,7 @@ pub fn kernel_isa() -> &'static str {
 
 /// The instruction set the walks run on this CPU under cap `isa` (see [`kernel_isa`]).
 pub fn instruction_set(isa: crate::radiative::engine::KernelIsa) -> &'static str {
-    match isa.arch() {
+    match crate::radiative::engine::isa_arch(isa) {
         #[cfg(target_arch = "x86_64")]
         pulp::Arch::V4(_) => "AVX-512",
         #[cfg(target_arch = "x86_64")]
@@ -151,7 +151,7 @@ pub fn instruction_set(isa: crate::radiative::engine::KernelIsa) -> &'static str
 /// same count are the same bits; between 8 and 4 they differ in the last bits (summation
 /// order), between 16 and the others by ~3e-7 relative (single-precision geometry).
 pub fn batch_lanes(isa: crate::radiative::engine::KernelIsa, batch_f32: bool) -> usize {
-    match isa.arch() {
+    match crate::radiative::engine::isa_arch(isa) {
         #[cfg(target_arch = "x86_64")]
         pulp::Arch::V4(_) if batch_f32 => 16,
         #[cfg(target_arch = "x86_64")]

@@ -65,8 +65,8 @@ impl V<'_> {
             if let crate::scene::desc::BeamProfile::Gaussian { edge_intensity } = beam {
                 self.in_range(&f("beam.edge_intensity"), *edge_intensity, 1e-6, 0.999)?;
             }
-            if let Err(e) = beam.validate() {
-                return Err(src.invalid(f("beam"), e.to_string()));
+            if let Err(e) = beam.check() {
+                return Err(src.invalid(f("beam"), format!("invalid input: {e}")));
             }
         }
         if let Some(r) = l.fov_radius_m {
