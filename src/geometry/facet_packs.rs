@@ -31,7 +31,7 @@ const SCAN_MIN: usize = 4;
 const L: usize = 16;
 
 /// Per facet reference, in reference order (the order of the cell grid's facet list), the
-/// triangle in `f32` relative to its cell's lower corner, padded with [`L`] zero lanes.
+/// triangle in `f32` relative to its cell's lower corner, padded with 16 zero lanes.
 #[derive(Debug, Clone, Default)]
 pub struct FacetPacks {
     /// First vertex `v₀ − corner` (x, y, z), m.
@@ -65,9 +65,9 @@ struct Query {
 }
 
 impl FacetPacks {
-    /// Packs the facet references of a cell grid in compressed rows: `ids[starts[c]..starts[c
-    /// + 1]]` are the facets of cell `c`, `corner(c)` its lower corner and `triangle(f)` the
-    /// vertices of facet `f`, m.
+    /// Packs the facet references of a cell grid in compressed rows: `ids[starts[c] ..
+    /// starts[c + 1]]` are the facets of cell `c`, `corner(c)` its lower corner and
+    /// `triangle(f)` the vertices of facet `f`, m.
     pub fn new(
         starts: &[u32],
         ids: &[u32],
