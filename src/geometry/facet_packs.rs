@@ -27,6 +27,9 @@ const K: f32 = 3e-5;
 /// Cells with fewer references than this are scanned without the prefilter (as fast).
 const SCAN_MIN: usize = 4;
 
+/// Bytes per packed reference (eleven `f32`).
+pub const BYTES_PER_REF: usize = 11 * 4;
+
 /// Lanes per block (one AVX-512 register of `f32`; narrower ISAs split it).
 const L: usize = 16;
 
@@ -120,7 +123,7 @@ impl FacetPacks {
 
     /// Bytes held for `n_refs` references (the memory estimate's term).
     pub fn bytes_for(n_refs: usize) -> usize {
-        11 * 4 * (n_refs + L)
+        n_refs.saturating_add(L).saturating_mul(BYTES_PER_REF)
     }
 
     /// Calls `visit(r)`, in increasing order, for every reference `r` in `lo..hi` (all of one

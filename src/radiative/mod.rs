@@ -145,7 +145,8 @@ pub fn packs_bytes(refs: usize) -> f64 {
     if refs == 0 {
         0.0
     } else {
-        crate::geometry::facet_packs::FacetPacks::bytes_for(refs) as f64
+        // In f64 (absurd counts must not overflow): the references and 16 padding lanes.
+        (refs as f64 + 16.0) * crate::geometry::facet_packs::BYTES_PER_REF as f64
     }
 }
 
