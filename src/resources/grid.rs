@@ -279,6 +279,25 @@ impl CellGrid {
         &self.facet_ids[self.facet_start[c] as usize..self.facet_start[c + 1] as usize]
     }
 
+    /// The facets of each cell packed for the scan prefilter of the solvers
+    /// ([`FacetPacks`](crate::geometry::facet_packs::FacetPacks)); empty without facets (or
+    /// when the rows do not match `spec`).
+    pub fn facet_packs(
+        &self,
+        spec: &GridSpec,
+        facets: &[crate::resources::facets::Facet],
+    ) -> crate::geometry::facet_packs::FacetPacks {
+        if self.facet_ids.is_empty() || self.facet_start.len() != spec.n_cells() + 1 {
+            return Default::default();
+        }
+        crate::geometry::facet_packs::FacetPacks::new(
+            &self.facet_start,
+            &self.facet_ids,
+            |c| spec.cell_lo(c),
+            |f| facets[f as usize].v,
+        )
+    }
+
     /// Bytes held by the arrays.
     pub fn bytes(&self) -> usize {
         4 * (self.turbid_start.len() + self.facet_start.len() + self.facet_ids.len())

@@ -107,21 +107,6 @@ pub(crate) struct Ctx<'a> {
     pub(crate) ground_dirs: Option<(AliasTable, Vec<u32>)>,
 }
 
-/// The facets of each cell packed for the scan prefilter
-/// ([`FacetPacks`](crate::geometry::facet_packs::FacetPacks)); empty without facets.
-pub(crate) fn facet_packs(inp: &PhotonInput) -> crate::geometry::facet_packs::FacetPacks {
-    let grid = inp.grid;
-    if grid.facet_ids.is_empty() || grid.facet_start.len() != inp.spec.n_cells() + 1 {
-        return Default::default();
-    }
-    crate::geometry::facet_packs::FacetPacks::new(
-        &grid.facet_start,
-        &grid.facet_ids,
-        |c| inp.spec.cell_lo(c),
-        |f| inp.facets[f as usize].v,
-    )
-}
-
 /// Per cell, the bounding box of the cell's facets (their vertices' box, widened by a margin
 /// `m`) cut to the cell widened by `2m`, with `m` four hit tolerances plus 1e-9 of the sum of
 /// the largest |coordinate| and the largest cell side: a facet hit that [`Ctx::facet_hit`] accepts lies on the facet
@@ -369,7 +354,7 @@ impl<'a> Ctx<'a> {
             far_roulette: (0.0, 0.0),
             empty: std::sync::Arc::from(Vec::new()),
             facet_box: std::sync::Arc::from(facet_boxes(inp)),
-            packs: std::sync::Arc::new(facet_packs(inp)),
+            packs: std::sync::Arc::new(inp.grid.facet_packs(inp.spec, inp.facets)),
             ground_dirs: None,
         };
         if inp.params.sampler.is_discrete() {

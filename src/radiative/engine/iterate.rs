@@ -232,27 +232,12 @@ fn context<'a>(inp: &'a RadiativeInput<'a>) -> (Ctx<'a>, LaunchPlan, Vec<f64>) {
         lane_dirs32: Vec::new(),
         scells32: Vec::new(),
         arch,
-        packs: facet_packs(inp),
+        packs: inp.grid.facet_packs(inp.spec, inp.facets),
     };
     if ctx.batch {
         batch_tables(&mut ctx);
     }
     (ctx, plan, source)
-}
-
-/// Step of [`context`]: the facets of each cell packed for the scan prefilter (empty without
-/// facets).
-fn facet_packs(inp: &RadiativeInput) -> crate::geometry::facet_packs::FacetPacks {
-    let grid = inp.grid;
-    if grid.facet_ids.is_empty() {
-        return Default::default();
-    }
-    crate::geometry::facet_packs::FacetPacks::new(
-        &grid.facet_start,
-        &grid.facet_ids,
-        |c| inp.spec.cell_lo(c),
-        |f| inp.facets[f as usize].v,
-    )
 }
 
 /// Step of [`context`]: the tracked (turbid) materials — the tracker index of each material
