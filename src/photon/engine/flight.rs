@@ -268,7 +268,7 @@ impl Ctx<'_> {
         let mut t1 = dda.t_exit();
         let has_facets = self.inp.grid.facet_start[c] < self.inp.grid.facet_start[c + 1];
         let fhit = if has_facets {
-            self.facet_hit(c, dda.point(0.0), w.d, t0, t1, w.skip)
+            self.facet_hit(dda, w.d, t0, t1, w.skip)
         } else {
             None
         };

@@ -170,7 +170,7 @@ impl Ctx<'_> {
         let t0 = dda.t;
         let mut t1 = dda.t_exit();
         let fhit = if self.inp.grid.facet_start[c] < self.inp.grid.facet_start[c + 1] {
-            self.facet_hit(c, dda.point(0.0), ph.d, t0, t1, skip)
+            self.facet_hit(dda, ph.d, t0, t1, skip)
         } else {
             None
         };
@@ -179,7 +179,7 @@ impl Ctx<'_> {
         }
         if walk.exact
             && self.inp.grid.facet_start[c] < self.inp.grid.facet_start[c + 1]
-            && self.facet_behind(c, dda.point(0.0), ph.d, t0, t1)
+            && self.facet_behind(dda, ph.d, t0, t1)
         {
             walk.exact = false;
         }

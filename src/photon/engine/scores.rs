@@ -41,7 +41,7 @@ pub(crate) struct FirstOrderScore<'g> {
 impl FlightScore for FirstOrderScore<'_> {
     #[inline]
     fn cell(&mut self, ctx: &Ctx, c: usize, dda: &Dda, (t0, t1): (f64, f64), facets: bool) -> f64 {
-        if self.exact && facets && ctx.facet_behind(c, dda.point(0.0), self.d, t0, t1) {
+        if self.exact && facets && ctx.facet_behind(dda, self.d, t0, t1) {
             self.exact = false;
         }
         // Extinction (m⁻¹): vegetation k_v, return k_r (materials without a leaf size), and

@@ -113,17 +113,18 @@ impl Ctx<'_> {
         (q.z <= spec.top() && q.z >= spec.origin.z).then_some((q, 0.0))
     }
 
-    /// Nearest facet hit in cell `c` along the segment `[t0, t1]` of a ray from `o` along `d`.
+    /// Nearest facet hit in the current cell of `dda` along the segment `[t0, t1]` of the ray
+    /// from its start `o = dda.point(0)` along `d`.
     #[inline]
     pub(crate) fn facet_hit(
         &self,
-        c: usize,
-        o: DVec3,
+        dda: &Dda,
         d: DVec3,
         t0: f64,
         t1: f64,
         skip: Option<u32>,
     ) -> Option<(u32, f64)> {
+        let (c, o) = (dda.index(), dda.point(0.0));
         let grid = self.inp.grid;
         let tol = self.inp.spec.hit_tolerance();
         if let Some(b) = self.facet_box.get(c)
@@ -149,36 +150,32 @@ impl Ctx<'_> {
                 }
             }
         };
-        self.scan_facets(c, o, d, (t0, t1), test);
+        self.scan_facets(dda, d, (t0, t1), test);
         hit
     }
 
-    /// Calls `test(r)` in increasing order for the facet references `r` of cell `c` that the
-    /// segment `[t0, t1]` (± the hit tolerance) of the ray from `o` along `d` may cross: all
-    /// those it does cross ([`FacetPacks::scan`](crate::geometry::facet_packs::FacetPacks::scan)).
+    /// Calls `test(r)` in increasing order for the facet references `r` of the current cell of
+    /// `dda` that the segment `[t0, t1]` (± the hit tolerance) of its ray along `d` may cross:
+    /// all those it does cross
+    /// ([`FacetPacks::scan`](crate::geometry::facet_packs::FacetPacks::scan)).
     #[inline]
-    fn scan_facets(
-        &self,
-        c: usize,
-        o: DVec3,
-        d: DVec3,
-        (t0, t1): (f64, f64),
-        test: impl FnMut(usize),
-    ) {
+    fn scan_facets(&self, dda: &Dda, d: DVec3, (t0, t1): (f64, f64), test: impl FnMut(usize)) {
+        let (c, o, ijk) = (dda.index(), dda.point(0.0), dda.cell);
         let grid = self.inp.grid;
         let tol = self.inp.spec.hit_tolerance();
         let refs = (
             grid.facet_start[c] as usize,
             grid.facet_start[c + 1] as usize,
         );
-        let corner = || self.inp.spec.cell_lo(c);
+        let corner = || self.inp.spec.cell_box(ijk[0], ijk[1], ijk[2]).0;
         let seg = (-tol, t1 - t0 + tol);
         self.packs.scan(refs, corner, o + d * t0, d, seg, test);
     }
 
-    /// True if the segment `[t0, t1]` of the ray from `o` along `d` in cell `c` crosses a
-    /// one-sided facet from behind (not a hit for this ray, but one for the reversed ray).
-    pub(crate) fn facet_behind(&self, c: usize, o: DVec3, d: DVec3, t0: f64, t1: f64) -> bool {
+    /// True if the segment `[t0, t1]` of the ray of `dda` along `d` in its current cell crosses
+    /// a one-sided facet from behind (not a hit for this ray, but one for the reversed ray).
+    pub(crate) fn facet_behind(&self, dda: &Dda, d: DVec3, t0: f64, t1: f64) -> bool {
+        let (c, o) = (dda.index(), dda.point(0.0));
         let tol = self.inp.spec.hit_tolerance();
         if let Some(b) = self.facet_box.get(c)
             && !ray_meets_box(b, o, d, t0 - tol, t1 + tol)
@@ -187,7 +184,7 @@ impl Ctx<'_> {
         }
         let grid = self.inp.grid;
         let mut behind = false;
-        self.scan_facets(c, o, d, (t0, t1), |r| {
+        self.scan_facets(dda, d, (t0, t1), |r| {
             if behind {
                 return;
             }
@@ -335,7 +332,7 @@ impl Ctx<'_> {
                 let t0 = dda.t;
                 let mut t1 = dda.t_exit();
                 let fhit = if self.inp.grid.facet_start[c] < self.inp.grid.facet_start[c + 1] {
-                    self.facet_hit(c, dda.point(0.0), ph.d, t0, t1, ph.skip_facet)
+                    self.facet_hit(&dda, ph.d, t0, t1, ph.skip_facet)
                 } else {
                     None
                 };
@@ -596,7 +593,7 @@ impl Ctx<'_> {
                         t1 = (max_dist - travelled).max(t0);
                     }
                     let fhit = if self.inp.grid.facet_start[c] < self.inp.grid.facet_start[c + 1] {
-                        self.facet_hit(c, dda.point(0.0), d, t0, t1, skip)
+                        self.facet_hit(&dda, d, t0, t1, skip)
                     } else {
                         None
                     };

@@ -120,7 +120,7 @@ impl Ctx<'_> {
                     let mut hit: Option<(u32, u32, f64)> = None;
                     if cr.fac_lo != cr.fac_hi {
                         let o = dda.point(0.0);
-                        hit = self.nearest_facet(c, cr, o, d, (t0, t1), t_tol, skip_facet);
+                        hit = self.nearest_facet(dda.cell, cr, o, d, (t0, t1), t_tol, skip_facet);
                         if let Some((_, _, th)) = hit {
                             t1 = th.max(t0);
                         }
@@ -340,7 +340,7 @@ impl Ctx<'_> {
         Side::Reentered(q)
     }
 
-    /// The nearest facet of cell `c` (record `cr`) that the ray from `o` along `d` hits within
+    /// The nearest facet of cell `ijk` (record `cr`) that the ray from `o` along `d` hits within
     /// the segment `[t0, t1]` (± `t_tol`), from its front or on a two-sided facet, ignoring
     /// `skip_facet`: (facet ref, facet, distance). The exact test runs in reference order on
     /// the references that the `f32` prefilter ([`FacetPacks`]) keeps: the result is the
@@ -351,7 +351,7 @@ impl Ctx<'_> {
     #[allow(clippy::too_many_arguments)]
     fn nearest_facet(
         &self,
-        c: usize,
+        ijk: [i64; 3],
         cr: CellRec,
         o: DVec3,
         d: DVec3,
@@ -380,7 +380,7 @@ impl Ctx<'_> {
             }
         };
         let refs = (cr.fac_lo as usize, cr.fac_hi as usize);
-        let corner = || self.inp.spec.cell_lo(c);
+        let corner = || self.inp.spec.cell_box(ijk[0], ijk[1], ijk[2]).0;
         let seg = (-t_tol, t1 - t0 + t_tol);
         self.packs.scan(refs, corner, o + d * t0, d, seg, test);
         hit
