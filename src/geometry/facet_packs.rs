@@ -9,7 +9,7 @@
 //!
 //! Why: in leaf-level canopies a 0.5 m cell holds ~100–200 facet references, and the exact scan
 //! of all of them (a gathered 90-byte facet and ~30 `f64` operations each) is most of the time
-//! of both solvers; the prefilter reads 48 contiguous bytes per facet and runs at the CPU's
+//! of both solvers; the prefilter reads 44 contiguous bytes per facet and runs at the CPU's
 //! widest vector width ([`pulp`] dispatch).
 //!
 //! Error bound (units: metres). With `f` the larger edge length of the facet, `c` a bound on
