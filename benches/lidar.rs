@@ -48,8 +48,7 @@ use lumenscape::photon::engine::SamplerKind;
 use lumenscape::resources::scene::{RunSettings, SceneInfo, Solver};
 use lumenscape::scene::SceneSource;
 use lumenscape::scene::desc::{
-    DEFAULT_LIDAR_PHOTONS, LidarDesc, LidarEstimator, LidarPlatform, LidarSampler, PulsePattern,
-    SceneDesc,
+    DEFAULT_LIDAR_PHOTONS, LidarDesc, LidarEstimator, LidarSampler, PulsePattern, SceneDesc,
 };
 use lumenscape::scene::generators::{forest, urban};
 use lumenscape::simulation::Simulation;
@@ -57,38 +56,20 @@ use std::time::Instant;
 
 mod common;
 use common::peak_rss_mib;
+#[path = "../tests/common/mod.rs"]
+mod fixtures;
 #[path = "../tests/fixtures/returns_waveforms.rs"]
 mod returns_waveforms;
 use returns_waveforms::{forest_waveform, gaussian_waveform, peak, settings};
 
+/// The bench instrument: the tests' airborne LiDAR (`tests/common`) at 1 000 m in band `nir`
+/// with 3 ns pulses.
 fn lidar(pulses: PulsePattern, photons: Option<u32>) -> LidarDesc {
     LidarDesc {
-        name: "bench".into(),
         band: "nir".into(),
-        platform: LidarPlatform::Airborne {
-            altitude_m: 1000.0,
-            view_zenith_deg: 0.0,
-            view_azimuth_deg: 0.0,
-            pulses,
-        },
-        footprint_radius_m: Some(0.3),
-        divergence_mrad: None,
-        edge_intensity: 0.368,
-        fov_radius_m: None,
-        pulse_energy_j: 1.0,
         pulse_fwhm_ns: 3.0,
-        aperture_m2: 0.1,
-        bin_ns: 1.0,
         photons_per_pulse: photons,
-        max_order: 100,
-        gate_margin_m: 10.0,
-        photon_counting: None,
-        beam: None,
-        returns: ReturnsMethod::GaussianDecomposition,
-        sampler: LidarSampler::Discrete,
-        estimator: Default::default(),
-        scattering_photons_per_pulse: None,
-        fusion: false,
+        ..fixtures::lidar("bench", 1000.0, pulses, 1)
     }
 }
 

@@ -27,9 +27,6 @@ const K: f32 = 3e-5;
 /// Cells with fewer references than this are scanned without the prefilter (as fast).
 const SCAN_MIN: usize = 4;
 
-/// Bytes per packed reference (eleven `f32`).
-pub const BYTES_PER_REF: usize = 11 * 4;
-
 /// Lanes per block (one AVX-512 register of `f32`; narrower ISAs split it).
 const L: usize = 16;
 
@@ -116,14 +113,15 @@ impl FacetPacks {
         self.len() == 0
     }
 
-    /// Bytes held.
-    pub fn bytes(&self) -> usize {
-        Self::bytes_for(self.len())
-    }
-
-    /// Bytes held for `n_refs` references (the memory estimate's term).
-    pub fn bytes_for(n_refs: usize) -> usize {
-        n_refs.saturating_add(L).saturating_mul(BYTES_PER_REF)
+    /// Bytes held for `n_refs` references (eleven `f32` each and the padding; none without
+    /// references), in `f64` so that absurd counts do not overflow: the memory estimate's
+    /// term.
+    pub fn bytes_for(n_refs: usize) -> f64 {
+        if n_refs == 0 {
+            0.0
+        } else {
+            (n_refs as f64 + L as f64) * 44.0
+        }
     }
 
     /// Calls `visit(r)`, in increasing order, for every reference `r` in `lo..hi` (all of one

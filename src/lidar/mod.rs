@@ -171,8 +171,7 @@ impl NeumaierSum {
 ///   nodes) `MOMENT_CELLS`² cells of 32 f64.
 ///
 /// `grid_height_m` is the grid's height, `n_cells` its cells, `turbid_materials` the scene's
-/// turbid materials, `facet_refs` its facet references (the photon context holds their
-/// packs, [`crate::radiative::packs_bytes`]).
+/// turbid materials, `facet_refs` its facet references.
 pub fn memory_terms(
     desc: &crate::scene::desc::LidarDesc,
     n_cells: usize,
@@ -182,12 +181,7 @@ pub fn memory_terms(
     facet_refs: usize,
 ) -> Vec<(&'static str, f64)> {
     let f = |x: usize| x as f64;
-    let columns = if n_cells.saturating_mul(turbid_materials) <= 1 << 23 {
-        f(n_cells) * (16.0 * f(turbid_materials) + 1.0)
-    } else {
-        0.0
-    };
-    let context = f(n_cells) * 48.0 + columns + crate::radiative::packs_bytes(facet_refs);
+    let context = crate::photon::context_bytes(n_cells, turbid_materials, facet_refs);
     let pulses = simulate::PulsePlan::new(desc)
         .len()
         .min(chunk_pulses.max(1));

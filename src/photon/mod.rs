@@ -38,12 +38,23 @@ pub struct PhotonCounts {
     pub batches: usize,
 }
 
+/// The photon engine's context (Monte Carlo and LiDAR), bytes: the facet packs of the scan
+/// prefilter ([`FacetPacks::bytes_for`](crate::geometry::facet_packs::FacetPacks::bytes_for)),
+/// per cell the facet bounding box (6 f64) and, when cells × turbid materials ≤ 2²³, the column
+/// tables of the first-flight sampler (two f64 per cell and material, one flag per cell).
+pub fn context_bytes(n_cells: usize, turbid_materials: usize, facet_refs: usize) -> f64 {
+    let f = |x: usize| x as f64;
+    let columns = if n_cells.saturating_mul(turbid_materials) <= 1 << 23 {
+        f(n_cells) * (16.0 * f(turbid_materials) + 1.0)
+    } else {
+        0.0
+    };
+    f(n_cells) * 48.0 + columns + crate::geometry::facet_packs::FacetPacks::bytes_for(facet_refs)
+}
+
 /// Memory the Photon stage (passive Monte Carlo) holds at its peak, bytes, as named terms:
 ///
-/// * `photon context`: the facet packs of the scan prefilter
-///   ([`crate::radiative::packs_bytes`]), per cell the facet bounding box (6 f64) and, when cells × turbid
-///   materials ≤ 2²³, the column tables of the first-flight sampler (two f64 per cell and
-///   material, one flag per cell).
+/// * `photon context`: [`context_bytes`].
 /// * `batch tallies`: a wave of up to 16 batches is held until merged; each keeps absorbed and
 ///   intercepted power per turbid entry, facet and column (dense f64 arrays of ≤ 2¹⁸ values,
 ///   hashed records above) and its escape summary.
@@ -52,13 +63,7 @@ pub struct PhotonCounts {
 pub fn memory_terms(c: &PhotonCounts) -> Vec<(&'static str, f64)> {
     let f = |x: usize| x as f64;
     let w = f(c.channels.max(1));
-    let n_cells = f(c.n_cells);
-    let columns = if c.n_cells.saturating_mul(c.turbid_materials) <= 1 << 23 {
-        n_cells * (16.0 * f(c.turbid_materials) + 1.0)
-    } else {
-        0.0
-    };
-    let context = n_cells * 48.0 + columns + crate::radiative::packs_bytes(c.facet_refs);
+    let context = context_bytes(c.n_cells, c.turbid_materials, c.facet_refs);
     let tally = |n: usize| (f(n) * w).min(f(1 << 18)) * 8.0;
     let wave = f(c.batches.clamp(1, 16));
     let summary = 8.0 * w * (f(c.n_dirs) * 4.0 + 16.0);

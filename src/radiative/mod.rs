@@ -81,7 +81,7 @@ pub struct RadiativeCounts {
 ///   the whole scene, so each holds up to every entry's records: an 8-byte key and the same
 ///   values).
 /// * `facet packs`: the facets of each cell in `f32` for the scan prefilter
-///   ([`FacetPacks::bytes_for`](crate::geometry::facet_packs::FacetPacks::bytes_for) per reference).
+///   ([`FacetPacks::bytes_for`](crate::geometry::facet_packs::FacetPacks::bytes_for)).
 /// * `chunk events`: [`chunk_event_bytes`].
 /// * `products`: absorbed and intercepted power per turbid entry, facet and column, the
 ///   increments of the extrapolation (three copies) and the images (result and two snapshots).
@@ -134,20 +134,13 @@ pub fn memory_terms(c: &RadiativeCounts) -> Vec<(&'static str, f64)> {
             "turbid accumulators",
             f(c.threads) * accumulator + held.min(16.0) * compact + exit_groups,
         ),
-        ("facet packs", packs_bytes(c.facet_refs)),
+        (
+            "facet packs",
+            crate::geometry::facet_packs::FacetPacks::bytes_for(c.facet_refs),
+        ),
         ("chunk events", chunk_event_bytes(c)),
         ("products", products),
     ]
-}
-
-/// Bytes of the facet packs of `refs` facet references (none without facets).
-pub fn packs_bytes(refs: usize) -> f64 {
-    if refs == 0 {
-        0.0
-    } else {
-        // In f64 (absurd counts must not overflow): the references and 16 padding lanes.
-        (refs as f64 + 16.0) * crate::geometry::facet_packs::BYTES_PER_REF as f64
-    }
 }
 
 /// Share of the upward rays of a scattering iteration that meet a facet (an event) before

@@ -46,7 +46,7 @@ impl GridSpec {
     /// Lower corner of the cell with linear index `c`, m.
     pub fn cell_lo(&self, c: usize) -> DVec3 {
         let [i, j, k] = self.ijk(c);
-        self.origin + DVec3::new(i as f64, j as f64, k as f64) * self.cell
+        self.cell_box(i as i64, j as i64, k as i64).0
     }
 
     /// Lower and upper corners of cell (i, j, k) (integer indices may lie outside the grid for
