@@ -40,6 +40,7 @@ pub mod radiative;
 pub mod random;
 pub mod resources;
 pub mod scene;
+pub mod sequence;
 pub mod simulation;
 #[path = "../systems/mod.rs"]
 pub mod systems;

@@ -7,7 +7,7 @@ use crate::resources::facets::FacetStore;
 use crate::resources::grid::{CellGrid, GridSpec};
 use crate::resources::maket_report::MaketReport;
 use crate::resources::materials::Materials;
-use crate::resources::scene::StageErrors;
+use crate::resources::scene::{ProductSelection, StageErrors};
 use bevy_ecs::prelude::*;
 
 pub use crate::resources::scene::OutputDir;
@@ -21,8 +21,13 @@ pub fn write_maket_products(
     facets: Res<FacetStore>,
     mats: Res<Materials>,
     report: Res<MaketReport>,
+    sel: Option<Res<ProductSelection>>,
     mut errors: ResMut<StageErrors>,
 ) {
+    let wanted = ["maket.json", "lai.exr", "dsm.exr", "density.csv"];
+    if sel.is_some_and(|s| !wanted.iter().any(|p| s.wants(p))) {
+        return;
+    }
     if let Err(e) = write_maket(&out.0, &spec, &grid, &facets, &mats, &report) {
         errors.0.push(e);
     }
@@ -43,8 +48,10 @@ pub fn write_radiative_products(
     facets: Res<FacetStore>,
     mats: Res<Materials>,
     memory: Option<Res<crate::resources::memory::MemoryPlan>>,
+    sel: Option<Res<ProductSelection>>,
     mut errors: ResMut<StageErrors>,
 ) {
+    let wants = |p: &str| sel.as_deref().is_none_or(|s| s.wants(p));
     if let Err(e) = write_radiative(
         &out.0,
         &products,
@@ -56,6 +63,7 @@ pub fn write_radiative_products(
         &facets,
         &mats,
         memory.as_deref(),
+        &wants,
     ) {
         errors.0.push(e);
     }
@@ -68,8 +76,12 @@ pub fn write_lidar_products(
     products: Res<crate::lidar::run::LidarProducts>,
     info: Res<crate::resources::scene::SceneInfo>,
     memory: Option<Res<crate::resources::memory::MemoryPlan>>,
+    sel: Option<Res<ProductSelection>>,
     mut errors: ResMut<StageErrors>,
 ) {
+    if sel.is_some_and(|s| !s.wants("lidar")) {
+        return;
+    }
     let names: Vec<String> = info.bands.iter().map(|b| b.name.clone()).collect();
     if let Err(e) =
         crate::lidar::products::write_lidar(&out.0, &products.0, &names, memory.as_deref())

@@ -32,6 +32,7 @@ const LAYERS: &[&str] = &[
     "output",     // product writers
     "systems",    // ECS glue, one file per stage
     "simulation", // the World and the stage loop
+    "sequence",   // parameter sweeps over simulations, look-up tables
     "cli",        // the command line
 ];
 

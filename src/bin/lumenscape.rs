@@ -1,7 +1,7 @@
 //! The `lumenscape` command-line tool.
 
 use clap::{Parser, Subcommand};
-use lumenscape::cli::{directions, generate, prospect, rami, scene_cmds, sun};
+use lumenscape::cli::{directions, generate, prospect, rami, scene_cmds, sequence, sun};
 use std::io::Write;
 use std::process::ExitCode;
 
@@ -21,6 +21,11 @@ enum Command {
     Maket(scene_cmds::MaketArgs),
     /// Run every stage that exists so far and write the products.
     Run(scene_cmds::RunArgs),
+    /// Run a parameter sweep (sequence file) into a folder, one folder per point; resumable,
+    /// shardable across processes and cluster array jobs.
+    Sequence(sequence::SequenceArgs),
+    /// Gather every finished point of a sequence folder into one look-up table (CSV).
+    Gather(sequence::GatherArgs),
     /// Print a generated scene as RON.
     Generate(generate::Args),
     /// PROSPECT-5 / PROSPECT-D leaf reflectance and transmittance, 400–2500 nm (CSV).
@@ -45,6 +50,8 @@ fn main() -> ExitCode {
         Command::Check(a) => scene_cmds::check(a, &mut out),
         Command::Maket(a) => scene_cmds::maket(a, &mut out),
         Command::Run(a) => scene_cmds::run(a, &mut out),
+        Command::Sequence(a) => sequence::run(a, &mut out),
+        Command::Gather(a) => sequence::gather(a, &mut out),
         Command::Generate(a) => generate::run(a, &mut out),
         Command::Prospect(a) => prospect::run(a, &mut out).map_err(plain),
         Command::Sun(a) => sun::run(a, &mut out).map_err(plain),

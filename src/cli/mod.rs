@@ -6,4 +6,5 @@ pub mod generate;
 pub mod prospect;
 pub mod rami;
 pub mod scene_cmds;
+pub mod sequence;
 pub mod sun;

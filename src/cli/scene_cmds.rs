@@ -139,7 +139,8 @@ pub enum SamplerArg {
 }
 
 impl SceneOpts {
-    fn settings(&self) -> RunSettings {
+    /// The run settings these options give.
+    pub(crate) fn settings(&self) -> RunSettings {
         use crate::photon::engine::SamplerKind;
         let sampler = match self.sampler.unwrap_or(SamplerArg::Continuous) {
             SamplerArg::Continuous => SamplerKind::Continuous,
@@ -178,7 +179,7 @@ impl SceneOpts {
 
     /// Refuses Monte Carlo flags that the chosen solver or sampler would ignore, and a Box
     /// ratio that is not > 1 (exit 2, like clap's own usage errors).
-    fn check_flags(&self) -> Result<(), CliError> {
+    pub(crate) fn check_flags(&self) -> Result<(), CliError> {
         let usage = |message: String| CliError { message, code: 2 };
         if self.solver == SolverArg::FluxTracking {
             for (flag, given) in [
@@ -253,7 +254,7 @@ pub struct CheckArgs {
     pub json: bool,
 }
 
-fn human_bytes(b: u64) -> String {
+pub(crate) fn human_bytes(b: u64) -> String {
     let b = b as f64;
     if b >= (1u64 << 30) as f64 {
         format!("{:.2} GiB", b / (1u64 << 30) as f64)

@@ -12,7 +12,8 @@ use crate::resources::materials::Materials;
 use std::fmt::Write as _;
 
 /// Writes `summary.json`, `brf.csv`, the radiative budget (`budget/`) and the orthographic
-/// images (`images/`) of a passive solver's products into `dir` (atomic writes).
+/// images (`images/`) of a passive solver's products into `dir` (atomic writes); `wants` says
+/// which of `brf.csv`, `budget` and `images` to write (`summary.json` always).
 #[allow(clippy::too_many_arguments)]
 pub fn write_radiative(
     dir: &std::path::Path,
@@ -25,12 +26,21 @@ pub fn write_radiative(
     facets: &FacetStore,
     mats: &Materials,
     memory: Option<&crate::resources::memory::MemoryPlan>,
+    wants: &dyn Fn(&str) -> bool,
 ) -> Result<(), String> {
-    std::fs::create_dir_all(dir.join("budget"))
+    std::fs::create_dir_all(dir)
         .map_err(|e| format!("{}: cannot create output folder: {e}", dir.display()))?;
-    write_brf_csv(dir, p)?;
-    write_budget(dir, p, info, spec, grid, facets, mats)?;
-    write_images(dir, p, info, dirs, spec)?;
+    if wants("brf.csv") {
+        write_brf_csv(dir, p)?;
+    }
+    if wants("budget") {
+        std::fs::create_dir_all(dir.join("budget"))
+            .map_err(|e| format!("{}: cannot create output folder: {e}", dir.display()))?;
+        write_budget(dir, p, info, spec, grid, facets, mats)?;
+    }
+    if wants("images") {
+        write_images(dir, p, info, dirs, spec)?;
+    }
     // Last, so that the measured peak it records covers the other products' writing.
     write_summary(dir, p, info, settings, dirs, memory)?;
     Ok(())

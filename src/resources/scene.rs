@@ -222,6 +222,23 @@ pub fn default_max_memory() -> u64 {
 #[derive(Debug, Clone, Resource)]
 pub struct OutputDir(pub PathBuf);
 
+/// Which products the Output stage writes (absent: every product). Entries are paths relative
+/// to the output folder, files (`brf.csv`, `lai.exr`) or folders (`images`, `budget`,
+/// `lidar`); `summary.json` is always written. Sequences keep only what a look-up table
+/// needs (`crate::sequence`).
+#[derive(Debug, Clone, Resource)]
+pub struct ProductSelection(pub Vec<String>);
+
+impl ProductSelection {
+    /// Whether the product at `rel` (a file or a folder) is wanted.
+    pub fn wants(&self, rel: &str) -> bool {
+        rel == "summary.json"
+            || self.0.iter().any(|k| {
+                k == rel || k.starts_with(&format!("{rel}/")) || rel.starts_with(&format!("{k}/"))
+            })
+    }
+}
+
 /// Present when the scene needs no passive solve (a LiDAR-only scene, or `passive: false`;
 /// [`crate::scene::desc::SceneDesc::runs_passive`]): the Radiative stage and the Photon stage's
 /// passive Monte Carlo do not run and write no passive products. Absent (every other scene,

@@ -1,0 +1,434 @@
+//! Sequences and look-up tables (issue #36), through the built binary as a user (or a cluster
+//! scheduler) runs them: the example sequence's plan, sharded runs gathered into one table
+//! byte for byte, resuming after a SIGKILL, a point equal to the same scene run on its own,
+//! and bad sequence files refused with the file, line and axis before anything runs.
+
+use lumenscape::sequence::plan::{Axis, Plan, Shard};
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+fn bin() -> Command {
+    Command::new(env!("CARGO_BIN_EXE_lumenscape"))
+}
+
+fn root() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+}
+
+fn tmp(name: &str) -> PathBuf {
+    let d = std::env::temp_dir().join(format!("lumenscape-seq-{}-{name}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&d);
+    std::fs::create_dir_all(&d).unwrap();
+    d
+}
+
+/// A sequence over the turbid-layer example scene, written into `dir`: LAI × leaf reflectance
+/// × zipped sun zenith and azimuth (`lai.len() · 2 · sun.len()` points), preview preset.
+fn write_sequence(dir: &Path, lai: &[f64], sun: &[(f64, f64)]) -> PathBuf {
+    let base = root().join("assets/scenes/turbid_layer.ron");
+    let list = |v: Vec<String>| v.join(", ");
+    let text = format!(
+        r#"(
+    version: 1,
+    name: "test sweep",
+    base: "{}",
+    axes: [
+        (name: "lai", path: "objects[1].foliage", values: [{}]),
+        (name: "leaf_r", path: "optics.leaf.reflectance[0]", values: [0.05, 0.08]),
+        (name: "sza", path: "illumination.sun_zenith_deg", values: [{}], zip: "sun"),
+        (name: "saa", path: "illumination.sun_azimuth_deg", values: [{}], zip: "sun"),
+        (name: "preset", path: "radiative", values: [(preset: "Preview")]),
+    ],
+)
+"#,
+        base.display(),
+        list(lai.iter().map(|v| format!("{v:?}")).collect()),
+        list(sun.iter().map(|s| format!("{:?}", s.0)).collect()),
+        list(sun.iter().map(|s| format!("{:?}", s.1)).collect()),
+    );
+    let p = dir.join("seq.ron");
+    std::fs::write(&p, text).unwrap();
+    p
+}
+
+fn run_ok(cmd: &mut Command) -> String {
+    let o = cmd.output().unwrap();
+    assert!(
+        o.status.success(),
+        "{:?} failed: {}{}",
+        cmd,
+        String::from_utf8_lossy(&o.stdout),
+        String::from_utf8_lossy(&o.stderr)
+    );
+    String::from_utf8_lossy(&o.stdout).into_owned()
+}
+
+#[test]
+fn the_example_sequence_spans_its_grid_and_sets_each_field() {
+    let plan = Plan::load(&root().join("assets/sequences/lai_cab_sun.ron")).unwrap();
+    assert_eq!(plan.len(), 6 * 8 * 4);
+    // Row-major, the last axis fastest: point 1 changes the sun, point 4 the chlorophyll.
+    let p = plan.point(4 + 1).unwrap();
+    let v: Vec<String> = p.values.iter().map(|(n, v)| format!("{n}={v}")).collect();
+    assert_eq!(v, ["lai=0.5", "cab_ug_cm2=20.0", "sun_zenith_deg=20.0"]);
+    let text = lumenscape::scene::to_ron(&p.desc);
+    assert!(text.contains("foliage: Lai(0.5)"), "{text}");
+    assert!(text.contains("cab_ug_cm2: 20.0"), "{text}");
+    assert!(text.contains("sun_zenith_deg: Some(20.0)"), "{text}");
+    // The range's last value is exact, and every other field is the base scene's.
+    let last = plan.point(plan.len() - 1).unwrap();
+    assert_eq!(last.values[1].1, serde_json::json!(80.0));
+    let mut base = plan.base.clone();
+    base.illumination.sun_zenith_deg = Some(60.0);
+    assert_ne!(base, last.desc);
+}
+
+/// Sharded runs (1, 3 and 7 separate processes) gather into the same table, byte for byte,
+/// and every point's values are in it.
+#[test]
+fn sharded_runs_gather_into_the_same_table() {
+    let dir = tmp("shards");
+    let seq = write_sequence(&dir, &[1.0, 3.0], &[(0.0, 0.0), (40.0, 90.0)]);
+    let mut tables = Vec::new();
+    for n in [1usize, 3, 7] {
+        let out = dir.join(format!("out{n}"));
+        for k in 0..n {
+            run_ok(
+                bin()
+                    .args(["sequence", "-q"])
+                    .arg(&seq)
+                    .arg("--out")
+                    .arg(&out)
+                    .args(["--shard", &format!("{k}/{n}")]),
+            );
+        }
+        let msg = run_ok(bin().arg("gather").arg(&out));
+        assert!(msg.contains("from 8 of 8 points"), "{msg}");
+        tables.push(std::fs::read(out.join("lut.csv")).unwrap());
+    }
+    assert_eq!(tables[0], tables[1]);
+    assert_eq!(tables[0], tables[2]);
+    let text = String::from_utf8(tables[0].clone()).unwrap();
+    let header = text.lines().next().unwrap();
+    assert!(
+        header.starts_with("point,lai,leaf_r,sza,saa,preset,band,albedo"),
+        "{header}"
+    );
+    // 8 points × 1 band × (100 regular + 21 exact upward directions... whatever the set has):
+    // every point has the same number of rows.
+    let per_point: Vec<usize> = (0..8)
+        .map(|i| {
+            text.lines()
+                .filter(|l| l.starts_with(&format!("{i},")))
+                .count()
+        })
+        .collect();
+    assert!(
+        per_point.iter().all(|&c| c == per_point[0] && c > 20),
+        "{per_point:?}"
+    );
+    // A gather of a partial folder reports what is missing.
+    let part = dir.join("part");
+    run_ok(
+        bin()
+            .args(["sequence", "-q"])
+            .arg(&seq)
+            .arg("--out")
+            .arg(&part)
+            .args(["--shard", "1/3"]),
+    );
+    let msg = run_ok(bin().arg("gather").arg(&part));
+    assert!(
+        msg.contains("from 3 of 8 points")
+            && msg.contains("missing (not finished): 5 points: 0, 2, 3, 5, 6"),
+        "{msg}"
+    );
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// A point's products equal the same scene run on its own with `lumenscape run` (the BRFs and
+/// budgets bit for bit: same code, same settings).
+#[test]
+fn a_point_equals_its_scene_run_alone() {
+    let dir = tmp("alone");
+    let seq = write_sequence(&dir, &[3.0], &[(40.0, 90.0)]);
+    let out = dir.join("out");
+    run_ok(
+        bin()
+            .args(["sequence", "-q"])
+            .arg(&seq)
+            .arg("--out")
+            .arg(&out),
+    );
+    let plan = Plan::load(&seq).unwrap();
+    let p = plan.point(1).unwrap();
+    let scene = dir.join("point1.ron");
+    // The scene as the sweep ran it, next to the base so that relative paths still resolve.
+    std::fs::write(&scene, lumenscape::scene::to_ron(&p.desc)).unwrap();
+    let alone = dir.join("alone");
+    run_ok(
+        bin()
+            .args(["run", "-q"])
+            .arg(&scene)
+            .arg("--out")
+            .arg(&alone),
+    );
+    let a = std::fs::read_to_string(out.join("points/p000001/brf.csv")).unwrap();
+    let b = std::fs::read_to_string(alone.join("brf.csv")).unwrap();
+    assert_eq!(a, b);
+    let bands = |f: &Path| -> serde_json::Value {
+        serde_json::from_str::<serde_json::Value>(&std::fs::read_to_string(f).unwrap()).unwrap()
+            ["bands"]
+            .clone()
+    };
+    assert_eq!(
+        bands(&out.join("points/p000001/summary.json")),
+        bands(&alone.join("summary.json"))
+    );
+    // Only the kept products: no images, budget or Maket rasters in a point's folder.
+    let mut names: Vec<String> = std::fs::read_dir(out.join("points/p000001"))
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .collect();
+    names.sort();
+    assert_eq!(names, ["brf.csv", "point.json", "summary.json"]);
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// A sweep killed (SIGKILL) mid-way resumes: the points done before the kill are skipped, no
+/// partial folder is taken as done, none is run twice, and the table equals an uninterrupted
+/// run's.
+#[test]
+fn a_killed_sweep_resumes_without_losing_or_repeating_points() {
+    let dir = tmp("kill");
+    let lai: Vec<f64> = (1..=6).map(|i| i as f64).collect();
+    let seq = write_sequence(&dir, &lai, &[(0.0, 0.0), (20.0, 30.0), (40.0, 90.0)]);
+    let n = 6 * 2 * 3;
+    let out = dir.join("out");
+    let mut child = bin()
+        .args(["sequence", "-q"])
+        .arg(&seq)
+        .arg("--out")
+        .arg(&out)
+        .spawn()
+        .unwrap();
+    let done = |o: &Path| {
+        (0..n)
+            .filter(|&i| o.join(format!("points/p{i:06}/point.json")).exists())
+            .count()
+    };
+    let t0 = std::time::Instant::now();
+    while done(&out) < 3 && t0.elapsed().as_secs() < 120 {
+        std::thread::sleep(std::time::Duration::from_millis(2));
+    }
+    child.kill().unwrap(); // SIGKILL on Unix
+    child.wait().unwrap();
+    let before = done(&out);
+    assert!(
+        (3..n).contains(&before),
+        "the sweep should have been killed mid-way ({before} of {n} points done)"
+    );
+    // Every visible point folder is complete.
+    for e in std::fs::read_dir(out.join("points")).unwrap() {
+        let e = e.unwrap();
+        let name = e.file_name().to_string_lossy().into_owned();
+        if !name.starts_with('.') {
+            assert!(e.path().join("point.json").exists(), "{name} is incomplete");
+            assert!(
+                e.path().join("summary.json").exists(),
+                "{name} is incomplete"
+            );
+        }
+    }
+    let msg = run_ok(
+        bin()
+            .args(["sequence", "-q"])
+            .arg(&seq)
+            .arg("--out")
+            .arg(&out),
+    );
+    let expect = format!("{} points run, {before} already done, 0 failed", n - before);
+    assert!(msg.contains(&expect), "{msg} (expected `{expect}`)");
+    // No staging leftovers, and the same table as an uninterrupted sweep.
+    let hidden: Vec<_> = std::fs::read_dir(out.join("points"))
+        .unwrap()
+        .filter(|e| {
+            e.as_ref()
+                .unwrap()
+                .file_name()
+                .to_string_lossy()
+                .starts_with('.')
+        })
+        .collect();
+    assert!(hidden.is_empty(), "{hidden:?}");
+    let clean = dir.join("clean");
+    run_ok(
+        bin()
+            .args(["sequence", "-q"])
+            .arg(&seq)
+            .arg("--out")
+            .arg(&clean),
+    );
+    run_ok(bin().arg("gather").arg(&out));
+    run_ok(bin().arg("gather").arg(&clean));
+    assert_eq!(
+        std::fs::read(out.join("lut.csv")).unwrap(),
+        std::fs::read(clean.join("lut.csv")).unwrap()
+    );
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// Bad sequence files: each refused before anything runs, with the sequence file and the line
+/// (or the point) in the message, a non-zero exit that is not a panic, and no output folder.
+#[test]
+fn bad_sequence_files_are_refused_with_the_place() {
+    let dir = tmp("bad");
+    let base = root().join("assets/scenes/turbid_layer.ron");
+    let good = format!(
+        "(\n    version: 1,\n    base: \"{}\",\n    axes: [\n        (name: \"lai\", path: \"objects[1].foliage\", values: [1.0, 2.0]),\n    ],\n)\n",
+        base.display()
+    );
+    let cases: &[(&str, &str, &str, &str)] = &[
+        // (what, replace, with, needle in the message)
+        (
+            "unknown path",
+            "objects[1].foliage",
+            "objects[1].folage",
+            "seq.ron:5:",
+        ),
+        (
+            "unknown top field",
+            "objects[1].foliage",
+            "optic.leaf",
+            "no field `optic`",
+        ),
+        (
+            "index out of range",
+            "objects[1].foliage",
+            "objects[9].foliage",
+            "index 9 is out of range",
+        ),
+        (
+            "type mismatch",
+            "values: [1.0, 2.0]",
+            "values: [\"dense\"]",
+            "holds a number",
+        ),
+        (
+            "empty axis",
+            "values: [1.0, 2.0]",
+            "values: []",
+            "has no values",
+        ),
+        (
+            "values and range",
+            "values: [1.0, 2.0]",
+            "values: [1.0], range: (from: 1.0, to: 2.0, steps: 2)",
+            "exactly one of",
+        ),
+        (
+            "1e9 points",
+            "values: [1.0, 2.0]",
+            "range: (from: 1.0, to: 2.0, steps: 1000000000)",
+            "seq.ron:5:",
+        ),
+        (
+            "huge grid",
+            "values: [1.0, 2.0]),",
+            "range: (from: 1.0, to: 2.0, steps: 1000)), (name: \"r\", path: \"optics.leaf.reflectance[0]\", range: (from: 0.01, to: 0.1, steps: 1001)),",
+            "1001000 points",
+        ),
+        (
+            "invalid point",
+            "values: [1.0, 2.0]",
+            "values: [1.0, -2.0]",
+            "point 1 (lai = -2.0)",
+        ),
+        (
+            "unknown scene field",
+            "objects[1].foliage",
+            "illumination.sun_zenit_deg",
+            "unknown field `sun_zenit_deg`",
+        ),
+        (
+            "zip lengths",
+            "values: [1.0, 2.0]),",
+            "values: [1.0, 2.0], zip: \"a\"), (name: \"r\", path: \"optics.leaf.reflectance[0]\", values: [0.1], zip: \"a\"),",
+            "zip group",
+        ),
+        (
+            "duplicate names",
+            "values: [1.0, 2.0]),",
+            "values: [1.0, 2.0]), (name: \"lai\", path: \"optics.leaf.reflectance[0]\", values: [0.1]),",
+            "two axes are named `lai`",
+        ),
+        ("version", "version: 1", "version: 7", "seq.ron:2:"),
+        (
+            "missing base",
+            "turbid_layer.ron",
+            "no_such_scene.ron",
+            "no_such_scene.ron",
+        ),
+        ("unknown sequence field", "axes:", "axis:", "seq.ron:4:"),
+        ("bad keep", "axes:", "keep: [\"../x\"], axes:", "keep[0]"),
+    ];
+    for (what, from, to, needle) in cases {
+        assert!(
+            good.contains(from),
+            "{what}: `{from}` not in the base sequence"
+        );
+        let text = good.replacen(from, to, 1);
+        let seq = dir.join("seq.ron");
+        std::fs::write(&seq, &text).unwrap();
+        let out = dir.join("out");
+        let o = bin()
+            .args(["sequence", "-q"])
+            .arg(&seq)
+            .arg("--out")
+            .arg(&out)
+            .output()
+            .unwrap();
+        let err = String::from_utf8_lossy(&o.stderr);
+        let code = o.status.code().unwrap_or(-1);
+        assert!(code != 0 && code != 101, "{what}: exit {code}: {err}");
+        assert!(!err.contains("panicked"), "{what}: {err}");
+        assert!(err.contains(needle), "{what}: `{needle}` not in: {err}");
+        assert!(!out.exists(), "{what}: an output folder was written");
+    }
+    // And from code: a path that does not exist is an error naming the axis.
+    let (desc, src) = lumenscape::scene::load_scene(&base).unwrap();
+    let e = Plan::new(desc, src)
+        .unwrap()
+        .axis(Axis::new("x", "grid.nope.deeper", &[1.0]).unwrap())
+        .check()
+        .unwrap_err();
+    assert!(e.to_string().contains("no field `nope`"), "{e}");
+    assert_eq!(Shard::parse("0/1"), Ok(Shard::ALL));
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// A folder holding another sweep's points is refused (its plan differs).
+#[test]
+fn another_sweeps_folder_is_refused() {
+    let dir = tmp("other");
+    let seq = write_sequence(&dir, &[1.0], &[(0.0, 0.0)]);
+    let out = dir.join("out");
+    run_ok(
+        bin()
+            .args(["sequence", "-q"])
+            .arg(&seq)
+            .arg("--out")
+            .arg(&out),
+    );
+    let seq2 = write_sequence(&dir, &[2.0], &[(0.0, 0.0)]);
+    let o = bin()
+        .args(["sequence", "-q"])
+        .arg(&seq2)
+        .arg("--out")
+        .arg(&out)
+        .output()
+        .unwrap();
+    assert_eq!(o.status.code(), Some(1));
+    assert!(String::from_utf8_lossy(&o.stderr).contains("another sequence"));
+    let _ = std::fs::remove_dir_all(&dir);
+}
