@@ -126,7 +126,11 @@ pub fn run(args: &SequenceArgs, out: &mut dyn Write) -> Result<(), CliError> {
         code: 1,
     })?;
     let n = plan.len();
-    let mine = (0..n).filter(|&i| shard.owns(i)).count();
+    let points = plan.shard_points(shard, &settings).map_err(|e| CliError {
+        message: e.to_string(),
+        code: 1,
+    })?;
+    let mine = points.len();
     if args.dry_run {
         writeln!(
             out,
@@ -149,14 +153,25 @@ pub fn run(args: &SequenceArgs, out: &mut dyn Write) -> Result<(), CliError> {
                 vals.join(", ")
             )?;
         }
-        let done = (0..n)
-            .filter(|&i| {
-                shard.owns(i)
-                    && crate::sequence::run::point_dir(&args.out, i)
-                        .join("point.json")
-                        .exists()
+        let done = points
+            .iter()
+            .filter(|&&i| {
+                crate::sequence::run::point_dir(&args.out, i)
+                    .join("point.json")
+                    .exists()
             })
             .count();
+        let units = plan
+            .units(plan.merges(&settings))
+            .map_err(|e| CliError {
+                message: e.to_string(),
+                code: 1,
+            })?
+            .len();
+        writeln!(
+            out,
+            "runs: {units} (points that differ only in per-band values share one run as its bands)"
+        )?;
         writeln!(
             out,
             "shard {}/{}: {mine} points, {done} already done in {}",

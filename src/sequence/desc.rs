@@ -36,9 +36,11 @@ pub struct SequenceDesc {
     /// that share a `zip` label advance together and must have equally many values.
     pub axes: Vec<AxisDesc>,
     /// Products kept in each point's folder, as paths relative to it (`summary.json` is always
-    /// kept: `gather` reads it). Default: `["summary.json", "brf.csv"]` — a look-up table
-    /// rarely needs each point's images and budgets; list them (`"images"`, `"budget"`,
-    /// `"lai.exr"`, …) to keep them.
+    /// kept: `gather` reads it; it holds every BRF). Default: `["summary.json"]` — a look-up
+    /// table rarely needs each point's images and budgets; list them (`"brf.csv"`, `"images"`,
+    /// `"budget"`, `"lai.exr"`, …) to keep them (with images, budgets or Maket rasters each
+    /// point runs on its own instead of sharing a run with the points that differ from it only
+    /// in per-band values).
     #[serde(default)]
     pub keep: Option<Vec<String>>,
 }

@@ -27,5 +27,6 @@
 
 pub mod desc;
 pub mod lut;
+pub mod merge;
 pub mod plan;
 pub mod run;

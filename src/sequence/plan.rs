@@ -166,7 +166,7 @@ impl Plan {
             base,
             src,
             axes: Vec::new(),
-            keep: vec!["summary.json".into(), "brf.csv".into()],
+            keep: vec!["summary.json".into()],
             base_tree,
         })
     }

@@ -91,31 +91,165 @@ impl Plan {
             let text = serde_json::to_string_pretty(&record).expect("json") + "\n";
             write_atomic(&plan_file, text.as_bytes()).map_err(fail)?;
         }
-        let n = self.len();
+        let merge = self.merges(settings);
+        let units = self.units(merge)?;
         let mut rep = SequenceReport::default();
-        let mine: Vec<usize> = (0..n).filter(|&i| shard.owns(i)).collect();
-        rep.owned = mine.len();
-        remove_stale_staging(&out.join("points"), shard);
-        let bar = crate::io::progress::progress_bar(settings.progress, mine.len() as u64, "points");
+        let mine: Vec<&Vec<usize>> = units
+            .iter()
+            .enumerate()
+            .filter(|(u, _)| shard.owns(*u))
+            .map(|(_, p)| p)
+            .collect();
+        rep.owned = mine.iter().map(|u| u.len()).sum();
+        let owned: std::collections::BTreeSet<usize> =
+            mine.iter().flat_map(|u| u.iter().copied()).collect();
+        remove_stale_staging(&out.join("points"), |i| owned.contains(&i));
+        let bar = crate::io::progress::progress_bar(settings.progress, rep.owned as u64, "points");
         let inner = RunSettings {
             progress: false,
             ..settings.clone()
         };
-        for i in mine {
-            let dir = point_dir(out, i);
-            if dir.join("point.json").exists() {
-                rep.skipped.push(i);
-                bar.inc(1);
-                continue;
+        // Units run side by side (each on the shared thread pool) when that many of the
+        // first unit's memory estimate fit under the limit; one after the other otherwise.
+        let threads = rayon::current_num_threads().max(1);
+        let parallel = threads > 1
+            && mine.first().is_some_and(|u| {
+                self.unit_estimate(u, &inner)
+                    .is_some_and(|b| b.saturating_mul(threads as u64) <= settings.max_memory_bytes)
+            });
+        let run_one = |unit: &Vec<usize>| -> (Vec<usize>, Vec<usize>, Vec<(usize, String)>) {
+            let todo: Vec<usize> = unit
+                .iter()
+                .copied()
+                .filter(|&i| !point_dir(out, i).join("point.json").exists())
+                .collect();
+            let skipped: Vec<usize> = unit.iter().copied().filter(|i| !todo.contains(i)).collect();
+            let res = if todo.is_empty() {
+                Ok(())
+            } else if unit.len() == 1 {
+                self.run_point(unit[0], &point_dir(out, unit[0]), &inner)
+            } else {
+                self.run_unit(unit, &todo, out, &inner)
+            };
+            bar.inc(unit.len() as u64);
+            match res {
+                Ok(()) => (todo, skipped, Vec::new()),
+                Err(e) => (
+                    Vec::new(),
+                    skipped,
+                    todo.iter().map(|&i| (i, e.clone())).collect(),
+                ),
             }
-            match self.run_point(i, &dir, &inner) {
-                Ok(()) => rep.ran.push(i),
-                Err(e) => rep.failed.push((i, e)),
-            }
-            bar.inc(1);
+        };
+        let outcomes: Vec<_> = if parallel {
+            use rayon::prelude::*;
+            mine.par_iter().map(|u| run_one(u)).collect()
+        } else {
+            mine.iter().map(|u| run_one(u)).collect()
+        };
+        for (ran, skipped, failed) in outcomes {
+            rep.ran.extend(ran);
+            rep.skipped.extend(skipped);
+            rep.failed.extend(failed);
         }
         bar.finish_and_clear();
+        rep.skipped.sort_unstable();
         Ok(rep)
+    }
+
+    /// Whether points that differ only in per-band values share runs (see
+    /// [`super::merge`]): with flux tracking, when a point keeps only `summary.json` and
+    /// `brf.csv` (images, budgets and Maket rasters would mix the points' bands).
+    pub fn merges(&self, settings: &RunSettings) -> bool {
+        settings.solver == crate::resources::scene::Solver::FluxTracking
+            && self
+                .keep
+                .iter()
+                .all(|k| k == "summary.json" || k == "brf.csv")
+    }
+
+    /// The points of `shard` (whole units, see [`Plan::units`]).
+    pub fn shard_points(
+        &self,
+        shard: Shard,
+        settings: &RunSettings,
+    ) -> Result<Vec<usize>, SequenceError> {
+        let units = self.units(self.merges(settings))?;
+        let mut v: Vec<usize> = units
+            .iter()
+            .enumerate()
+            .filter(|(u, _)| shard.owns(*u))
+            .flat_map(|(_, p)| p.iter().copied())
+            .collect();
+        v.sort_unstable();
+        Ok(v)
+    }
+
+    /// The memory estimate (peak over the stages, bytes) of the run of `unit`; `None` when its
+    /// scene cannot be planned (the run then reports why).
+    fn unit_estimate(&self, unit: &[usize], settings: &RunSettings) -> Option<u64> {
+        let desc = if unit.len() == 1 {
+            self.point(unit[0]).ok()?.desc
+        } else {
+            self.merged_scene(unit).ok()?
+        };
+        let mut sim = Simulation::from_desc(&desc, &self.src, settings.clone()).ok()?;
+        sim.memory_plan().ok().map(|m| m.peak_bytes)
+    }
+
+    /// Runs the points of `unit` as the bands of one run and writes the products of those in
+    /// `todo` (each staged and committed on its own).
+    fn run_unit(
+        &self,
+        unit: &[usize],
+        todo: &[usize],
+        out: &Path,
+        settings: &RunSettings,
+    ) -> Result<(), String> {
+        let desc = self.merged_scene(unit)?;
+        let nb = desc.bands.len() / unit.len();
+        let mut sim =
+            Simulation::from_desc(&desc, &self.src, settings.clone()).map_err(|e| e.to_string())?;
+        let mem = sim.memory_plan().map_err(|e| e.to_string())?;
+        if let Some(s) = mem.over(settings.max_memory_bytes) {
+            return Err(format!(
+                "the shared run of points {unit:?}: the {} stage needs an estimated {} bytes, above the limit of {} bytes (--max-memory)",
+                s.stage, s.bytes, settings.max_memory_bytes
+            ));
+        }
+        sim.world.insert_resource(mem);
+        sim.world
+            .insert_resource(crate::resources::scene::ProductSelection(self.keep.clone()));
+        let shared = out.join("points").join(format!(
+            ".{}.partial-unit-{}",
+            point_name(unit[0]),
+            std::process::id()
+        ));
+        let _ = std::fs::remove_dir_all(&shared);
+        let res = (|| -> Result<(), String> {
+            sim.run(Some(&shared)).map_err(|e| e.to_string())?;
+            let read = |f: &str| std::fs::read_to_string(shared.join(f)).ok();
+            let summary = read("summary.json").ok_or("the shared run wrote no summary.json")?;
+            let brf = read("brf.csv");
+            for (k, &i) in unit.iter().enumerate() {
+                if !todo.contains(&i) {
+                    continue;
+                }
+                let (s, csv) = super::merge::split_products(&summary, brf.as_deref(), k, nb, unit)?;
+                let p = self.point(i).map_err(|e| e.to_string())?;
+                let dir = point_dir(out, i);
+                let staged = StagedDir::begin(&dir, false, "--force")?;
+                write_atomic(&staged.path().join("summary.json"), s.as_bytes())?;
+                if let Some(c) = csv.filter(|_| self.keep.iter().any(|k| k == "brf.csv")) {
+                    write_atomic(&staged.path().join("brf.csv"), c.as_bytes())?;
+                }
+                write_point_json(staged.path(), &p, Some(unit))?;
+                staged.commit()?;
+            }
+            Ok(())
+        })();
+        let _ = std::fs::remove_dir_all(&shared);
+        res
     }
 
     /// Runs point `i` into `dir` (staged, committed when complete).
@@ -136,17 +270,28 @@ impl Plan {
         let staged = StagedDir::begin(dir, false, "--force")?;
         sim.run(Some(staged.path())).map_err(|e| e.to_string())?;
         prune(staged.path(), &self.keep).map_err(|e| format!("{}: {e}", dir.display()))?;
-        let values: serde_json::Map<String, serde_json::Value> = p.values.into_iter().collect();
-        let rec = json!({
-            "point": i,
-            "values": values,
-            "scene_hash": p.scene_hash,
-            "lumenscape_version": VERSION,
-        });
-        let text = serde_json::to_string_pretty(&rec).expect("json") + "\n";
-        write_atomic(&staged.path().join("point.json"), text.as_bytes())?;
+        write_point_json(staged.path(), &p, None)?;
         staged.commit()
     }
+}
+
+/// `point.json` (written last into a point's staging folder): index, axis values, scene hash,
+/// program version, and the unit it shared a run with.
+fn write_point_json(
+    dir: &Path,
+    p: &super::plan::Point,
+    unit: Option<&[usize]>,
+) -> Result<(), String> {
+    let values: serde_json::Map<String, serde_json::Value> = p.values.iter().cloned().collect();
+    let rec = json!({
+        "point": p.index,
+        "values": values,
+        "scene_hash": p.scene_hash,
+        "lumenscape_version": VERSION,
+        "shared_run_points": unit,
+    });
+    let text = serde_json::to_string_pretty(&rec).expect("json") + "\n";
+    write_atomic(&dir.join("point.json"), text.as_bytes())
 }
 
 /// Removes what a point folder should not keep: every top-level entry not named by (or
@@ -181,10 +326,10 @@ fn prune(dir: &Path, keep: &[String]) -> std::io::Result<()> {
     walk(dir, "", keep)
 }
 
-/// Removes the hidden staging folders (`.pNNNNNN.partial-PID`, `.pNNNNNN.old-PID`) of points
-/// that `shard` owns: leftovers of a killed run of this shard (other shards' points are left
+/// Removes the hidden staging folders (`.pNNNNNN.partial-…`, `.pNNNNNN.old-…`) of the points
+/// `owns` accepts: leftovers of a killed run of this shard (other shards' points are left
 /// alone: they may be running).
-fn remove_stale_staging(points: &Path, shard: Shard) {
+fn remove_stale_staging(points: &Path, owns: impl Fn(usize) -> bool) {
     let Ok(rd) = std::fs::read_dir(points) else {
         return;
     };
@@ -196,7 +341,7 @@ fn remove_stale_staging(points: &Path, shard: Shard) {
             .filter(|(_, rest)| rest.starts_with("partial-") || rest.starts_with("old-"))
             .and_then(|(n, _)| n.parse::<usize>().ok());
         if let Some(i) = idx
-            && shard.owns(i)
+            && owns(i)
         {
             let _ = std::fs::remove_dir_all(e.path());
         }
