@@ -43,6 +43,11 @@ pub struct SequenceDesc {
     /// in per-band values).
     #[serde(default)]
     pub keep: Option<Vec<String>>,
+    /// Whether points that differ only in per-band values share one run as its bands
+    /// (default true; `false`: every point runs on its own, bit for bit as `lumenscape run`
+    /// would run its scene; see [`crate::sequence::merge`]).
+    #[serde(default)]
+    pub share: Option<bool>,
 }
 
 /// One axis: a scene field and the values it takes.

@@ -95,9 +95,20 @@ fn band_lists(tree: &mut Value) -> Vec<&mut Vec<Value>> {
 
 /// The merge key of a band-form tree: the tree with every per-band list replaced by its length
 /// (`None` when a list's length is not the band count: such a scene runs alone).
+/// A `ProspectLeaf`'s parameters count as per-band values (they become the band lists of a
+/// `BiLambertian` in [`band_form`]), so its numbers are left out of the key too.
 fn key(tree: &Value, nb: usize) -> Option<String> {
     let mut t = tree.clone();
     let mut ok = true;
+    if let Some(Value::Object(optics)) = t.get_mut("optics") {
+        for o in optics.values_mut() {
+            if let Some(Value::Object(p)) = o.get_mut("ProspectLeaf") {
+                for v in p.values_mut().filter(|v| v.is_number()) {
+                    *v = Value::Null;
+                }
+            }
+        }
+    }
     for a in band_lists(&mut t) {
         ok &= a.len() == nb;
         *a = vec![Value::from(a.len())];
@@ -121,9 +132,9 @@ impl Plan {
             let k = if p.desc.lidars.as_ref().is_some_and(|l| !l.is_empty()) || nb == 0 {
                 None
             } else {
-                let tree = band_form(&p.desc, &self.src).map_err(|m| SequenceError {
+                let tree = serde_json::to_value(&p.desc).map_err(|e| SequenceError {
                     at: self.file.display().to_string(),
-                    message: format!("point {i}: {m}"),
+                    message: format!("point {i}: {e}"),
                 })?;
                 key(&tree, nb)
             };
@@ -184,15 +195,15 @@ impl Plan {
 }
 
 /// The products of the unit's `k`-th point (`nb` bands) from the shared run's `summary.json`
-/// and `brf.csv` texts: its bands, with their own names; `points` is the unit.
+/// (parsed) and `brf.csv` text: its bands, with their own names; `points` is the unit.
 pub(super) fn split_products(
-    summary: &str,
+    summary: &Value,
     brf_csv: Option<&str>,
     k: usize,
     nb: usize,
     points: &[usize],
 ) -> Result<(String, Option<String>), String> {
-    let mut s: Value = serde_json::from_str(summary).map_err(|e| e.to_string())?;
+    let mut s = summary.clone();
     let suffix = format!("~{k}");
     let own = |name: &str| name.strip_suffix(&suffix).map(str::to_string);
     let bands: Vec<Value> = s["bands"]

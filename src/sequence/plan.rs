@@ -139,6 +139,8 @@ pub struct Plan {
     pub axes: Vec<Axis>,
     /// Products kept per point (relative paths; `summary.json` always).
     pub keep: Vec<String>,
+    /// Whether points may share runs ([`crate::sequence::merge`]; default true).
+    pub share: bool,
     base_tree: Value,
 }
 
@@ -167,6 +169,7 @@ impl Plan {
             src,
             axes: Vec::new(),
             keep: vec!["summary.json".into()],
+            share: true,
             base_tree,
         })
     }
@@ -225,6 +228,7 @@ impl Plan {
         let mut plan = Self::new(base, src)?;
         plan.name = desc.name.clone();
         plan.file = path.to_path_buf();
+        plan.share = desc.share.unwrap_or(true);
         if let Some(k) = &desc.keep {
             for (i, p) in k.iter().enumerate() {
                 let q = Path::new(p);

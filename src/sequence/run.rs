@@ -51,6 +51,7 @@ impl Plan {
             "base_scene_hash": format!("{:016x}", fnv1a64(to_ron(&self.base).as_bytes())),
             "points": self.len(),
             "keep": self.keep,
+            "share": self.share,
             "axes": self.axes.iter().map(|a| json!({
                 "name": a.name,
                 "path": a.path,
@@ -80,10 +81,16 @@ impl Plan {
         // The same sweep (axes and base scene) may resume here; another may not.
         if let Ok(old) = std::fs::read_to_string(&plan_file) {
             let old: serde_json::Value = serde_json::from_str(&old).unwrap_or_default();
-            let key = |v: &serde_json::Value| (v["axes"].clone(), v["base_scene_hash"].clone());
+            let key = |v: &serde_json::Value| {
+                (
+                    v["axes"].clone(),
+                    v["base_scene_hash"].clone(),
+                    v["share"].clone(),
+                )
+            };
             if key(&old) != key(&record) {
                 return Err(fail(
-                    "holds another sequence's points (plan.json differs in its axes or base scene): choose a new folder"
+                    "holds another sequence's points (plan.json differs in its axes, base scene or `share`): choose a new folder"
                         .into(),
                 ));
             }
@@ -158,10 +165,12 @@ impl Plan {
     }
 
     /// Whether points that differ only in per-band values share runs (see
-    /// [`super::merge`]): with flux tracking, when a point keeps only `summary.json` and
-    /// `brf.csv` (images, budgets and Maket rasters would mix the points' bands).
+    /// [`super::merge`]): when the plan allows it (`share`), with flux tracking, when a point
+    /// keeps only `summary.json` and `brf.csv` (images, budgets and Maket rasters would mix
+    /// the points' bands).
     pub fn merges(&self, settings: &RunSettings) -> bool {
-        settings.solver == crate::resources::scene::Solver::FluxTracking
+        self.share
+            && settings.solver == crate::resources::scene::Solver::FluxTracking
             && self
                 .keep
                 .iter()
@@ -230,11 +239,20 @@ impl Plan {
             sim.run(Some(&shared)).map_err(|e| e.to_string())?;
             let read = |f: &str| std::fs::read_to_string(shared.join(f)).ok();
             let summary = read("summary.json").ok_or("the shared run wrote no summary.json")?;
+            let mut summary: serde_json::Value =
+                serde_json::from_str(&summary).map_err(|e| e.to_string())?;
+            // Each point's copy gets its own bands: the others' are dropped once here.
+            let all_bands = summary["bands"].take();
             let brf = read("brf.csv");
             for (k, &i) in unit.iter().enumerate() {
                 if !todo.contains(&i) {
                     continue;
                 }
+                let own: Vec<serde_json::Value> = all_bands
+                    .as_array()
+                    .map(|b| b.iter().skip(k * nb).take(nb).cloned().collect())
+                    .unwrap_or_default();
+                summary["bands"] = serde_json::Value::Array(own);
                 let (s, csv) = super::merge::split_products(&summary, brf.as_deref(), k, nb, unit)?;
                 let p = self.point(i).map_err(|e| e.to_string())?;
                 let dir = point_dir(out, i);

@@ -259,6 +259,29 @@ impl TurbidPair {
     }
 }
 
+/// `outgoing[j · w + r · nb + b] += wv[r · nb + b] · rows[b][j]` for every direction j,
+/// copy r < `reps` (sun and sky channels) and band b < nb = `rows.len()`.
+#[inline]
+fn scatter_rows<T: Copy>(
+    outgoing: &mut [f64],
+    wv: &[f64],
+    rows: &[&[T]],
+    reps: usize,
+    to_f64: impl Fn(T) -> f64,
+) {
+    let nb = rows.len();
+    let w = nb * reps;
+    let n_dirs = rows.first().map_or(0, |r| r.len());
+    for (j, o) in outgoing.chunks_exact_mut(w).take(n_dirs).enumerate() {
+        for r in 0..reps {
+            let (o, v) = (&mut o[r * nb..(r + 1) * nb], &wv[r * nb..(r + 1) * nb]);
+            for ((o, &v), row) in o.iter_mut().zip(v).zip(rows) {
+                *o += v * to_f64(row[j]);
+            }
+        }
+    }
+}
+
 /// Turbid entry `k` (`turbid_subfaces: Off`): its stored power per slot scattered with the
 /// slot rows into `outgoing[dir · w + ch]` (physics.md §3.6), the absorbed rest booked; `None`
 /// for an entry whose material is not turbid.
@@ -284,26 +307,23 @@ fn turbid_emitter<'s>(
             continue;
         }
         let tm = ctx.tur_mat[e.material as usize] as usize;
-        for ch in 0..w {
-            let val = wv[ch];
-            if val == 0.0 {
-                continue;
+        for (i, &v) in intercepted.iter_mut().zip(wv) {
+            if v != 0.0 {
+                *i += v;
             }
-            intercepted[ch] += val;
-            // `outgoing[j · w + ch] += val · trow[j]` for every direction j, by
-            // rows of w (no bounds check per direction).
-            let rows = outgoing.chunks_exact_mut(w);
-            if slot == ns - 1 {
-                let trow = tables[ch % nb].row(tables[0].sun_row().unwrap_or(0));
-                for (o, &t) in rows.zip(&trow[..n_dirs]) {
-                    o[ch] += val * t as f64;
-                }
-            } else {
-                let trow = ctx.slot_row(tm, ch % nb, slot);
-                for (o, &t) in rows.zip(&trow[..n_dirs]) {
-                    o[ch] += val * t;
-                }
-            }
+        }
+        // `outgoing[j · w + ch] += wv[ch] · row_{ch mod nb}[j]` for every direction j and
+        // channel ch, direction by direction so that each direction's w channels are written
+        // contiguously (many bands: the channel-by-channel order strode through `outgoing` by
+        // w per direction). A zero `wv[ch]` adds +0: the sums are those of skipping it.
+        let reps = w / nb;
+        if slot == ns - 1 {
+            let srow = tables[0].sun_row().unwrap_or(0);
+            let rows: Vec<&[f32]> = (0..nb).map(|b| &tables[b].row(srow)[..n_dirs]).collect();
+            scatter_rows(outgoing, wv, &rows, reps, |t| t as f64);
+        } else {
+            let rows: Vec<&[f64]> = (0..nb).map(|b| ctx.slot_row(tm, b, slot)).collect();
+            scatter_rows(outgoing, wv, &rows, reps, |t| t);
         }
     }
     let p = &st.tur_pts[k];
