@@ -102,6 +102,7 @@ fn sharded_runs_gather_into_the_same_table() {
     let dir = tmp("shards");
     let seq = write_sequence(&dir, &[1.0, 3.0], &[(0.0, 0.0), (40.0, 90.0)]);
     let mut tables = Vec::new();
+    let mut parquets = Vec::new();
     for n in [1usize, 3, 7] {
         let out = dir.join(format!("out{n}"));
         for k in 0..n {
@@ -117,9 +118,13 @@ fn sharded_runs_gather_into_the_same_table() {
         let msg = run_ok(bin().arg("gather").arg(&out));
         assert!(msg.contains("from 8 of 8 points"), "{msg}");
         tables.push(std::fs::read(out.join("lut.csv")).unwrap());
+        parquets.push(std::fs::read(out.join("lut.parquet")).unwrap());
     }
     assert_eq!(tables[0], tables[1]);
     assert_eq!(tables[0], tables[2]);
+    assert_eq!(parquets[0], parquets[1]);
+    assert_eq!(parquets[0], parquets[2]);
+    parquet_equals_csv(&dir.join("out1/lut.parquet"), &dir.join("out1/lut.csv"));
     let text = String::from_utf8(tables[0].clone()).unwrap();
     let header = text.lines().next().unwrap();
     assert!(
@@ -158,6 +163,43 @@ fn sharded_runs_gather_into_the_same_table() {
         "{msg}"
     );
     let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// The Parquet table read back with the `parquet` crate's record reader holds the CSV's rows:
+/// the same column names, numbers equal to the CSV's text (shortest round trip), strings equal.
+fn parquet_equals_csv(pq: &Path, csv: &Path) {
+    use parquet::file::reader::{FileReader, SerializedFileReader};
+    use parquet::record::Field;
+    let text = std::fs::read_to_string(csv).unwrap();
+    let mut lines = text.lines();
+    let header: Vec<&str> = lines.next().unwrap().split(',').collect();
+    let reader = SerializedFileReader::new(std::fs::File::open(pq).unwrap()).unwrap();
+    let mut n = 0;
+    for (row, line) in reader.get_row_iter(None).unwrap().zip(lines) {
+        let row = row.unwrap();
+        let cells: Vec<&str> = line.split(',').collect();
+        let fields: Vec<(&String, &Field)> = row.get_column_iter().collect();
+        assert_eq!(fields.len(), header.len());
+        for ((name, f), (h, c)) in fields.iter().zip(header.iter().zip(&cells)) {
+            assert_eq!(name.as_str(), *h);
+            match f {
+                Field::Long(v) => assert_eq!(v.to_string(), *c),
+                Field::Double(v) => assert_eq!(*v, c.parse::<f64>().unwrap(), "{h}"),
+                Field::Str(v) => {
+                    // CSV quotes a cell holding `"` (the values are free of commas here).
+                    let unq = match c.strip_prefix('"').and_then(|c| c.strip_suffix('"')) {
+                        Some(q) => q.replace("\"\"", "\""),
+                        None => c.to_string(),
+                    };
+                    assert_eq!(*v, unq, "{h}")
+                }
+                Field::Null => assert!(c.is_empty(), "{h}: null for `{c}`"),
+                other => panic!("{h}: unexpected {other:?}"),
+            }
+        }
+        n += 1;
+    }
+    assert_eq!(n, text.lines().count() - 1);
 }
 
 /// The products of point 1 of `out` and of its scene run on its own with `lumenscape run`

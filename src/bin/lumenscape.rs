@@ -24,7 +24,7 @@ enum Command {
     /// Run a parameter sweep (sequence file) into a folder, one folder per point; resumable,
     /// shardable across processes and cluster array jobs.
     Sequence(sequence::SequenceArgs),
-    /// Gather every finished point of a sequence folder into one look-up table (CSV).
+    /// Gather every finished point of a sequence folder into one look-up table (CSV and Parquet).
     Gather(sequence::GatherArgs),
     /// Print a generated scene as RON.
     Generate(generate::Args),

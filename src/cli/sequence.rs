@@ -51,7 +51,8 @@ pub struct SequenceArgs {
 pub struct GatherArgs {
     /// Sequence folder (the `--out` of `lumenscape sequence`; every shard's points).
     pub dir: PathBuf,
-    /// Table to write (CSV) [default: DIR/lut.csv].
+    /// Table to write (CSV; the same table as Parquet beside it, extension `.parquet`)
+    /// [default: DIR/lut.csv].
     #[arg(long)]
     pub table: Option<PathBuf>,
 }
@@ -241,8 +242,9 @@ pub fn gather(args: &GatherArgs, out: &mut dyn Write) -> Result<(), CliError> {
         .map_err(|message| CliError { message, code: 1 })?;
     writeln!(
         out,
-        "{}: {} rows from {} of {} points",
+        "{} and {}: {} rows from {} of {} points",
         table.display(),
+        table.with_extension("parquet").display(),
         rep.rows,
         rep.finished,
         rep.points

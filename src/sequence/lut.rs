@@ -64,8 +64,9 @@ fn scalars<'a>(o: &'a Value, skip: &'a [&str]) -> impl Iterator<Item = (&'a Stri
         })
 }
 
-/// Gathers the sequence folder `dir` into `table` (CSV). Fails on a folder without `plan.json`
-/// or on a finished point whose files cannot be read; unfinished points are reported.
+/// Gathers the sequence folder `dir` into `table` (CSV) and the same table as Parquet next to
+/// it (`table` with the extension `.parquet`). Fails on a folder without `plan.json` or on a
+/// finished point whose files cannot be read; unfinished points are reported.
 pub fn gather(dir: &Path, table: &Path) -> Result<GatherReport, String> {
     let plan = read_json(&dir.join("plan.json")).map_err(|e| {
         format!(
@@ -108,43 +109,115 @@ pub fn gather(dir: &Path, table: &Path) -> Result<GatherReport, String> {
             }
         }
     }
-    let mut csv = String::from("point");
-    for a in &axes {
-        csv += &format!(",{}", cell(&Value::from(a.as_str())));
-    }
-    csv += ",band";
-    for c in &band_cols {
-        csv += &format!(",{c}");
-    }
-    for c in &view_cols {
-        csv += &format!(",view_{c}");
-    }
-    csv += ",scene_hash,lumenscape_version\n";
+    // The rows as JSON values under their column names, written as CSV and as Parquet.
+    let mut names: Vec<String> = vec!["point".into()];
+    names.extend(axes.iter().cloned());
+    names.push("band".into());
+    names.extend(band_cols.iter().cloned());
+    names.extend(view_cols.iter().map(|c| format!("view_{c}")));
+    names.extend(["scene_hash".to_string(), "lumenscape_version".to_string()]);
+    let mut rows: Vec<Vec<Value>> = Vec::new();
     for (i, p, s) in &points {
-        let mut head = i.to_string();
-        for a in &axes {
-            head += &format!(",{}", cell(&p["values"][a]));
-        }
-        let tail = format!(
-            ",{},{}\n",
-            cell(&p["scene_hash"]),
-            cell(&p["lumenscape_version"])
-        );
+        let mut head = vec![Value::from(*i)];
+        head.extend(axes.iter().map(|a| p["values"][a].clone()));
         for b in s["bands"].as_array().into_iter().flatten() {
-            let mut band = format!("{head},{}", cell(&b["band"]));
-            for c in &band_cols {
-                band += &format!(",{}", cell(&b[c]));
-            }
+            let mut band = head.clone();
+            band.push(b["band"].clone());
+            band.extend(band_cols.iter().map(|c| b[c].clone()));
             for e in b["brf"].as_array().into_iter().flatten() {
-                csv += &band;
-                for c in &view_cols {
-                    csv += &format!(",{}", cell(&e[c]));
-                }
-                csv += &tail;
-                rep.rows += 1;
+                let mut row = band.clone();
+                row.extend(view_cols.iter().map(|c| e[c].clone()));
+                row.push(p["scene_hash"].clone());
+                row.push(p["lumenscape_version"].clone());
+                rows.push(row);
             }
         }
     }
+    rep.rows = rows.len();
+    let mut csv = names
+        .iter()
+        .map(|n| cell(&Value::from(n.as_str())))
+        .collect::<Vec<_>>()
+        .join(",");
+    csv.push('\n');
+    for r in &rows {
+        csv += &r.iter().map(cell).collect::<Vec<_>>().join(",");
+        csv.push('\n');
+    }
+    let parquet = parquet_table(&names, &rows).map_err(|e| format!("Parquet table: {e}"))?;
+    write_atomic(&table.with_extension("parquet"), &parquet)?;
     write_atomic(table, csv.as_bytes())?;
     Ok(rep)
+}
+
+/// The table as a Parquet file (Apache Parquet format 2, one row group, uncompressed): a
+/// column of JSON numbers is `DOUBLE` (`point`: `INT64`), any other column UTF-8 text (strings
+/// as they are, other values as JSON); missing values are nulls. Readable by pandas, polars,
+/// DuckDB and Arrow.
+pub fn parquet_table(names: &[String], rows: &[Vec<Value>]) -> Result<Vec<u8>, String> {
+    use parquet::data_type::{ByteArray, ByteArrayType, DoubleType, Int64Type};
+    use parquet::file::properties::WriterProperties;
+    use parquet::file::writer::SerializedFileWriter;
+    use std::sync::Arc;
+    let numeric: Vec<bool> = (0..names.len())
+        .map(|c| rows.iter().all(|r| r[c].is_number() || r[c].is_null()))
+        .collect();
+    let field = |c: usize| -> String {
+        // Parquet schema names: the column name with characters outside [A-Za-z0-9_] as `_`.
+        let n: String = names[c]
+            .chars()
+            .map(|ch| {
+                if ch.is_ascii_alphanumeric() || ch == '_' {
+                    ch
+                } else {
+                    '_'
+                }
+            })
+            .collect();
+        if c == 0 {
+            format!("required int64 {n};")
+        } else if numeric[c] {
+            format!("optional double {n};")
+        } else {
+            format!("optional binary {n} (UTF8);")
+        }
+    };
+    let schema = format!(
+        "message lut {{ {} }}",
+        (0..names.len()).map(field).collect::<Vec<_>>().join(" ")
+    );
+    let schema =
+        Arc::new(parquet::schema::parser::parse_message_type(&schema).map_err(|e| e.to_string())?);
+    let props = Arc::new(WriterProperties::builder().build());
+    let mut buf = Vec::new();
+    let mut w = SerializedFileWriter::new(&mut buf, schema, props).map_err(|e| e.to_string())?;
+    let mut rg = w.next_row_group().map_err(|e| e.to_string())?;
+    let mut c = 0;
+    while let Some(mut col) = rg.next_column().map_err(|e| e.to_string())? {
+        let defs: Vec<i16> = rows.iter().map(|r| i16::from(!r[c].is_null())).collect();
+        if c == 0 {
+            let v: Vec<i64> = rows.iter().map(|r| r[0].as_i64().unwrap_or(0)).collect();
+            col.typed::<Int64Type>().write_batch(&v, None, None)
+        } else if numeric[c] {
+            let v: Vec<f64> = rows.iter().filter_map(|r| r[c].as_f64()).collect();
+            col.typed::<DoubleType>().write_batch(&v, Some(&defs), None)
+        } else {
+            let v: Vec<ByteArray> = rows
+                .iter()
+                .filter(|r| !r[c].is_null())
+                .map(|r| match &r[c] {
+                    Value::String(s) => ByteArray::from(s.as_str()),
+                    other => ByteArray::from(other.to_string().as_str()),
+                })
+                .collect();
+            col.typed::<ByteArrayType>()
+                .write_batch(&v, Some(&defs), None)
+        }
+        .map_err(|e| e.to_string())?;
+        col.close().map_err(|e| e.to_string())?;
+        c += 1;
+    }
+    rg.close().map_err(|e| e.to_string())?;
+    w.close().map_err(|e| e.to_string())?;
+    Ok(buf)
 }
