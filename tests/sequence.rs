@@ -546,3 +546,82 @@ fn another_sweeps_folder_is_refused() {
     assert!(String::from_utf8_lossy(&o.stderr).contains("another sequence"));
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// Monte Carlo sweeps run each point on its own (seeded: bit for bit its standalone run), and
+/// LiDAR-only scenes keep their LiDAR products; `gather` says they have no passive rows.
+#[test]
+fn monte_carlo_and_lidar_points_run_alone() {
+    let dir = tmp("mc-lidar");
+    let seq = write_sequence(&dir, &[3.0], &[(40.0, 90.0)]);
+    let out = dir.join("mc");
+    let mc = ["--solver", "monte-carlo", "--photons", "20000"];
+    run_ok(
+        bin()
+            .args(["sequence", "-q"])
+            .arg(&seq)
+            .arg("--out")
+            .arg(&out)
+            .args(mc),
+    );
+    let plan = Plan::load(&seq).unwrap();
+    let scene = dir.join("point1.ron");
+    std::fs::write(
+        &scene,
+        lumenscape::scene::to_ron(&plan.point(1).unwrap().desc),
+    )
+    .unwrap();
+    let alone = dir.join("alone");
+    run_ok(
+        bin()
+            .args(["run", "-q"])
+            .arg(&scene)
+            .arg("--out")
+            .arg(&alone)
+            .args(mc),
+    );
+    let bands = |f: &Path| -> serde_json::Value {
+        serde_json::from_str::<serde_json::Value>(&std::fs::read_to_string(f).unwrap()).unwrap()
+            ["bands"]
+            .clone()
+    };
+    assert_eq!(
+        bands(&out.join("points/p000001/summary.json")),
+        bands(&alone.join("summary.json"))
+    );
+    let point: serde_json::Value = serde_json::from_str(
+        &std::fs::read_to_string(out.join("points/p000001/point.json")).unwrap(),
+    )
+    .unwrap();
+    assert!(point["shared_run_points"].is_null());
+    // A LiDAR-only base scene.
+    let lidar = dir.join("lidar.ron");
+    std::fs::write(
+        &lidar,
+        format!(
+            "(version: 1, base: \"{}\", axes: [(name: \"r\", path: \"optics.leaf.reflectance[0]\", values: [0.3, 0.4])])",
+            root().join("assets/scenes/lidar_als.ron").display()
+        ),
+    )
+    .unwrap();
+    let lo = dir.join("lidar-out");
+    run_ok(
+        bin()
+            .args(["sequence", "-q"])
+            .arg(&lidar)
+            .arg("--out")
+            .arg(&lo),
+    );
+    for i in 0..2 {
+        assert!(
+            lo.join(format!("points/p{i:06}/lidar/als/returns.las"))
+                .exists()
+        );
+    }
+    let msg = run_ok(bin().arg("gather").arg(&lo));
+    assert!(
+        msg.contains("0 rows from 2 of 2 points")
+            && msg.contains("2 finished points have no passive products"),
+        "{msg}"
+    );
+    let _ = std::fs::remove_dir_all(&dir);
+}

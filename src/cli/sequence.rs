@@ -249,6 +249,13 @@ pub fn gather(args: &GatherArgs, out: &mut dyn Write) -> Result<(), CliError> {
         rep.finished,
         rep.points
     )?;
+    if !rep.no_passive.is_empty() {
+        writeln!(
+            out,
+            "{} finished points have no passive products (LiDAR-only scenes; their LiDAR products are in points/*/lidar/) and are not in the table",
+            rep.no_passive.len()
+        )?;
+    }
     if !rep.missing.is_empty() {
         let shown: Vec<String> = rep.missing.iter().take(20).map(|i| i.to_string()).collect();
         writeln!(

@@ -19,8 +19,10 @@ use std::path::Path;
 pub struct GatherReport {
     /// Points in the plan.
     pub points: usize,
-    /// Points found finished (in the table).
+    /// Points found finished (those with passive products are in the table).
     pub finished: usize,
+    /// Finished points without passive products (LiDAR-only scenes; not in the table).
+    pub no_passive: Vec<usize>,
     /// Points not finished (not in the table).
     pub missing: Vec<usize>,
     /// Rows written.
@@ -92,13 +94,18 @@ pub fn gather(dir: &Path, table: &Path) -> Result<GatherReport, String> {
             rep.missing.push(i);
             continue;
         }
+        if !pd.join("summary.json").exists() {
+            // A LiDAR-only point: no passive products (its LiDAR products are in its folder).
+            rep.no_passive.push(i);
+            continue;
+        }
         points.push((
             i,
             read_json(&pd.join("point.json"))?,
             read_json(&pd.join("summary.json"))?,
         ));
     }
-    rep.finished = points.len();
+    rep.finished = points.len() + rep.no_passive.len();
     // Columns: the union over every row, sorted (independent of which shard wrote what).
     let (mut band_cols, mut view_cols) = (BTreeSet::new(), BTreeSet::new());
     for (_, _, s) in &points {

@@ -283,11 +283,18 @@ impl Plan {
             ));
         }
         sim.world.insert_resource(mem);
+        // A LiDAR scene's products are what its points are run for: always kept.
+        let mut keep = self.keep.clone();
+        if p.desc.lidars.as_ref().is_some_and(|l| !l.is_empty())
+            && !keep.iter().any(|k| k == "lidar")
+        {
+            keep.push("lidar".into());
+        }
         sim.world
-            .insert_resource(crate::resources::scene::ProductSelection(self.keep.clone()));
+            .insert_resource(crate::resources::scene::ProductSelection(keep.clone()));
         let staged = StagedDir::begin(dir, false, "--force")?;
         sim.run(Some(staged.path())).map_err(|e| e.to_string())?;
-        prune(staged.path(), &self.keep).map_err(|e| format!("{}: {e}", dir.display()))?;
+        prune(staged.path(), &keep).map_err(|e| format!("{}: {e}", dir.display()))?;
         write_point_json(staged.path(), &p, None)?;
         staged.commit()
     }
