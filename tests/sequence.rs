@@ -625,3 +625,50 @@ fn monte_carlo_and_lidar_points_run_alone() {
     );
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// The example sequence on a small grid (its first two values per axis), from code: 8 points
+/// in 2 shared runs, every point's table rows present, energy closed in every point and band.
+#[test]
+fn the_example_sequence_runs_on_a_small_grid() {
+    let dir = tmp("example");
+    let mut plan = Plan::load(&root().join("assets/sequences/lai_cab_sun.ron")).unwrap();
+    for a in &mut plan.axes {
+        a.values.truncate(2);
+    }
+    plan.check().unwrap();
+    assert_eq!(plan.len(), 8);
+    let settings = lumenscape::resources::scene::RunSettings {
+        preset: Some(lumenscape::scene::desc::Preset::Preview),
+        progress: false,
+        ..Default::default()
+    };
+    assert_eq!(plan.units(plan.merges(&settings)).unwrap().len(), 4);
+    let out = dir.join("out");
+    let rep = plan.run(&out, Shard::ALL, &settings).unwrap();
+    assert_eq!(
+        (rep.ran.len(), rep.failed.len()),
+        (8, 0),
+        "{:?}",
+        rep.failed
+    );
+    let g = lumenscape::sequence::lut::gather(&out, &out.join("lut.csv")).unwrap();
+    assert_eq!((g.finished, g.missing.len()), (8, 0));
+    for i in 0..8 {
+        let s: serde_json::Value = serde_json::from_str(
+            &std::fs::read_to_string(out.join(format!("points/p{i:06}/summary.json"))).unwrap(),
+        )
+        .unwrap();
+        let bands = s["bands"].as_array().unwrap();
+        assert_eq!(bands.len(), 2);
+        for b in bands {
+            // Energy closes: absorbed (canopy + soil) + escaped + lost = input, per band.
+            let closure = b["energy_closure"].as_f64().unwrap();
+            assert!(
+                closure.abs() < 1e-9,
+                "point {i} band {}: {closure}",
+                b["band"]
+            );
+        }
+    }
+    let _ = std::fs::remove_dir_all(&dir);
+}
