@@ -5,3 +5,4 @@ pub mod phase;
 pub mod prospect;
 pub mod spectral;
 pub mod sun;
+pub mod thermal;
