@@ -223,32 +223,46 @@ pub fn spawn_scene(
     let mut warnings = Vec::new();
     let base_dir = src.base_dir();
     let size = desc.grid.size_m;
+    let georef = match &desc.georeference {
+        Some(g) => Some(
+            crate::scene::georef::Georeference::from_desc(g)
+                .map_err(|(f, m)| src.invalid(format!("georeference.{f}"), m))?,
+        ),
+        None => None,
+    };
     // Terrain first: every object sits on it.
     let mut terrain = Terrain::Flat(0.0);
     for (i, o) in desc.objects.iter().enumerate() {
         if let ObjectDesc::Ground(g) = o {
             let field = format!("objects[{i}].topography");
-            terrain =
-                build_terrain(&g.topography, &base_dir, &src.path, &field, size).map_err(|e| {
-                    match e {
-                        SceneError::Invalid { at, field, message }
-                            if at.line_col.is_none() && at.file == src.path =>
-                        {
-                            SceneError::Invalid {
-                                at: src.at(&field),
-                                field,
-                                message,
-                            }
+            terrain = build_terrain(
+                &g.topography,
+                &base_dir,
+                &src.path,
+                &field,
+                size,
+                georef.as_ref(),
+            )
+            .map_err(|e| {
+                match e {
+                    SceneError::Invalid { at, field, message }
+                        if at.line_col.is_none() && at.file == src.path =>
+                    {
+                        SceneError::Invalid {
+                            at: src.at(&field),
+                            field,
+                            message,
                         }
-                        // A referenced file that cannot be read: name it, and the scene line
-                        // that refers to it.
-                        SceneError::Io { path, source } => src.invalid(
-                            format!("{field}.path"),
-                            format!("{}: cannot read file: {source}", path.display()),
-                        ),
-                        other => other,
                     }
-                })?;
+                    // A referenced file that cannot be read: name it, and the scene line
+                    // that refers to it.
+                    SceneError::Io { path, source } => src.invalid(
+                        format!("{field}.path"),
+                        format!("{}: cannot read file: {source}", path.display()),
+                    ),
+                    other => other,
+                }
+            })?;
             world.spawn((
                 SourceObject(i as u32),
                 Ground {
@@ -306,6 +320,7 @@ pub fn spawn_scene(
         height: g.height_m,
         subcells: g.subcells,
         boundary: g.boundary,
+        georeference: georef,
     });
     world.insert_resource(mats);
     world.insert_resource(crate::resources::tracking::DirectionRequest(

@@ -14,7 +14,7 @@ import sys
 SOURCES = [
     ("src/scene/desc.rs", [
         "SceneDesc", "GridDesc", "BoundaryMode", "BandDesc", "OpticsDesc", "IlluminationDesc",
-        "SunPositionDesc", "ObjectDesc", "GroundDesc", "TopographyDesc", "RasterDesc",
+        "SunPositionDesc", "GeoreferenceDesc", "CrsDesc", "ObjectDesc", "GroundDesc", "TopographyDesc", "RasterDesc",
         "RasterFileDesc", "RasterFormat", "TreeDesc", "TreeStandDesc", "SpeciesDesc",
         "PlacementDesc", "TrunkDesc", "CrownDesc", "FoliageDesc", "TurbidPlotDesc",
         "FootprintDesc", "BuildingDesc", "RoofDesc", "WaterDesc", "MeshDesc", "MeshGroupOptics",

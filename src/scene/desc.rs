@@ -62,6 +62,37 @@ pub struct SceneDesc {
     /// instrument needs the passive radiance.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub passive: Option<bool>,
+    /// Where the scene lies on a map (CRS, map coordinates of the scene origin, bearing of
+    /// +x). Absent: no geospatial work (no GeoTIFF/ENVI products, no GeoTIFF DEM).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub georeference: Option<GeoreferenceDesc>,
+}
+
+/// The scene's place on a map: a projected CRS in metres, the map coordinates (easting,
+/// northing) of the scene origin (x = y = 0), and the grid bearing of the scene's +x axis.
+/// A scene point (x, y) lies at E = E₀ + x·sin β − y·cos β, N = N₀ + x·cos β + y·sin β.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct GeoreferenceDesc {
+    /// The map's coordinate reference system: `Epsg(32631)` or `Wkt("PROJCS[...]")`; a
+    /// projected CRS whose unit is the metre.
+    pub crs: CrsDesc,
+    /// Map coordinates (easting, northing) of the scene origin, metres.
+    pub origin_map_m: Xy,
+    /// Grid bearing of the scene's +x axis, degrees clockwise from grid north, in [0, 360)
+    /// (default 90: +x points east and +y north, as `sun_position.scene_x_bearing_deg`).
+    #[serde(default = "default_scene_x_bearing")]
+    pub x_axis_bearing_deg: f64,
+}
+
+/// A coordinate reference system.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub enum CrsDesc {
+    /// An EPSG code (projected, metres), e.g. 32631 (WGS 84 / UTM zone 31N).
+    Epsg(u32),
+    /// A WKT definition (`PROJCS[...]` or `PROJCRS[...]`, metres); its EPSG authority code,
+    /// when it ends with one, is what the products carry.
+    Wkt(String),
 }
 
 impl SceneDesc {

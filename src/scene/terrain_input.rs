@@ -5,6 +5,7 @@
 use crate::geometry::terrain::{Raster, Terrain, TinVertex};
 use crate::scene::desc::{RasterDesc, RasterFileDesc, RasterFormat, TopographyDesc};
 use crate::scene::error::{Location, SceneError};
+use crate::scene::georef::Georeference;
 use glam::DVec3;
 use spade::{DelaunayTriangulation, Point2, Triangulation};
 use std::path::Path;
@@ -150,6 +151,7 @@ pub fn build_terrain(
     scene_file: &Path,
     field: &str,
     size: (f64, f64),
+    _georef: Option<&Georeference>,
 ) -> Result<Terrain, SceneError> {
     let inv = |m: String| SceneError::Invalid {
         at: Location {

@@ -392,7 +392,8 @@ fn footprint_bounds(fp: &FootprintDesc) -> (f64, f64, f64, f64) {
 }
 
 /// Checks a scene; returns the first error found (the sections in this order: format,
-/// directions, radiative settings, LiDARs, grid, images, bands, optics, illumination, objects).
+/// directions, radiative settings, LiDARs, grid, images, bands, optics, illumination,
+/// georeference, objects).
 pub fn validate(desc: &SceneDesc, src: &SceneSource) -> Result<(), SceneError> {
     let v = V {
         src,
@@ -408,11 +409,23 @@ pub fn validate(desc: &SceneDesc, src: &SceneSource) -> Result<(), SceneError> {
     v.spectral_bands()?;
     v.optics()?;
     v.illumination()?;
+    v.georeference()?;
     v.objects()
 }
 
 /// The sections of [`validate`], one method each.
 impl V<'_> {
+    /// The georeference: a known projected CRS in metres, a finite origin, a bearing in
+    /// [0, 360) (`scene::georef`).
+    fn georeference(&self) -> R {
+        match &self.desc.georeference {
+            Some(g) => crate::scene::georef::Georeference::from_desc(g)
+                .map(|_| ())
+                .map_err(|(f, m)| self.src.invalid(format!("georeference.{f}"), m)),
+            None => Ok(()),
+        }
+    }
+
     /// The format version and the sections not supported yet.
     fn header(&self) -> R {
         let (desc, src) = (self.desc, self.src);
