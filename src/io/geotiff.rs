@@ -158,7 +158,6 @@ pub fn geotiff_bytes(
     )
     .map_err(e)?;
     dir.finish().map_err(e)?;
-    drop(enc);
     Ok(buf.into_inner())
 }
 

@@ -627,6 +627,11 @@ pub enum RasterFormat {
     /// ESRI ASCII grid (`ncols`, `nrows`, `xllcorner`/`xllcenter`, `cellsize`, optional `nodata_value`).
     /// Rows are stored north (max y) first; node values are taken at cell centres.
     EsriAscii,
+    /// A single-band GeoTIFF of elevations, metres (8–64-bit integers or floats; GDAL's
+    /// no-data value honoured): placed on the scene through the scene's `georeference` (same
+    /// CRS, +x east), cropped to the scene's map extent. Pixel values are nodes at pixel centres
+    /// (PixelIsArea) or at the tie point (PixelIsPoint). `origin_m` must be left at (0, 0).
+    GeoTiff,
     /// Raw little-endian f32 values, x fastest then y; dimensions and spacing given in the scene.
     BinaryF32 {
         /// Number of nodes along x and y.
