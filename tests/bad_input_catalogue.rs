@@ -9,9 +9,14 @@
 //!
 //! Scene cases start from small inline scenes ([`BASE`], [`LIDAR`]) and replace one piece of
 //! text (the replacement must apply); a few start from the example scenes in `assets/scenes`.
+//! GeoTIFF DEM cases (issue #37) write a `d.tif` made by the `tiff` crate's own encoder
+//! (`common/geo.rs`) when they run.
 
 use std::path::{Path, PathBuf};
 use std::process::Command;
+
+#[path = "common/geo.rs"]
+mod geo;
 
 /// A small valid scene with every object kind that needs no file.
 const BASE: &str = r#"(
@@ -84,6 +89,9 @@ struct Case {
     to: &'static str,
     /// A file (name, content) written beside the scene.
     file: Option<(&'static str, &'static [u8])>,
+    /// A file (name, maker of its content) written beside the scene: GeoTIFFs made by the
+    /// `tiff` crate when the case runs.
+    made: Option<(&'static str, fn() -> Vec<u8>)>,
     /// Extra CLI arguments (after the scene path).
     args: &'static [&'static str],
     /// Text stderr must contain (field path, file name or flag).
@@ -108,6 +116,7 @@ const fn c(name: &'static str, from: &'static str, to: &'static str, needle: &'s
         from,
         to,
         file: None,
+        made: None,
         args: &[],
         needle,
         names: "",
@@ -168,6 +177,30 @@ const fn scene_file(
     }
 }
 
+/// A GeoTIFF DEM case: the base scene with a georeference and a GeoTiff ground reading `d.tif`,
+/// made by `make`; stderr must name `d.tif` and `needle`.
+const fn geotiff(name: &'static str, make: fn() -> Vec<u8>, needle: &'static str) -> Case {
+    Case {
+        made: Some(("d.tif", make)),
+        names: "d.tif",
+        ..c(name, GEO_FROM, GEO_TO, needle)
+    }
+}
+
+/// A GeoTIFF DEM case whose fault is in the scene (`to` replaces the georeferenced base's
+/// ground); stderr must name the scene and `needle`.
+const fn geotiff_scene(
+    name: &'static str,
+    from: &'static str,
+    to: &'static str,
+    needle: &'static str,
+) -> Case {
+    Case {
+        made: Some(("d.tif", good_dem)),
+        ..c(name, from, to, needle)
+    }
+}
+
 /// A valid scene with bad command-line arguments; stderr must name the flag.
 const fn args(name: &'static str, a: &'static [&'static str], needle: &'static str) -> Case {
     Case {
@@ -220,6 +253,9 @@ fn run_case(case: &Case) -> Result<(), String> {
     std::fs::write(&scene, &text).unwrap();
     if let Some((n, content)) = case.file {
         std::fs::write(dir.join(n), content).unwrap();
+    }
+    if let Some((n, make)) = case.made {
+        std::fs::write(dir.join(n), make()).unwrap();
     }
     let out_dir = dir.join("out");
     let named = match case.names {
@@ -1107,6 +1143,197 @@ const FILES: &[Case] = &[
     file("binary_nan", GROUND, "Ground((optics: \"soil\", topography: RasterFile((path: \"d.bin\", format: BinaryF32(nodes: (2, 2), spacing_m: (10.0, 10.0)))))),", ("d.bin", b"\x00\x00\xc0\x7f\x00\x00\x00\x00\x00\x00\x00\x00\x00\x00\x00\x00"), "d.bin"),
 ];
 
+/// The georeferenced base: origin (500000, 4800000) in EPSG:32631, ground from `d.tif`.
+const GEO_FROM: &str = "version: 1,||Ground((optics: \"soil\")),";
+const GEO_TO: &str = "version: 1, georeference: (crs: Epsg(32631), origin_map_m: (500000.0, 4800000.0)),||Ground((optics: \"soil\", topography: RasterFile((path: \"d.tif\", format: GeoTiff)))),";
+
+/// A DEM covering the base scene's map extent: 8 × 8 pixels of 2 m from (499997, 4800013).
+fn base_dem() -> geo::Dem {
+    geo::Dem {
+        nx: 8,
+        ny: 8,
+        values: (0..64).map(|k| 10.0 + 0.25 * (k % 8) as f64).collect(),
+        tie: (499_997.0, 4_800_013.0),
+        pixel_m: 2.0,
+        epsg: Some(32631),
+        nodata: None,
+        raster_type: 1,
+    }
+}
+
+fn tif(d: &geo::Dem) -> Vec<u8> {
+    geo::dem_tiff(
+        d,
+        geo::Sample::F32,
+        tiff::encoder::Compression::Uncompressed,
+    )
+}
+
+fn good_dem() -> Vec<u8> {
+    tif(&base_dem())
+}
+
+const GEOSPATIAL: &[Case] = &[
+    c(
+        "geo_crs_geographic",
+        "version: 1,",
+        "version: 1, georeference: (crs: Epsg(4326), origin_map_m: (500000.0, 4800000.0)),",
+        "georeference.crs",
+    ),
+    c(
+        "geo_crs_unknown",
+        "version: 1,",
+        "version: 1, georeference: (crs: Epsg(12), origin_map_m: (500000.0, 4800000.0)),",
+        "georeference.crs",
+    ),
+    c(
+        "geo_crs_huge",
+        "version: 1,",
+        "version: 1, georeference: (crs: Epsg(4294967295), origin_map_m: (500000.0, 4800000.0)),",
+        "georeference.crs",
+    ),
+    c(
+        "geo_wkt_geographic",
+        "version: 1,",
+        "version: 1, georeference: (crs: Wkt(\"GEOGCS[\\\"WGS 84\\\"]\"), origin_map_m: (0.0, 0.0)),",
+        "georeference.crs",
+    ),
+    c(
+        "geo_wkt_feet",
+        "version: 1,",
+        "version: 1, georeference: (crs: Wkt(\"PROJCS[\\\"x\\\",UNIT[\\\"foot\\\",0.3048]]\"), origin_map_m: (0.0, 0.0)),",
+        "georeference.crs",
+    ),
+    c(
+        "geo_origin_inf",
+        "version: 1,",
+        "version: 1, georeference: (crs: Epsg(32631), origin_map_m: (inf, 0.0)),",
+        "georeference.origin_map_m",
+    ),
+    c(
+        "geo_bearing_range",
+        "version: 1,",
+        "version: 1, georeference: (crs: Epsg(32631), origin_map_m: (0.0, 0.0), x_axis_bearing_deg: 360.0),",
+        "georeference.x_axis_bearing_deg",
+    ),
+    c(
+        "geo_unknown_field",
+        "version: 1,",
+        "version: 1, georeference: (crs: Epsg(32631), origin_m: (0.0, 0.0)),",
+        LINE,
+    ),
+    geotiff_scene(
+        "dem_tif_without_georeference",
+        GROUND,
+        "Ground((optics: \"soil\", topography: RasterFile((path: \"d.tif\", format: GeoTiff)))),",
+        "topography",
+    ),
+    geotiff_scene(
+        "dem_tif_rotated_scene",
+        GEO_FROM,
+        "version: 1, georeference: (crs: Epsg(32631), origin_map_m: (500000.0, 4800000.0), x_axis_bearing_deg: 30.0),||Ground((optics: \"soil\", topography: RasterFile((path: \"d.tif\", format: GeoTiff)))),",
+        "x_axis_bearing_deg",
+    ),
+    geotiff_scene(
+        "dem_tif_origin_m",
+        GEO_FROM,
+        "version: 1, georeference: (crs: Epsg(32631), origin_map_m: (500000.0, 4800000.0)),||Ground((optics: \"soil\", topography: RasterFile((path: \"d.tif\", format: GeoTiff, origin_m: (1.0, 0.0))))),",
+        "origin_m",
+    ),
+    geotiff_scene(
+        "dem_tif_missing",
+        GEO_FROM,
+        "version: 1, georeference: (crs: Epsg(32631), origin_map_m: (500000.0, 4800000.0)),||Ground((optics: \"soil\", topography: RasterFile((path: \"nope.tif\", format: GeoTiff)))),",
+        "nope.tif",
+    ),
+    geotiff(
+        "dem_tif_wrong_crs",
+        || {
+            tif(&geo::Dem {
+                epsg: Some(32632),
+                ..base_dem()
+            })
+        },
+        "ProjectedCRSGeoKey",
+    ),
+    geotiff(
+        "dem_tif_no_geokeys",
+        || {
+            tif(&geo::Dem {
+                epsg: None,
+                ..base_dem()
+            })
+        },
+        "ModelTiepointTag",
+    ),
+    geotiff(
+        "dem_tif_nodata_everywhere",
+        || {
+            tif(&geo::Dem {
+                values: vec![-9999.0; 64],
+                nodata: Some(-9999.0),
+                ..base_dem()
+            })
+        },
+        "GDAL_NODATA",
+    ),
+    geotiff(
+        "dem_tif_nodata_inside",
+        || {
+            let mut d = base_dem();
+            d.values[3 + 8 * 4] = -9999.0;
+            d.nodata = Some(-9999.0);
+            tif(&d)
+        },
+        "GDAL_NODATA",
+    ),
+    geotiff(
+        "dem_tif_nan_inside",
+        || {
+            let mut d = base_dem();
+            d.values[3 + 8 * 4] = f64::NAN;
+            tif(&d)
+        },
+        "GDAL_NODATA",
+    ),
+    geotiff(
+        "dem_tif_extent_outside",
+        || {
+            tif(&geo::Dem {
+                tie: (600_000.0, 4_800_013.0),
+                ..base_dem()
+            })
+        },
+        "extent",
+    ),
+    geotiff(
+        "dem_tif_extent_partly_outside",
+        || {
+            tif(&geo::Dem {
+                tie: (500_001.0, 4_800_013.0),
+                ..base_dem()
+            })
+        },
+        "extent",
+    ),
+    geotiff("dem_tif_palette_16bit", geo::palette_tiff, "palette"),
+    geotiff("dem_tif_rgb", geo::rgb_tiff, "bands"),
+    geotiff(
+        "dem_tif_truncated",
+        || {
+            let b = good_dem();
+            b[..b.len() / 2].to_vec()
+        },
+        "image",
+    ),
+    geotiff(
+        "dem_tif_not_a_tiff",
+        || b"ncols 2\nnrows 2\n".to_vec(),
+        "image",
+    ),
+    geotiff("dem_tif_empty", Vec::new, "image"),
+];
+
 const LIDARS: &[Case] = &[
     lidar(
         "lidar_band",
@@ -1489,6 +1716,11 @@ fn section_and_syntax_cases() {
 }
 
 #[test]
+fn geospatial_cases() {
+    run_all(GEOSPATIAL);
+}
+
+#[test]
 fn cli_cases() {
     run_all(CLI);
 }
@@ -1508,6 +1740,7 @@ fn catalogue_is_complete_and_its_bases_are_valid() {
         FILES,
         LIDARS,
         SECTIONS_AND_SYNTAX,
+        GEOSPATIAL,
         CLI,
     ]
     .iter()

@@ -259,7 +259,11 @@ pub const MAX_PIXELS: usize = 1 << 28;
 /// file and field).
 pub fn read_geotiff_band(bytes: &[u8]) -> Result<GeoRaster, String> {
     use tiff::decoder::{Decoder, DecodingResult};
-    let e = |e: tiff::TiffError| format!("not a readable TIFF ({e})");
+    let e = |e: tiff::TiffError| {
+        format!(
+            "not a readable TIFF ({e}): the file is truncated, damaged or not a TIFF; export it again as a GeoTIFF"
+        )
+    };
     let mut dec = Decoder::new(Cursor::new(bytes)).map_err(e)?;
     let (w, h) = dec.dimensions().map_err(e)?;
     let (nx, ny) = (w as usize, h as usize);
