@@ -206,6 +206,29 @@ fn mesh_transform(m: &MeshDesc, is_gltf: bool, ground_z: f64) -> DMat4 {
         * axes
 }
 
+/// A scene error of a referenced file or of an object's field, given the scene line of the
+/// field (`field`: the object's path); an unreadable file is named with the scene line of its
+/// `path`.
+fn located(src: &SceneSource, field: &str, e: SceneError) -> SceneError {
+    match e {
+        SceneError::Invalid { at, field, message }
+            if at.line_col.is_none() && at.file == src.path =>
+        {
+            SceneError::Invalid {
+                at: src.at(&field),
+                field,
+                message,
+            }
+        }
+        // A referenced file that cannot be read: name it, and the scene line that refers to it.
+        SceneError::Io { path, source } => src.invalid(
+            format!("{field}.path"),
+            format!("{}: cannot read file: {source}", path.display()),
+        ),
+        other => other,
+    }
+}
+
 /// Spawns a validated scene into `world` (resources `SceneInfo`, `Materials`, `TerrainRes`,
 /// `Warnings`, and one or more entities per object).
 pub fn spawn_scene(
@@ -243,26 +266,7 @@ pub fn spawn_scene(
                 size,
                 georef.as_ref(),
             )
-            .map_err(|e| {
-                match e {
-                    SceneError::Invalid { at, field, message }
-                        if at.line_col.is_none() && at.file == src.path =>
-                    {
-                        SceneError::Invalid {
-                            at: src.at(&field),
-                            field,
-                            message,
-                        }
-                    }
-                    // A referenced file that cannot be read: name it, and the scene line
-                    // that refers to it.
-                    SceneError::Io { path, source } => src.invalid(
-                        format!("{field}.path"),
-                        format!("{}: cannot read file: {source}", path.display()),
-                    ),
-                    other => other,
-                }
-            })?;
+            .map_err(|e| located(src, &field, e))?;
             world.spawn((
                 SourceObject(i as u32),
                 Ground {
@@ -303,6 +307,27 @@ pub fn spawn_scene(
                 spawn_leaf_list(world, &ctx, i, l, &mut mats, &mut warnings)?
             }
             ObjectDesc::Mesh(m) => spawn_mesh(world, &ctx, i, m, &mut mats, &mut warnings)?,
+            ObjectDesc::LandCover(l) => {
+                // The map's objects, spawned as the same objects written by hand.
+                let field = format!("objects[{i}]");
+                let objects = crate::scene::landcover::expand_land_cover(
+                    l,
+                    &ctx.base_dir,
+                    &src.path,
+                    &field,
+                    georef.as_ref(),
+                    size,
+                )
+                .map_err(|e| located(src, &field, e))?;
+                for o in &objects {
+                    match o {
+                        ObjectDesc::TurbidPlot(p) => spawn_plot(world, idx, p, &mats),
+                        ObjectDesc::Building(b) => spawn_building(world, &ctx, idx, b, &mats),
+                        ObjectDesc::Water(w) => spawn_water(world, &ctx, idx, w, &mats),
+                        _ => unreachable!("land-cover classes are plots, water or buildings"),
+                    }
+                }
+            }
         }
     }
     let g = &desc.grid;

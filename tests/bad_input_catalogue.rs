@@ -1173,6 +1173,40 @@ fn good_dem() -> Vec<u8> {
     tif(&base_dem())
 }
 
+/// The georeferenced base with a land-cover map `d.tif` whose table knows class 1 only.
+const LC_FROM: &str = "version: 1,||Ground((optics: \"soil\")),";
+const LC_TO: &str = "version: 1, georeference: (crs: Epsg(32631), origin_map_m: (500000.0, 4800000.0)),||Ground((optics: \"soil\")), LandCover((path: \"d.tif\", classes: {1: TurbidPlot(top_m: 1.0, foliage: Lai(2.0), optics: \"veg\")})),";
+
+/// A class map over the base scene (classes 1, and `other` at pixel (3, 4)).
+fn class_map(other: f64) -> Vec<u8> {
+    let mut d = geo::Dem {
+        values: vec![1.0; 64],
+        ..base_dem()
+    };
+    d.values[3 + 8 * 4] = other;
+    geo::dem_tiff(
+        &d,
+        geo::Sample::F32,
+        tiff::encoder::Compression::Uncompressed,
+    )
+}
+
+/// A land-cover case: stderr must name `names` ("" the scene, else the file) and `needle`.
+const fn land_cover(
+    name: &'static str,
+    from: &'static str,
+    to: &'static str,
+    make: fn() -> Vec<u8>,
+    names: &'static str,
+    needle: &'static str,
+) -> Case {
+    Case {
+        made: Some(("d.tif", make)),
+        names,
+        ..c(name, from, to, needle)
+    }
+}
+
 const GEOSPATIAL: &[Case] = &[
     c(
         "geo_crs_geographic",
@@ -1332,6 +1366,82 @@ const GEOSPATIAL: &[Case] = &[
         "image",
     ),
     geotiff("dem_tif_empty", Vec::new, "image"),
+    land_cover(
+        "landcover_unknown_class",
+        LC_FROM,
+        LC_TO,
+        || class_map(7.0),
+        "",
+        "objects[1].classes",
+    ),
+    land_cover(
+        "landcover_fractional_code",
+        LC_FROM,
+        LC_TO,
+        || class_map(1.5),
+        "d.tif",
+        "image",
+    ),
+    land_cover(
+        "landcover_outside",
+        LC_FROM,
+        LC_TO,
+        || {
+            tif(&geo::Dem {
+                values: vec![1.0; 64],
+                tie: (400_000.0, 4_800_013.0),
+                ..base_dem()
+            })
+        },
+        "d.tif",
+        "extent",
+    ),
+    land_cover(
+        "landcover_wrong_crs",
+        LC_FROM,
+        LC_TO,
+        || {
+            tif(&geo::Dem {
+                values: vec![1.0; 64],
+                epsg: Some(32630),
+                ..base_dem()
+            })
+        },
+        "d.tif",
+        "ProjectedCRSGeoKey",
+    ),
+    land_cover(
+        "landcover_without_georeference",
+        GROUND,
+        "Ground((optics: \"soil\")), LandCover((path: \"d.tif\", classes: {1: Nothing})),",
+        || class_map(1.0),
+        "",
+        "objects[1]",
+    ),
+    land_cover(
+        "landcover_leaf_area",
+        LC_FROM,
+        "version: 1, georeference: (crs: Epsg(32631), origin_map_m: (500000.0, 4800000.0)),||Ground((optics: \"soil\")), LandCover((path: \"d.tif\", classes: {1: TurbidPlot(top_m: 1.0, foliage: LeafArea(20.0), optics: \"veg\")})),",
+        || class_map(1.0),
+        "",
+        "foliage",
+    ),
+    land_cover(
+        "landcover_bad_optics",
+        LC_FROM,
+        "version: 1, georeference: (crs: Epsg(32631), origin_map_m: (500000.0, 4800000.0)),||Ground((optics: \"soil\")), LandCover((path: \"d.tif\", classes: {1: Water(optics: \"veg\")})),",
+        || class_map(1.0),
+        "",
+        "optics",
+    ),
+    land_cover(
+        "landcover_missing",
+        LC_FROM,
+        "version: 1, georeference: (crs: Epsg(32631), origin_map_m: (500000.0, 4800000.0)),||Ground((optics: \"soil\")), LandCover((path: \"nope.tif\", classes: {1: Nothing})),",
+        || class_map(1.0),
+        "",
+        "nope.tif",
+    ),
 ];
 
 const LIDARS: &[Case] = &[

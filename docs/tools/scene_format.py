@@ -18,7 +18,7 @@ SOURCES = [
         "RasterFileDesc", "RasterFormat", "TreeDesc", "TreeStandDesc", "SpeciesDesc",
         "PlacementDesc", "TrunkDesc", "CrownDesc", "FoliageDesc", "TurbidPlotDesc",
         "FootprintDesc", "BuildingDesc", "RoofDesc", "WaterDesc", "MeshDesc", "MeshGroupOptics",
-        "LeavesDesc", "LeafListDesc", "RadiativeDesc", "Preset", "TurbidSubfaces", "LidarDesc",
+        "LeavesDesc", "LeafListDesc", "LandCoverDesc", "LandCoverClass", "RadiativeDesc", "Preset", "TurbidSubfaces", "LidarDesc",
         "LidarPlatform", "PulsePattern", "PhotonCountingDesc", "LidarSampler", "LidarEstimator",
     ]),
     ("src/geometry/crown.rs", ["CrownShape"]),

@@ -522,6 +522,62 @@ pub enum ObjectDesc {
     Leaves(LeavesDesc),
     /// Disk leaves read from a RAMI leaf-list file.
     LeafList(LeafListDesc),
+    /// Objects from a land-cover classification GeoTIFF and a class table (needs the scene's
+    /// `georeference`).
+    LandCover(LandCoverDesc),
+}
+
+/// A land-cover map (DART 5 paper §2, "Maket": landscapes from classification maps): a
+/// single-band GeoTIFF of integer class codes in the scene's CRS, north-up, covering the
+/// scene's map extent, and a table giving what each class becomes. Pixels of one class are
+/// merged into rectangles (row runs joined down the rows) and each rectangle becomes one
+/// object exactly as if written by hand with a `Box` footprint, clipped to the scene (pixels at
+/// the scene edge are clipped, not dropped); a cell shared by several classes gets each one's
+/// share by exact area. Pixels equal to the raster's `GDAL_NODATA` are left bare.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct LandCoverDesc {
+    /// Path of the classification GeoTIFF, relative to the scene file's folder.
+    pub path: String,
+    /// Class code → what it becomes; a code found in the map without an entry is an error.
+    pub classes: BTreeMap<u32, LandCoverClass>,
+}
+
+/// What the pixels of one land-cover class become.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub enum LandCoverClass {
+    /// Nothing: the scene's ground shows (bare soil, roads).
+    Nothing,
+    /// Turbid vegetation (grass, crops, a closed canopy as a layer): a `TurbidPlot` per
+    /// rectangle.
+    TurbidPlot {
+        /// Bottom of the vegetation above the local ground, metres.
+        #[serde(default)]
+        bottom_m: f64,
+        /// Top of the vegetation above the local ground, metres.
+        top_m: f64,
+        /// `Lai` or `LeafAreaDensity` (a `LeafArea` total has no meaning per pixel).
+        foliage: FoliageDesc,
+        /// Name of a `Turbid` optical property.
+        optics: String,
+    },
+    /// A water surface: a `Water` object per rectangle.
+    Water {
+        /// Altitude of the surface, metres (default: as `Water`).
+        #[serde(default)]
+        altitude_m: Option<f64>,
+        /// Name of a facet optical property.
+        optics: String,
+    },
+    /// Buildings of the footprint height: a flat-roofed `Building` per rectangle.
+    Building {
+        /// Wall height above the lowest ground point under the rectangle, metres.
+        wall_height_m: f64,
+        /// Name of a facet optical property for walls.
+        wall_optics: String,
+        /// Name of a facet optical property for the roof.
+        roof_optics: String,
+    },
 }
 
 /// A RAMI leaf list (`radius x y z nx ny nz` per line, metres; see [`crate::io::leaf_list`]).

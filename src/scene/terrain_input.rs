@@ -11,7 +11,13 @@ use glam::DVec3;
 use spade::{DelaunayTriangulation, Point2, Triangulation};
 use std::path::Path;
 
-fn err(path: &Path, line: Option<usize>, field: &str, message: impl Into<String>) -> SceneError {
+/// An `Invalid` error located in `path` (a raster file, or the scene), at `line` when known.
+pub fn err(
+    path: &Path,
+    line: Option<usize>,
+    field: &str,
+    message: impl Into<String>,
+) -> SceneError {
     SceneError::Invalid {
         at: Location {
             file: path.to_path_buf(),
@@ -140,22 +146,17 @@ pub fn read_esri_ascii(path: &Path, text: &str, offset: (f64, f64)) -> Result<Ra
     })
 }
 
-/// Reads a GeoTIFF DEM (OGC GeoTIFF 1.1; [`crate::io::geotiff::read_geotiff_band`]) and crops
-/// it to the nodes that cover the scene's map extent, [E₀, E₀ + X] × [N₀, N₀ + Y] for a
-/// north-up georeference: pixel values are nodes at pixel centres (PixelIsArea) or at the
-/// transform's points (PixelIsPoint). The raster must be north-up, in the scene's CRS (EPSG
-/// codes compared; a user-defined CRS is taken as is), cover the extent, and hold no no-data
-/// (`GDAL_NODATA`) or non-finite value among the kept nodes. Errors name the raster file and
-/// the tag or property at fault.
-pub fn read_geotiff_dem(
+/// Reads a single-band GeoTIFF that must lie in the scene's map frame: it has a placement
+/// (tie point and pixel scale, or a transformation) that is north-up, and its CRS is the
+/// scene's (EPSG codes compared; a user-defined CRS is taken as is). Returns the raster and its
+/// pixel-corner transform. Errors name the file and the tag at fault.
+pub fn read_placed_geotiff(
     path: &Path,
     bytes: &[u8],
     g: &Georeference,
-    size: (f64, f64),
-) -> Result<Raster, SceneError> {
+) -> Result<(crate::io::geotiff::GeoRaster, [f64; 6]), SceneError> {
     let r =
         crate::io::geotiff::read_geotiff_band(bytes).map_err(|m| err(path, None, "image", m))?;
-    let (nx, ny) = r.size;
     let t = r.transform.ok_or_else(|| {
         err(
             path,
@@ -211,6 +212,24 @@ pub fn read_geotiff_dem(
             ));
         }
     }
+    Ok((r, t))
+}
+
+/// Reads a GeoTIFF DEM (OGC GeoTIFF 1.1; [`crate::io::geotiff::read_geotiff_band`]) and crops
+/// it to the nodes that cover the scene's map extent, [E₀, E₀ + X] × [N₀, N₀ + Y] for a
+/// north-up georeference: pixel values are nodes at pixel centres (PixelIsArea) or at the
+/// transform's points (PixelIsPoint). The raster must be north-up, in the scene's CRS (EPSG
+/// codes compared; a user-defined CRS is taken as is), cover the extent, and hold no no-data
+/// (`GDAL_NODATA`) or non-finite value among the kept nodes. Errors name the raster file and
+/// the tag or property at fault.
+pub fn read_geotiff_dem(
+    path: &Path,
+    bytes: &[u8],
+    g: &Georeference,
+    size: (f64, f64),
+) -> Result<Raster, SceneError> {
+    let (r, t) = read_placed_geotiff(path, bytes, g)?;
+    let (nx, ny) = r.size;
     let is_nodata = |v: f64| !v.is_finite() || r.nodata == Some(v);
     if r.values.iter().all(|&v| is_nodata(v)) {
         return Err(err(

@@ -27,6 +27,44 @@ impl V<'_> {
                 ObjectDesc::LeafList(l) => self.leaf_list(&f, l)?,
                 ObjectDesc::Leaves(l) => self.leaves(&f, l)?,
                 ObjectDesc::Mesh(m) => self.mesh(&f, m)?,
+                ObjectDesc::LandCover(l) => self.land_cover(&f, l)?,
+            }
+        }
+        Ok(())
+    }
+
+    /// A land-cover map: a georeference to place it, and every class template valid as the
+    /// object it becomes (checked on a 1 m square at the scene origin).
+    fn land_cover(&self, f: &str, l: &LandCoverDesc) -> R {
+        if self.desc.georeference.is_none() {
+            return Err(self.src.invalid(
+                f,
+                "a LandCover map is placed through the scene's map coordinates: add a \
+                 `georeference` section (CRS and origin_map_m) to the scene",
+            ));
+        }
+        if l.path.trim().is_empty() {
+            return Err(self.src.invalid(format!("{f}.path"), "must name a GeoTIFF"));
+        }
+        let (sx, sy) = self.desc.grid.size_m;
+        let square = (0.0, 0.0, sx.min(1.0), sy.min(1.0));
+        for (k, class) in &l.classes {
+            let fk = format!("{f}.classes[{k}]");
+            if let LandCoverClass::TurbidPlot {
+                foliage: FoliageDesc::LeafArea(_),
+                ..
+            } = class
+            {
+                return Err(self.src.invalid(
+                    format!("{fk}.foliage"),
+                    "a LeafArea total has no meaning per pixel: give Lai or LeafAreaDensity",
+                ));
+            }
+            match crate::scene::landcover::class_object(class, square) {
+                Some(ObjectDesc::TurbidPlot(p)) => self.turbid_plot(&fk, &p)?,
+                Some(ObjectDesc::Water(w)) => self.water(&fk, &w)?,
+                Some(ObjectDesc::Building(b)) => self.building(&fk, &b)?,
+                _ => {}
             }
         }
         Ok(())

@@ -1,0 +1,254 @@
+//! Land-cover import (issue #37; DART 5 paper §2, "Maket": landscapes from classification
+//! maps): a classification GeoTIFF in the scene's map frame and the scene's class table become
+//! ordinary objects (turbid plots, water bodies, buildings) with `Box` footprints, exactly as if
+//! written by hand. Pixels of one class are merged into rectangles (maximal runs along a row,
+//! joined with identical runs of the following rows), clipped to the scene.
+
+use crate::scene::desc::{
+    BuildingDesc, FootprintDesc, LandCoverClass, LandCoverDesc, ObjectDesc, RoofDesc,
+    TurbidPlotDesc, WaterDesc,
+};
+use crate::scene::error::{Location, SceneError};
+use crate::scene::georef::Georeference;
+use crate::scene::terrain_input::{err, read_placed_geotiff};
+use std::path::Path;
+
+/// The object a class becomes over the scene rectangle `(x0, y0, x1, y1)` (metres); `None`
+/// for `Nothing`.
+pub fn class_object(class: &LandCoverClass, rect: (f64, f64, f64, f64)) -> Option<ObjectDesc> {
+    let footprint = FootprintDesc::Box(rect);
+    match class {
+        LandCoverClass::Nothing => None,
+        LandCoverClass::TurbidPlot {
+            bottom_m,
+            top_m,
+            foliage,
+            optics,
+        } => Some(ObjectDesc::TurbidPlot(TurbidPlotDesc {
+            footprint,
+            bottom_m: *bottom_m,
+            top_m: *top_m,
+            foliage: *foliage,
+            optics: optics.clone(),
+        })),
+        LandCoverClass::Water { altitude_m, optics } => Some(ObjectDesc::Water(WaterDesc {
+            footprint,
+            altitude_m: *altitude_m,
+            optics: optics.clone(),
+        })),
+        LandCoverClass::Building {
+            wall_height_m,
+            wall_optics,
+            roof_optics,
+        } => Some(ObjectDesc::Building(BuildingDesc {
+            footprint,
+            wall_height_m: *wall_height_m,
+            roof: RoofDesc::Flat,
+            wall_optics: wall_optics.clone(),
+            roof_optics: roof_optics.clone(),
+        })),
+    }
+}
+
+/// Rectangles `(class, c0, c1, r0, r1)` (inclusive pixel ranges) covering every cell of the
+/// `nx × ny` class grid `cls` (`c + nx·r`; `None` = no-data) that holds a class: maximal runs
+/// along each row, each joined with the identical run (same columns, same class) of the rows
+/// below. Ordered by first row, then first column.
+pub fn merge_rectangles(
+    nx: usize,
+    ny: usize,
+    cls: &[Option<u32>],
+) -> Vec<(u32, usize, usize, usize, usize)> {
+    let mut done = Vec::new();
+    // Open rectangles: (class, c0, c1, r0).
+    let mut open: Vec<(u32, usize, usize, usize)> = Vec::new();
+    for r in 0..=ny {
+        let mut runs = Vec::new();
+        if r < ny {
+            let mut c = 0;
+            while c < nx {
+                let k = cls[c + nx * r];
+                let start = c;
+                while c < nx && cls[c + nx * r] == k {
+                    c += 1;
+                }
+                if let Some(k) = k {
+                    runs.push((k, start, c - 1));
+                }
+            }
+        }
+        let mut next = Vec::new();
+        for o in open.drain(..) {
+            if let Some(p) = runs
+                .iter()
+                .position(|&(k, a, b)| (k, a, b) == (o.0, o.1, o.2))
+            {
+                runs.remove(p);
+                next.push(o);
+            } else {
+                done.push((o.0, o.1, o.2, o.3, r - 1));
+            }
+        }
+        for (k, a, b) in runs {
+            next.push((k, a, b, r));
+        }
+        open = next;
+    }
+    done.sort_by_key(|&(_, c0, _, r0, _)| (r0, c0));
+    done
+}
+
+/// The objects of a land-cover map over a scene of `size` (m) placed by `g`. `field` is the
+/// object's path (`objects[i]`) for errors in the scene; errors in the raster name the raster
+/// file and the tag at fault.
+pub fn expand_land_cover(
+    l: &LandCoverDesc,
+    base_dir: &Path,
+    scene_file: &Path,
+    field: &str,
+    g: Option<&Georeference>,
+    size: (f64, f64),
+) -> Result<Vec<ObjectDesc>, SceneError> {
+    let inv = |f: &str, m: String| SceneError::Invalid {
+        at: Location {
+            file: scene_file.to_path_buf(),
+            line_col: None,
+        },
+        field: format!("{field}{f}"),
+        message: m,
+    };
+    let Some(g) = g else {
+        return Err(inv(
+            "",
+            "a LandCover map is placed through the scene's map coordinates: add a \
+             `georeference` section (CRS and origin_map_m) to the scene"
+                .into(),
+        ));
+    };
+    if !g.north_up() {
+        return Err(inv(
+            "",
+            format!(
+                "a LandCover map needs a scene with +x east (georeference.x_axis_bearing_deg = \
+                 90), got {}°",
+                g.x_axis_bearing_deg
+            ),
+        ));
+    }
+    let p = base_dir.join(&l.path);
+    let bytes = std::fs::read(&p).map_err(|e| SceneError::Io {
+        path: p.clone(),
+        source: e,
+    })?;
+    let (r, t) = read_placed_geotiff(&p, &bytes, g)?;
+    let (nx, ny) = r.size;
+    let (dx, dy) = (t[1], -t[5]);
+    let (e0, n0) = g.origin_map_m;
+    let eps = 1e-9;
+    // Pixels overlapping the scene's map extent.
+    let c_lo = ((e0 - t[0]) / dx + eps).floor();
+    let c_hi = ((e0 + size.0 - t[0]) / dx - eps).ceil() - 1.0;
+    let r_lo = ((t[3] - (n0 + size.1)) / dy + eps).floor();
+    let r_hi = ((t[3] - n0) / dy - eps).ceil() - 1.0;
+    if c_lo < 0.0 || r_lo < 0.0 || c_hi > (nx - 1) as f64 || r_hi > (ny - 1) as f64 {
+        return Err(err(
+            &p,
+            None,
+            "extent",
+            format!(
+                "the scene's map extent E [{e0}, {}], N [{n0}, {}] m is not inside the map's \
+                 pixels E [{}, {}], N [{}, {}] m; enlarge the map or move \
+                 georeference.origin_map_m",
+                e0 + size.0,
+                n0 + size.1,
+                t[0],
+                t[0] + nx as f64 * dx,
+                t[3] - ny as f64 * dy,
+                t[3]
+            ),
+        ));
+    }
+    let (c_lo, c_hi, r_lo, r_hi) = (c_lo as usize, c_hi as usize, r_lo as usize, r_hi as usize);
+    let (wx, wy) = (c_hi - c_lo + 1, r_hi - r_lo + 1);
+    let mut cls = vec![None; wx * wy];
+    for row in r_lo..=r_hi {
+        for col in c_lo..=c_hi {
+            let v = r.values[col + nx * row];
+            if r.nodata == Some(v) {
+                continue;
+            }
+            if !(v >= 0.0 && v <= u32::MAX as f64 && v.fract() == 0.0) {
+                return Err(err(
+                    &p,
+                    None,
+                    "image",
+                    format!(
+                        "pixel (column {col}, row {row}) holds {v}, not a class code (a whole \
+                         number ≥ 0); give the classification raster"
+                    ),
+                ));
+            }
+            let k = v as u32;
+            if !l.classes.contains_key(&k) {
+                return Err(inv(
+                    ".classes",
+                    format!(
+                        "class {k} of {} (pixel column {col}, row {row}) has no entry; add `{k}: \
+                         Nothing` (bare ground) or the object it becomes",
+                        p.display()
+                    ),
+                ));
+            }
+            cls[(col - c_lo) + wx * (row - r_lo)] = Some(k);
+        }
+    }
+    let mut out = Vec::new();
+    for (k, a, b, ra, rb) in merge_rectangles(wx, wy, &cls) {
+        let (c0, c1, r0, r1) = (a + c_lo, b + c_lo, ra + r_lo, rb + r_lo);
+        let x0 = (t[0] + c0 as f64 * dx - e0).max(0.0);
+        let x1 = (t[0] + (c1 + 1) as f64 * dx - e0).min(size.0);
+        let y1 = (t[3] - r0 as f64 * dy - n0).min(size.1);
+        let y0 = (t[3] - (r1 + 1) as f64 * dy - n0).max(0.0);
+        if x1 > x0 && y1 > y0 {
+            out.extend(class_object(&l.classes[&k], (x0, y0, x1, y1)));
+        }
+    }
+    Ok(out)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Every classed cell is in exactly one rectangle of its class; a uniform map is one
+    /// rectangle.
+    #[test]
+    fn rectangles_cover_each_cell_once() {
+        let (nx, ny) = (7, 5);
+        let cls: Vec<Option<u32>> = (0..nx * ny)
+            .map(|k| match (k % nx, k / nx) {
+                (0, _) => None,
+                (c, r) if c < 4 && r < 3 => Some(1),
+                (c, _) if c % 2 == 0 => Some(2),
+                _ => Some(3),
+            })
+            .collect();
+        let rects = merge_rectangles(nx, ny, &cls);
+        let mut seen = vec![0; nx * ny];
+        for &(k, c0, c1, r0, r1) in &rects {
+            for r in r0..=r1 {
+                for c in c0..=c1 {
+                    assert_eq!(cls[c + nx * r], Some(k));
+                    seen[c + nx * r] += 1;
+                }
+            }
+        }
+        for (i, n) in seen.iter().enumerate() {
+            assert_eq!(*n, usize::from(cls[i].is_some()), "cell {i}");
+        }
+        assert_eq!(
+            merge_rectangles(3, 4, &[Some(5); 12]),
+            vec![(5, 0, 2, 0, 3)]
+        );
+    }
+}
