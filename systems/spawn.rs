@@ -298,7 +298,7 @@ pub fn spawn_scene(
                 &terrain,
                 &mats,
             ),
-            ObjectDesc::TreeStand(s) => spawn_stand(world, &ctx, i, s, &mats)?,
+            ObjectDesc::TreeStand(s) => spawn_stand(world, &ctx, i, s, &mats, desc.seed)?,
             ObjectDesc::TurbidPlot(p) => spawn_plot(world, idx, p, &mats),
             ObjectDesc::Building(b) => spawn_building(world, &ctx, idx, b, &mats),
             ObjectDesc::Water(w) => spawn_water(world, &ctx, idx, w, &mats),
@@ -317,10 +317,17 @@ pub fn spawn_scene(
                     &field,
                     georef.as_ref(),
                     size,
+                    desc.grid.boundary == BoundaryMode::Isolated,
                 )
                 .map_err(|e| located(src, &field, e))?;
-                for o in &objects {
+                for (k, o) in objects.iter().enumerate() {
                     match o {
+                        // Each rectangle's stand draws from its own stream.
+                        ObjectDesc::TreeStand(s) => {
+                            let seed =
+                                desc.seed ^ (k as u64 + 1).wrapping_mul(0x9E37_79B9_7F4A_7C15);
+                            spawn_stand(world, &ctx, i, s, &mats, seed)?
+                        }
                         ObjectDesc::TurbidPlot(p) => spawn_plot(world, idx, p, &mats),
                         ObjectDesc::Building(b) => spawn_building(world, &ctx, idx, b, &mats),
                         ObjectDesc::Water(w) => spawn_water(world, &ctx, idx, w, &mats),
@@ -436,6 +443,7 @@ fn spawn_stand(
     i: usize,
     s: &TreeStandDesc,
     mats: &Materials,
+    seed: u64,
 ) -> Result<(), SceneError> {
     let idx = i as u32;
     let list = match &s.placement {
@@ -451,7 +459,7 @@ fn spawn_stand(
             } else {
                 None
             };
-            place_random(counts, *min_spacing_m, region, per, ctx.desc.seed, idx)
+            place_random(counts, *min_spacing_m, region, per, seed, idx)
                 .map_err(|m| ctx.src.invalid(format!("objects[{i}].placement"), m))?
         }
     };

@@ -1435,6 +1435,14 @@ const GEOSPATIAL: &[Case] = &[
         "optics",
     ),
     land_cover(
+        "landcover_stand_densities",
+        LC_FROM,
+        "version: 1, georeference: (crs: Epsg(32631), origin_map_m: (500000.0, 4800000.0)),||Ground((optics: \"soil\")), LandCover((path: \"d.tif\", classes: {1: TreeStand(species: [(name: \"a\", crown: (shape: Ellipsoid, base_height_m: 1.0, height_m: 2.0, radius_x_m: 1.0, foliage: Lai(1.0), optics: \"veg\"))], trees_per_ha: [100.0, 50.0])})),",
+        || class_map(1.0),
+        "",
+        "trees_per_ha",
+    ),
+    land_cover(
         "landcover_missing",
         LC_FROM,
         "version: 1, georeference: (crs: Epsg(32631), origin_map_m: (500000.0, 4800000.0)),||Ground((optics: \"soil\")), LandCover((path: \"nope.tif\", classes: {1: Nothing})),",

@@ -193,6 +193,61 @@ fn leaf_area_per_class_is_its_clipped_area_times_its_lai() {
     assert!(facets["wall"].as_f64().unwrap() > area[4], "{facets}");
 }
 
+/// A tree-stand class gets its density × its area in trees (to within one per species), from a
+/// seeded placement: the same map gives the same trees, another seed other positions.
+#[test]
+fn a_tree_stand_class_gets_its_density_times_its_area() {
+    // 4 m pixels from (499998, 4800022): class 5 in a 3 × 2 block of the interior and a single
+    // pixel, trees of 10 m² leaf area each (two species, 3000 and 1250 per hectare).
+    let code = |c: usize, r: usize| match (c, r) {
+        (1..=3, 2..=3) | (4, 1) => 5.0,
+        _ => 1.0,
+    };
+    let map = class_map(6, 6, 4.0, (499_998.0, 4_800_022.0), code);
+    let tif = dem_tiff(&map, Sample::U16, Compression::Uncompressed);
+    let stand = r#"LandCover((path: "lc.tif", classes: {
+            1: Nothing,
+            5: TreeStand(species: [
+                (name: "a", crown: (shape: Ellipsoid, base_height_m: 2.0, height_m: 2.0, radius_x_m: 0.8, foliage: LeafArea(10.0), optics: "grass")),
+                (name: "b", crown: (shape: Cone, base_height_m: 1.0, height_m: 3.0, radius_x_m: 0.6, foliage: LeafArea(10.0), optics: "crop")),
+            ], trees_per_ha: [3000.0, 1250.0], min_spacing_m: 0.5),
+        })),"#;
+    let area_ha = 7.0 * 16.0 / 1e4;
+    let text = scene(stand);
+    let a = run("stand_a", "maket", &text, &[("lc.tif", &tif)]);
+    let report: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(a.join("maket.json")).unwrap()).unwrap();
+    for (material, density) in [("grass", 3000.0), ("crop", 1250.0)] {
+        let trees = report["leaf_area"][material]["analytic_m2"]
+            .as_f64()
+            .unwrap()
+            / 10.0;
+        let want = density * area_ha;
+        assert!(
+            (trees - want).abs() <= 1.0 && (trees - trees.round()).abs() < 1e-9,
+            "{material}: {trees} trees for {want}"
+        );
+    }
+    let b = run("stand_b", "maket", &text, &[("lc.tif", &tif)]);
+    let seeded = run(
+        "stand_seed",
+        "maket",
+        &text.replace("version: 1,", "version: 1, seed: 7,"),
+        &[("lc.tif", &tif)],
+    );
+    let density = |o: &Path| std::fs::read(o.join("density.csv")).unwrap();
+    assert_eq!(
+        density(&a),
+        density(&b),
+        "the same map gives the same trees"
+    );
+    assert_ne!(
+        density(&a),
+        density(&seeded),
+        "another seed places them elsewhere"
+    );
+}
+
 /// The example scene runs and writes its georeferenced products.
 #[test]
 fn the_example_land_cover_scene_runs() {

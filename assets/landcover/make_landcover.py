@@ -8,9 +8,9 @@ The scene's origin (x = y = 0) lies at E 500000, N 4800000 and spans 40 m × 40 
 
 * `classes.tif`: 12 × 12 pixels of 4 m, uint16 class codes, from (E 499998, N 4800042) (2 m
   west and north of the scene, so that the scene's edges cut pixels): 0 bare soil (a track
-  across the scene), 1 grass, 2 crop (rows of a field), 3 forest (a closed canopy as a turbid
-  layer), 4 water (a pond), 5 buildings (two blocks). GDAL_NODATA 65535 marks a corner outside
-  the scene.
+  across the scene), 1 grass, 2 crop (rows of a field), 3 forest (a seeded pine stand),
+  4 water (a pond), 5 buildings (two blocks). GDAL_NODATA 65535 marks a corner outside the
+  scene.
 * `dem.tif`: 26 × 26 pixels of 2 m, float32 elevations (m), from (E 499994, N 4800046): a
   plane rising 2 % to the north-east and a 2 m hill, PixelIsArea (values at pixel centres).
 

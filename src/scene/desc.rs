@@ -569,6 +569,19 @@ pub enum LandCoverClass {
         /// Name of a facet optical property.
         optics: String,
     },
+    /// A tree stand: per rectangle a `TreeStand` with seeded random placement (its own stream
+    /// per rectangle), the number of trees of each species its density × the rectangle's area
+    /// (fractions carried from rectangle to rectangle, so a class gets its density × area to
+    /// within one tree). In an isolated scene trunks keep a crown radius from the scene's edges.
+    TreeStand {
+        /// Species templates (trunk, crown).
+        species: Vec<SpeciesDesc>,
+        /// Trees per hectare of each species.
+        trees_per_ha: Vec<f64>,
+        /// Minimum distance between trunks, metres (default 0).
+        #[serde(default)]
+        min_spacing_m: f64,
+    },
     /// Buildings of the footprint height: a flat-roofed `Building` per rectangle.
     Building {
         /// Wall height above the lowest ground point under the rectangle, metres.

@@ -5,8 +5,8 @@
 //! joined with identical runs of the following rows), clipped to the scene.
 
 use crate::scene::desc::{
-    BuildingDesc, FootprintDesc, LandCoverClass, LandCoverDesc, ObjectDesc, RoofDesc,
-    TurbidPlotDesc, WaterDesc,
+    BuildingDesc, FootprintDesc, LandCoverClass, LandCoverDesc, ObjectDesc, PlacementDesc,
+    RoofDesc, TreeStandDesc, TurbidPlotDesc, WaterDesc,
 };
 use crate::scene::error::{Location, SceneError};
 use crate::scene::georef::Georeference;
@@ -14,7 +14,8 @@ use crate::scene::terrain_input::{err, read_placed_geotiff};
 use std::path::Path;
 
 /// The object a class becomes over the scene rectangle `(x0, y0, x1, y1)` (metres); `None`
-/// for `Nothing`.
+/// for `Nothing`. A `TreeStand` gets one tree per species here; [`expand_land_cover`] sets the
+/// counts from the densities.
 pub fn class_object(class: &LandCoverClass, rect: (f64, f64, f64, f64)) -> Option<ObjectDesc> {
     let footprint = FootprintDesc::Box(rect);
     match class {
@@ -35,6 +36,18 @@ pub fn class_object(class: &LandCoverClass, rect: (f64, f64, f64, f64)) -> Optio
             footprint,
             altitude_m: *altitude_m,
             optics: optics.clone(),
+        })),
+        LandCoverClass::TreeStand {
+            species,
+            min_spacing_m,
+            ..
+        } => Some(ObjectDesc::TreeStand(TreeStandDesc {
+            species: species.clone(),
+            placement: PlacementDesc::Random {
+                counts: vec![1; species.len()],
+                min_spacing_m: *min_spacing_m,
+                region_m: Some(rect),
+            },
         })),
         LandCoverClass::Building {
             wall_height_m,
@@ -98,9 +111,10 @@ pub fn merge_rectangles(
     done
 }
 
-/// The objects of a land-cover map over a scene of `size` (m) placed by `g`. `field` is the
-/// object's path (`objects[i]`) for errors in the scene; errors in the raster name the raster
-/// file and the tag at fault.
+/// The objects of a land-cover map over a scene of `size` (m) placed by `g` (`isolated`: the
+/// scene's boundary is isolated, trees keep their crowns inside). `field` is the object's path
+/// (`objects[i]`) for errors in the scene; errors in the raster name the raster file and the
+/// tag at fault.
 pub fn expand_land_cover(
     l: &LandCoverDesc,
     base_dir: &Path,
@@ -108,6 +122,7 @@ pub fn expand_land_cover(
     field: &str,
     g: Option<&Georeference>,
     size: (f64, f64),
+    isolated: bool,
 ) -> Result<Vec<ObjectDesc>, SceneError> {
     let inv = |f: &str, m: String| SceneError::Invalid {
         at: Location {
@@ -203,15 +218,75 @@ pub fn expand_land_cover(
         }
     }
     let mut out = Vec::new();
+    // Tree counts not yet placed, per class and species (fractions carried over).
+    let mut carry: std::collections::BTreeMap<u32, Vec<f64>> = Default::default();
+    let mut trees = 0usize;
     for (k, a, b, ra, rb) in merge_rectangles(wx, wy, &cls) {
         let (c0, c1, r0, r1) = (a + c_lo, b + c_lo, ra + r_lo, rb + r_lo);
         let x0 = (t[0] + c0 as f64 * dx - e0).max(0.0);
         let x1 = (t[0] + (c1 + 1) as f64 * dx - e0).min(size.0);
         let y1 = (t[3] - r0 as f64 * dy - n0).min(size.1);
         let y0 = (t[3] - (r1 + 1) as f64 * dy - n0).max(0.0);
-        if x1 > x0 && y1 > y0 {
-            out.extend(class_object(&l.classes[&k], (x0, y0, x1, y1)));
+        if !(x1 > x0 && y1 > y0) {
+            continue;
         }
+        let class = &l.classes[&k];
+        let Some(mut o) = class_object(class, (x0, y0, x1, y1)) else {
+            continue;
+        };
+        if let (
+            LandCoverClass::TreeStand {
+                species,
+                trees_per_ha,
+                ..
+            },
+            ObjectDesc::TreeStand(TreeStandDesc {
+                placement:
+                    PlacementDesc::Random {
+                        counts, region_m, ..
+                    },
+                ..
+            }),
+        ) = (class, &mut o)
+        {
+            let area_ha = (x1 - x0) * (y1 - y0) / 1e4;
+            let owed = carry.entry(k).or_insert_with(|| vec![0.0; species.len()]);
+            for (s, n) in counts.iter_mut().enumerate() {
+                owed[s] += trees_per_ha[s] * area_ha;
+                *n = owed[s].floor().max(0.0) as usize;
+                owed[s] -= *n as f64;
+            }
+            if isolated {
+                let r = species
+                    .iter()
+                    .map(|sp| sp.crown.radius_x_m.max(sp.crown.radius_y_m.unwrap_or(0.0)))
+                    .fold(0.0, f64::max);
+                let (ix0, iy0) = (x0.max(r), y0.max(r));
+                let (ix1, iy1) = (x1.min(size.0 - r), y1.min(size.1 - r));
+                if !(ix1 > ix0 && iy1 > iy0) {
+                    // No room for a trunk here: the trees go to the class's next rectangle.
+                    for (s, n) in counts.iter().enumerate() {
+                        owed[s] += *n as f64;
+                    }
+                    continue;
+                }
+                *region_m = Some((ix0, iy0, ix1, iy1));
+            }
+            trees += counts.iter().sum::<usize>();
+            if trees > crate::scene::validate::MAX_STAND_TREES {
+                return Err(inv(
+                    &format!(".classes[{k}].trees_per_ha"),
+                    format!(
+                        "the map asks for more than {} trees: lower the densities or the scene size",
+                        crate::scene::validate::MAX_STAND_TREES
+                    ),
+                ));
+            }
+            if counts.iter().all(|&n| n == 0) {
+                continue;
+            }
+        }
+        out.push(o);
     }
     Ok(out)
 }

@@ -60,6 +60,40 @@ impl V<'_> {
                     "a LeafArea total has no meaning per pixel: give Lai or LeafAreaDensity",
                 ));
             }
+            if let LandCoverClass::TreeStand {
+                species,
+                trees_per_ha,
+                min_spacing_m,
+            } = class
+            {
+                if species.is_empty() {
+                    return Err(self.src.invalid(
+                        format!("{fk}.species"),
+                        "a stand needs at least one species",
+                    ));
+                }
+                for (s, sp) in species.iter().enumerate() {
+                    self.crown(&format!("{fk}.species[{s}].crown"), &sp.crown)?;
+                    if let Some(tr) = &sp.trunk {
+                        self.trunk(&format!("{fk}.species[{s}].trunk"), tr)?;
+                    }
+                }
+                if trees_per_ha.len() != species.len() {
+                    return Err(self.src.invalid(
+                        format!("{fk}.trees_per_ha"),
+                        format!(
+                            "needs one density per species ({}), got {}",
+                            species.len(),
+                            trees_per_ha.len()
+                        ),
+                    ));
+                }
+                for (s, &d) in trees_per_ha.iter().enumerate() {
+                    self.in_range(&format!("{fk}.trees_per_ha[{s}]"), d, 0.0, 1e5)?;
+                }
+                self.non_negative(&format!("{fk}.min_spacing_m"), *min_spacing_m)?;
+                continue;
+            }
             match crate::scene::landcover::class_object(class, square) {
                 Some(ObjectDesc::TurbidPlot(p)) => self.turbid_plot(&fk, &p)?,
                 Some(ObjectDesc::Water(w)) => self.water(&fk, &w)?,
