@@ -1434,6 +1434,24 @@ const GEOSPATIAL: &[Case] = &[
         "",
         "optics",
     ),
+    c(
+        "sun_position_no_place",
+        "illumination: (sun_zenith_deg: 30.0, sun_azimuth_deg: 0.0, skyl: [0.1]),",
+        "illumination: (sun_position: (utc: \"2024-06-21T10:00:00\"), skyl: [0.1]),",
+        "illumination.sun_position.latitude_deg",
+    ),
+    c(
+        "sun_position_lambert_crs",
+        "version: 1,||illumination: (sun_zenith_deg: 30.0, sun_azimuth_deg: 0.0, skyl: [0.1]),",
+        "version: 1, georeference: (crs: Epsg(2154), origin_map_m: (700000.0, 6600000.0)),||illumination: (sun_position: (utc: \"2024-06-21T10:00:00\"), skyl: [0.1]),",
+        "illumination.sun_position.latitude_deg",
+    ),
+    c(
+        "sun_position_half_place",
+        "version: 1,||illumination: (sun_zenith_deg: 30.0, sun_azimuth_deg: 0.0, skyl: [0.1]),",
+        "version: 1, georeference: (crs: Epsg(32631), origin_map_m: (500000.0, 4800000.0)),||illumination: (sun_position: (utc: \"2024-06-21T10:00:00\", latitude_deg: 43.0), skyl: [0.1]),",
+        "illumination.sun_position.latitude_deg",
+    ),
     land_cover(
         "landcover_stand_densities",
         LC_FROM,

@@ -9,7 +9,9 @@
 //! * a DEM given as a GeoTIFF (f32 LZW, f64 Deflate, i16, u16; written by the `tiff` crate's
 //!   own image encoder) gives products byte-identical to the same DEM given as ESRI ASCII, and
 //!   an analytic plane + cone as an f64 GeoTIFF gives the DSM of the same surface given inline
-//!   to 1e-6 m.
+//!   to 1e-6 m;
+//! * a `sun_position` without a place takes the latitude, longitude and true bearing of +x of
+//!   the scene centre from the georeference (PROJ's values).
 
 #[path = "common/geo.rs"]
 mod geo;
@@ -518,5 +520,59 @@ fn dem_geotiff_of_an_analytic_surface_gives_the_analytic_ground() {
     assert_eq!(
         std::fs::read(out.join("density.csv")).unwrap(),
         std::fs::read(reference.join("density.csv")).unwrap()
+    );
+}
+
+/// The sun from a date alone in a georeferenced scene: the latitude and longitude of the scene
+/// centre and the true bearing of +x (grid bearing + meridian convergence) come from the
+/// georeference; the angles equal those of the same date with the place and bearing that PROJ
+/// gives for that point (GDAL 3.6 `gdaltransform`, EPSG:32631 → EPSG:4326).
+#[test]
+fn the_sun_position_takes_its_place_from_the_georeference() {
+    use lumenscape::scene::{SceneSource, parse_scene, resolve};
+    let resolve = |text: &str| {
+        let d = parse_scene(text, Path::new("<test>")).unwrap();
+        let src = SceneSource {
+            path: "<test>".into(),
+            text: Some(text.to_string()),
+        };
+        lumenscape::scene::validate::validate(&d, &src).unwrap_or_else(|e| panic!("{e}"));
+        resolve::illumination(&d, &src).unwrap_or_else(|e| panic!("{e}"))
+    };
+    // Scene centre at (650000, 4800000): 150 km east of zone 31's central meridian.
+    let geo = "georeference: (crs: Epsg(32631), origin_map_m: (649990.0, 4799990.0)),";
+    let by_map = scene(geo, "Flat").replace(
+        "illumination: (sun_zenith_deg: 30.0, sun_azimuth_deg: 20.0,",
+        "illumination: (sun_position: (utc: \"2024-06-21T09:30:00\"),",
+    );
+    // PROJ: the centre at (43.3378837055532 N, 4.85045491139206 E); 10 m grid north at
+    // (43.3379737040746, 4.85045764532076): grid north lies γ east of true north.
+    let (lat, lon) = (43.3378837055532f64, 4.85045491139206f64);
+    let (a, f) = (6_378_137.0f64, 1.0 / 298.257_223_563f64);
+    let e2 = f * (2.0 - f);
+    let w = (1.0 - e2 * lat.to_radians().sin().powi(2)).sqrt();
+    let dn = (43.3379737040746f64 - lat).to_radians() * a * (1.0 - e2) / w.powi(3);
+    let de = (4.85045764532076f64 - lon).to_radians() * a / w * lat.to_radians().cos();
+    let gamma = de.atan2(dn).to_degrees();
+    let by_hand = scene("", "Flat").replace(
+        "illumination: (sun_zenith_deg: 30.0, sun_azimuth_deg: 20.0,",
+        &format!(
+            "illumination: (sun_position: (utc: \"2024-06-21T09:30:00\", latitude_deg: {lat}, longitude_deg: {lon}, scene_x_bearing_deg: {}),",
+            90.0 + gamma
+        ),
+    );
+    let (m, h) = (resolve(&by_map), resolve(&by_hand));
+    let (zm, am) = (
+        m.illumination.sun_zenith_deg,
+        m.illumination.sun_azimuth_deg,
+    );
+    let (zh, ah) = (
+        h.illumination.sun_zenith_deg,
+        h.illumination.sun_azimuth_deg,
+    );
+    assert!(gamma > 1.0, "convergence {gamma}°");
+    assert!(
+        (zm - zh).abs() < 1e-6 && (am - ah).abs() < 1e-5,
+        "({zm}, {am}) against ({zh}, {ah})"
     );
 }

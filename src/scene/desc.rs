@@ -442,7 +442,8 @@ pub struct IlluminationDesc {
 /// Sun position from a UTC date-time and a place, computed at spawn by the NREL Solar Position
 /// Algorithm (Reda & Andreas 2004, *Solar Energy* 76:577; `physics::sun::solar_position`,
 /// ±0.0003°), e.g. `sun_position: (utc: "2003-10-17T19:30:30", latitude_deg: 39.742476,
-/// longitude_deg: -105.1786, altitude_m: 1830.14)`.
+/// longitude_deg: -105.1786, altitude_m: 1830.14)`; in a georeferenced scene the place and the
+/// bearing may be left to the georeference (`sun_position: (utc: "2024-06-21T11:00:00")`).
 ///
 /// The scene sun zenith is the apparent (refracted) topocentric zenith when `refraction` is on,
 /// the geometric one otherwise; the scene azimuth is φ = (β − γ) mod 360°, γ the compass
@@ -454,17 +455,23 @@ pub struct SunPositionDesc {
     /// UTC date-time `YYYY-MM-DDTHH:MM:SS` (a space may replace `T`; fractions of a second and a
     /// trailing `Z` are accepted), year −2000…6000.
     pub utc: String,
-    /// Geodetic latitude, degrees north, in [−90, 90].
-    pub latitude_deg: f64,
-    /// Longitude, degrees east of Greenwich, in [−180, 180] (west negative).
-    pub longitude_deg: f64,
+    /// Geodetic latitude, degrees north, in [−90, 90]. Default (with `longitude_deg` absent
+    /// too): that of the scene centre, from the scene's `georeference` (UTM and transverse
+    /// Mercator CRSs; required without a georeference).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub latitude_deg: Option<f64>,
+    /// Longitude, degrees east of Greenwich, in [−180, 180] (west negative). Default: as
+    /// `latitude_deg`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub longitude_deg: Option<f64>,
     /// Altitude of the scene above sea level, metres (default 0).
     #[serde(default)]
     pub altitude_m: f64,
-    /// Compass bearing of the scene's +x axis, degrees clockwise from north (default 90: +x
-    /// points east and +y north, DART's convention).
-    #[serde(default = "default_scene_x_bearing")]
-    pub scene_x_bearing_deg: f64,
+    /// Compass bearing of the scene's +x axis, degrees clockwise from true north (default: from
+    /// the scene's `georeference`, its grid bearing plus the meridian convergence at the scene
+    /// centre; without a georeference 90: +x points east and +y north, DART's convention).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub scene_x_bearing_deg: Option<f64>,
     /// Apply atmospheric refraction to the zenith angle (default true; Reda & Andreas 2004,
     /// §3.14, with `pressure_hpa` and `temperature_c`).
     #[serde(default = "yes")]

@@ -1,11 +1,14 @@
 //! The scene's georeference (issue #37): its CRS resolved (an EPSG code looked up in the EPSG
 //! table of the `crs-definitions` crate, or a WKT definition), the map placement of scene
 //! points, and the pixel-to-map transform of a product raster (OGC GeoTIFF 1.1 §7.1.2; GDAL's
-//! six-coefficient convention). Scene coordinates are metres with +x at the grid bearing β
-//! (clockwise from grid north) and +y 90° anticlockwise from +x: a point (x, y) lies at
-//! E = E₀ + x·sin β − y·cos β, N = N₀ + x·cos β + y·sin β.
+//! six-coefficient convention), and the geodetic latitude, longitude and true bearing of +x of
+//! a scene point for the sun position (transverse Mercator grids, `physics::geodesy`). Scene
+//! coordinates are metres with +x at the grid bearing β (clockwise from grid north) and +y 90°
+//! anticlockwise from +x: a point (x, y) lies at E = E₀ + x·sin β − y·cos β,
+//! N = N₀ + x·cos β + y·sin β.
 
 use crate::io::geotiff::{MapPlacement, TiffCrs};
+use crate::physics::geodesy::TransverseMercator;
 use crate::scene::desc::{CrsDesc, GeoreferenceDesc};
 
 /// A resolved projected CRS in metres.
@@ -17,6 +20,8 @@ pub struct MapCrs {
     pub name: String,
     /// Its WKT definition.
     pub wkt: String,
+    /// Its PROJ string, when known (EPSG codes).
+    pub proj4: Option<String>,
 }
 
 /// Why a CRS is not accepted (the message for the `georeference.crs` field).
@@ -45,6 +50,7 @@ pub fn resolve_crs(c: &CrsDesc) -> Result<MapCrs, String> {
                 epsg: Some(*code),
                 name: wkt_name(def.wkt),
                 wkt: def.wkt.to_string(),
+                proj4: Some(proj.to_string()),
             })
         }
         CrsDesc::Wkt(w) => {
@@ -59,10 +65,15 @@ pub fn resolve_crs(c: &CrsDesc) -> Result<MapCrs, String> {
             if !(u.contains("unit[\"metre\"") || u.contains("unit[\"meter\"")) {
                 return Err("the WKT's unit must be the metre (`UNIT[\"metre\",1]`)".into());
             }
+            let epsg = wkt_epsg(t);
             Ok(MapCrs {
-                epsg: wkt_epsg(t),
+                epsg,
                 name: wkt_name(t),
                 wkt: t.to_string(),
+                proj4: epsg
+                    .and_then(|c| u16::try_from(c).ok())
+                    .and_then(crs_definitions::from_code)
+                    .map(|d| d.proj4.to_string()),
             })
         }
     }
@@ -122,7 +133,82 @@ fn sin_cos_deg(deg: f64) -> (f64, f64) {
     }
 }
 
+/// The transverse Mercator grid of a PROJ string (`+proj=utm +zone=Z [+south]` or
+/// `+proj=tmerc +lat_0=0 +lon_0 +k +x_0 +y_0`, ellipsoid from `+ellps` or `+datum`), or why
+/// not.
+pub fn transverse_mercator(proj4: &str) -> Result<TransverseMercator, String> {
+    let param = |k: &str| -> Option<&str> {
+        proj4
+            .split_whitespace()
+            .find_map(|t| t.strip_prefix('+')?.strip_prefix(k)?.strip_prefix('='))
+    };
+    let num = |k: &str, default: f64| -> Result<f64, String> {
+        param(k).map_or(Ok(default), |v| {
+            v.parse()
+                .map_err(|_| format!("`+{k}={v}` is not a number in `{proj4}`"))
+        })
+    };
+    let ellipsoid = match param("ellps").or(match param("datum") {
+        Some("WGS84") => Some("WGS84"),
+        Some("NAD83") => Some("GRS80"),
+        Some("NAD27") => Some("clrk66"),
+        _ => None,
+    }) {
+        Some("WGS84") => (6_378_137.0, 298.257_223_563),
+        Some("GRS80") => (6_378_137.0, 298.257_222_101),
+        Some("intl") => (6_378_388.0, 297.0),
+        Some("bessel") => (6_377_397.155, 299.152_812_8),
+        Some("clrk66") => (6_378_206.4, 294.978_698_2),
+        other => {
+            return Err(format!(
+                "the ellipsoid {} of `{proj4}` is not one lumenscape knows (WGS84, GRS80, intl, \
+                 bessel, clrk66)",
+                other.unwrap_or("(none)")
+            ));
+        }
+    };
+    match param("proj") {
+        Some("utm") => {
+            let zone = num("zone", f64::NAN)?;
+            if !(1.0..=60.0).contains(&zone) || zone.fract() != 0.0 {
+                return Err(format!("no UTM zone in `{proj4}`"));
+            }
+            let south = proj4.split_whitespace().any(|t| t == "+south");
+            Ok(TransverseMercator::utm(zone as u32, south, ellipsoid))
+        }
+        Some("tmerc") if num("lat_0", 0.0)? == 0.0 => Ok(TransverseMercator {
+            a_m: ellipsoid.0,
+            f: 1.0 / ellipsoid.1,
+            lon0_deg: num("lon_0", 0.0)?,
+            k0: num("k", num("k_0", 1.0)?)?,
+            false_easting_m: num("x_0", 0.0)?,
+            false_northing_m: num("y_0", 0.0)?,
+        }),
+        _ => Err(format!(
+            "latitude and longitude are derived for UTM and transverse Mercator grids with origin \
+             latitude 0 only, not `{proj4}`"
+        )),
+    }
+}
+
 impl Georeference {
+    /// Geodetic latitude and longitude (degrees) of the scene point (x, y), and the true bearing
+    /// (degrees clockwise from true north) of the scene's +x axis there (the grid bearing plus
+    /// the meridian convergence; [`crate::physics::geodesy`]). An error says why the CRS does
+    /// not allow it.
+    pub fn geographic(&self, x: f64, y: f64) -> Result<(f64, f64, f64), String> {
+        let proj4 = self.crs.proj4.as_deref().ok_or_else(|| {
+            format!(
+                "the CRS `{}` has no EPSG code, so latitude and longitude cannot be derived",
+                self.crs.name
+            )
+        })?;
+        let tm = transverse_mercator(proj4)?;
+        let (e, n) = self.to_map(x, y);
+        let (lat, lon) = tm.inverse(e, n);
+        Ok((lat, lon, tm.true_bearing_deg(e, n, self.x_axis_bearing_deg)))
+    }
+
     /// Resolves a validated description; the error names the field (`crs`, `origin_map_m`,
     /// `x_axis_bearing_deg`) and says why.
     pub fn from_desc(d: &GeoreferenceDesc) -> Result<Self, (&'static str, String)> {
