@@ -259,10 +259,14 @@ pub const MAX_PIXELS: usize = 1 << 28;
 /// file and field).
 pub fn read_geotiff_band(bytes: &[u8]) -> Result<GeoRaster, String> {
     use tiff::decoder::{Decoder, DecodingResult};
-    let e = |e: tiff::TiffError| {
-        format!(
-            "not a readable TIFF ({e}): the file is truncated, damaged or not a TIFF; export it again as a GeoTIFF"
-        )
+    let e = |e: tiff::TiffError| match e {
+        tiff::TiffError::LimitsExceeded => "the raster is larger than the TIFF decoder's limits \
+             (256 MiB of samples): crop it to the scene first (e.g. gdal_translate -projwin)"
+            .to_string(),
+        e => format!(
+            "not a readable TIFF ({e}): the file is truncated, damaged or not a TIFF; export it \
+             again as a GeoTIFF"
+        ),
     };
     let mut dec = Decoder::new(Cursor::new(bytes)).map_err(e)?;
     let (w, h) = dec.dimensions().map_err(e)?;
@@ -405,6 +409,38 @@ mod tests {
         for cut in [0, 4, 8, 30, b.len() - 10] {
             assert!(read_geotiff_band(&b[..cut]).is_err(), "cut {cut}");
         }
+    }
+
+    /// A raster above the decoder's limits (here a 12 000² f32 header without its data) is
+    /// refused with a message saying to crop it, before anything is allocated.
+    #[test]
+    fn oversized_raster_says_crop_it() {
+        let mut buf = Cursor::new(Vec::new());
+        {
+            let mut enc = tiff::encoder::TiffEncoder::new(&mut buf).unwrap();
+            let mut dir = enc.image_directory().unwrap();
+            for (t, v) in [
+                (Tag::ImageWidth, 12_000u32),
+                (Tag::ImageLength, 12_000),
+                (Tag::StripOffsets, 8),
+                (Tag::RowsPerStrip, 12_000),
+                (Tag::StripByteCounts, 576_000_000),
+            ] {
+                dir.write_tag(t, v).unwrap();
+            }
+            for (t, v) in [
+                (Tag::BitsPerSample, 32u16),
+                (Tag::Compression, 1),
+                (Tag::PhotometricInterpretation, 1),
+                (Tag::SamplesPerPixel, 1),
+                (Tag::SampleFormat, 3),
+            ] {
+                dir.write_tag(t, v).unwrap();
+            }
+            dir.finish().unwrap();
+        }
+        let m = read_geotiff_band(&buf.into_inner()).unwrap_err();
+        assert!(m.contains("crop it"), "{m}");
     }
 
     /// User-defined CRSs carry their WKT in the ASCII parameters.
