@@ -1262,11 +1262,22 @@ const GEOSPATIAL: &[Case] = &[
         "Ground((optics: \"soil\", topography: RasterFile((path: \"d.tif\", format: GeoTiff)))),",
         "topography",
     ),
-    geotiff_scene(
-        "dem_tif_rotated_scene",
+    // Rotated 30°, the scene's map bounding box leaves the DEM that covers it north-up.
+    land_cover(
+        "dem_tif_rotated_scene_outside",
         GEO_FROM,
         "version: 1, georeference: (crs: Epsg(32631), origin_map_m: (500000.0, 4800000.0), x_axis_bearing_deg: 30.0),||Ground((optics: \"soil\", topography: RasterFile((path: \"d.tif\", format: GeoTiff)))),",
-        "x_axis_bearing_deg",
+        good_dem,
+        "d.tif",
+        "extent",
+    ),
+    land_cover(
+        "landcover_stand_rotated",
+        LC_FROM,
+        "version: 1, georeference: (crs: Epsg(32631), origin_map_m: (500000.0, 4800000.0), x_axis_bearing_deg: 30.0),||Ground((optics: \"soil\")), LandCover((path: \"d.tif\", classes: {1: TreeStand(species: [(name: \"a\", crown: (shape: Ellipsoid, base_height_m: 1.0, height_m: 2.0, radius_x_m: 1.0, foliage: Lai(1.0), optics: \"veg\"))], trees_per_ha: [100.0])})),",
+        || class_map(1.0),
+        "",
+        "objects[1].classes[1]",
     ),
     geotiff_scene(
         "dem_tif_origin_m",

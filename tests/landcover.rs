@@ -248,6 +248,42 @@ fn a_tree_stand_class_gets_its_density_times_its_area() {
     );
 }
 
+/// In a rotated scene (+x at bearing 60°) each rectangle is the rotated polygon clipped to the
+/// scene: the classes still tile the scene, so the leaf area of two classes of one LAI is the
+/// scene's area × LAI to 1e-9, and each class gets its share.
+#[test]
+fn a_rotated_scene_tiles_the_classes_as_polygons() {
+    let text = scene(LAND_COVER)
+        .replace(
+            "origin_map_m: (500000.0, 4800000.0))",
+            "origin_map_m: (500000.0, 4800000.0), x_axis_bearing_deg: 60.0)",
+        )
+        .replace(
+            "foliage: Lai(3.5), optics: \"crop\"",
+            "foliage: Lai(2.0), optics: \"crop\"",
+        );
+    // 3 m pixels from (499975, 4800030): the scene's rotated map box inside.
+    let map = class_map(16, 12, 3.0, (499_975.0, 4_800_030.0), |c, r| {
+        if (c / 2 + r) % 3 == 0 { 2.0 } else { 1.0 }
+    });
+    let tif = dem_tiff(&map, Sample::U16, Compression::Uncompressed);
+    let out = run("rotated_classes", "maket", &text, &[("lc.tif", &tif)]);
+    let report: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(out.join("maket.json")).unwrap()).unwrap();
+    let la = |m: &str| report["leaf_area"][m]["analytic_m2"].as_f64().unwrap();
+    let total = la("grass") + la("crop");
+    assert!(
+        ((total - 800.0) / 800.0).abs() < 1e-9,
+        "total leaf area {total} m²"
+    );
+    assert!(
+        la("crop") > 100.0 && la("grass") > 300.0,
+        "{} {}",
+        la("grass"),
+        la("crop")
+    );
+}
+
 /// The example scene runs and writes its georeferenced products.
 #[test]
 fn the_example_land_cover_scene_runs() {

@@ -539,8 +539,10 @@ pub enum ObjectDesc {
 /// scene's map extent, and a table giving what each class becomes. Pixels of one class are
 /// merged into rectangles (row runs joined down the rows) and each rectangle becomes one
 /// object exactly as if written by hand with a `Box` footprint, clipped to the scene (pixels at
-/// the scene edge are clipped, not dropped); a cell shared by several classes gets each one's
-/// share by exact area. Pixels equal to the raster's `GDAL_NODATA` are left bare.
+/// the scene edge are clipped, not dropped); in a rotated scene the footprint is the rotated
+/// rectangle clipped to the scene (a `Polygon`; `TreeStand` classes need +x east). A cell
+/// shared by several classes gets each one's share by exact area. Pixels equal to the raster's
+/// `GDAL_NODATA` are left bare.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]
 pub struct LandCoverDesc {
@@ -705,8 +707,10 @@ pub enum RasterFormat {
     EsriAscii,
     /// A single-band GeoTIFF of elevations, metres (8–64-bit integers or floats; GDAL's
     /// no-data value honoured): placed on the scene through the scene's `georeference` (same
-    /// CRS, +x east), cropped to the scene's map extent. Pixel values are nodes at pixel centres
-    /// (PixelIsArea) or at the tie point (PixelIsPoint). `origin_m` must be left at (0, 0).
+    /// CRS), cropped to the scene's map extent. Pixel values are nodes at pixel centres
+    /// (PixelIsArea) or at the tie point (PixelIsPoint). With +x east the nodes form the same
+    /// raster ground as an ESRI grid; in a rotated scene they are triangulated (Delaunay) at
+    /// their scene positions. `origin_m` must be left at (0, 0).
     GeoTiff,
     /// Raw little-endian f32 values, x fastest then y; dimensions and spacing given in the scene.
     BinaryF32 {

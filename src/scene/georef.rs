@@ -243,6 +243,28 @@ impl Georeference {
         (e0 + x * s - y * c, n0 + x * c + y * s)
     }
 
+    /// Scene coordinates (x, y) of the map point (E, N), m (the inverse of [`Self::to_map`]).
+    pub fn to_scene(&self, e: f64, n: f64) -> (f64, f64) {
+        let (s, c) = sin_cos_deg(self.x_axis_bearing_deg);
+        let (de, dn) = (e - self.origin_map_m.0, n - self.origin_map_m.1);
+        (de * s + dn * c, -de * c + dn * s)
+    }
+
+    /// The map bounding box (E_min, N_min, E_max, N_max) of the scene rectangle [0, X] × [0, Y].
+    pub fn map_bounds(&self, size: (f64, f64)) -> (f64, f64, f64, f64) {
+        let corners =
+            [(0.0, 0.0), (size.0, 0.0), (0.0, size.1), size].map(|(x, y)| self.to_map(x, y));
+        corners.iter().fold(
+            (
+                f64::INFINITY,
+                f64::INFINITY,
+                f64::NEG_INFINITY,
+                f64::NEG_INFINITY,
+            ),
+            |b, &(e, n)| (b.0.min(e), b.1.min(n), b.2.max(e), b.3.max(n)),
+        )
+    }
+
     /// The CRS as a product carries it: its EPSG code when it has one that fits a GeoKey, else
     /// user-defined with its WKT.
     pub fn tiff_crs(&self) -> TiffCrs {
@@ -313,6 +335,10 @@ mod tests {
         assert!(p.north_up());
         g.x_axis_bearing_deg = 0.0;
         assert_eq!(g.to_map(10.0, 20.0), (499_980.0, 4_800_010.0));
+        assert_eq!(g.to_scene(499_980.0, 4_800_010.0), (10.0, 20.0));
+        g.x_axis_bearing_deg = 33.0;
+        let (x, y) = g.to_scene(g.to_map(3.0, -7.0).0, g.to_map(3.0, -7.0).1);
+        assert!((x - 3.0).abs() < 1e-9 && (y + 7.0).abs() < 1e-9);
         for b in [0.0, 30.0, 135.0, 250.0] {
             g.x_axis_bearing_deg = b;
             let t = g.placement(3.0, 40.0, 0.5, 0.25).transform;

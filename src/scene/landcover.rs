@@ -2,8 +2,11 @@
 //! maps): a classification GeoTIFF in the scene's map frame and the scene's class table become
 //! ordinary objects (turbid plots, water bodies, buildings) with `Box` footprints, exactly as if
 //! written by hand. Pixels of one class are merged into rectangles (maximal runs along a row,
-//! joined with identical runs of the following rows), clipped to the scene.
+//! joined with identical runs of the following rows), clipped to the scene; in a rotated scene
+//! (+x not east) each rectangle is the rotated polygon clipped to the scene
+//! (Sutherland–Hodgman, `geometry::polygon`).
 
+use crate::geometry::polygon::{clip_to_rect, signed_area};
 use crate::scene::desc::{
     BuildingDesc, FootprintDesc, LandCoverClass, LandCoverDesc, ObjectDesc, PlacementDesc,
     RoofDesc, TreeStandDesc, TurbidPlotDesc, WaterDesc,
@@ -11,13 +14,25 @@ use crate::scene::desc::{
 use crate::scene::error::{Location, SceneError};
 use crate::scene::georef::Georeference;
 use crate::scene::terrain_input::{err, read_placed_geotiff};
+use glam::DVec2;
 use std::path::Path;
 
-/// The object a class becomes over the scene rectangle `(x0, y0, x1, y1)` (metres); `None`
-/// for `Nothing`. A `TreeStand` gets one tree per species here; [`expand_land_cover`] sets the
+/// The object a class becomes over `footprint` (a `Box` for north-up scenes, the clipped
+/// rotated rectangle otherwise; metres); `None` for `Nothing`. A `TreeStand` gets one tree per species here; [`expand_land_cover`] sets the
 /// counts from the densities.
-pub fn class_object(class: &LandCoverClass, rect: (f64, f64, f64, f64)) -> Option<ObjectDesc> {
-    let footprint = FootprintDesc::Box(rect);
+pub fn class_object(class: &LandCoverClass, footprint: FootprintDesc) -> Option<ObjectDesc> {
+    let region = match &footprint {
+        FootprintDesc::Box(r) => *r,
+        FootprintDesc::Polygon(p) => p.iter().fold(
+            (
+                f64::INFINITY,
+                f64::INFINITY,
+                f64::NEG_INFINITY,
+                f64::NEG_INFINITY,
+            ),
+            |b, &(x, y)| (b.0.min(x), b.1.min(y), b.2.max(x), b.3.max(y)),
+        ),
+    };
     match class {
         LandCoverClass::Nothing => None,
         LandCoverClass::TurbidPlot {
@@ -46,7 +61,7 @@ pub fn class_object(class: &LandCoverClass, rect: (f64, f64, f64, f64)) -> Optio
             placement: PlacementDesc::Random {
                 counts: vec![1; species.len()],
                 min_spacing_m: *min_spacing_m,
-                region_m: Some(rect),
+                region_m: Some(region),
             },
         })),
         LandCoverClass::Building {
@@ -140,11 +155,17 @@ pub fn expand_land_cover(
                 .into(),
         ));
     };
-    if !g.north_up() {
+    if !g.north_up()
+        && let Some(k) = l
+            .classes
+            .iter()
+            .find(|(_, c)| matches!(c, LandCoverClass::TreeStand { .. }))
+            .map(|(k, _)| *k)
+    {
         return Err(inv(
-            "",
+            &format!(".classes[{k}]"),
             format!(
-                "a LandCover map needs a scene with +x east (georeference.x_axis_bearing_deg = \
+                "TreeStand classes need a scene with +x east (georeference.x_axis_bearing_deg = \
                  90), got {}°",
                 g.x_axis_bearing_deg
             ),
@@ -160,22 +181,41 @@ pub fn expand_land_cover(
     let (dx, dy) = (t[1], -t[5]);
     let (e0, n0) = g.origin_map_m;
     let eps = 1e-9;
-    // Pixels overlapping the scene's map extent.
-    let c_lo = ((e0 - t[0]) / dx + eps).floor();
-    let c_hi = ((e0 + size.0 - t[0]) / dx - eps).ceil() - 1.0;
-    let r_lo = ((t[3] - (n0 + size.1)) / dy + eps).floor();
-    let r_hi = ((t[3] - n0) / dy - eps).ceil() - 1.0;
+    // Pixels overlapping the scene's map bounding box (its extent when north-up).
+    let (e_min, n_min, e_max, n_max) = g.map_bounds(size);
+    let c_lo = ((e_min - t[0]) / dx + eps).floor();
+    let c_hi = ((e_max - t[0]) / dx - eps).ceil() - 1.0;
+    let r_lo = ((t[3] - n_max) / dy + eps).floor();
+    let r_hi = ((t[3] - n_min) / dy - eps).ceil() - 1.0;
+    // The scene polygon of the pixel block [c0, c1] × [r0, r1] clipped to the scene (rotated
+    // scenes).
+    let scene_poly = |c0: usize, c1: usize, r0: usize, r1: usize| -> Vec<DVec2> {
+        let (el, er) = (t[0] + c0 as f64 * dx, t[0] + (c1 + 1) as f64 * dx);
+        let (nt, nb) = (t[3] - r0 as f64 * dy, t[3] - (r1 + 1) as f64 * dy);
+        let poly: Vec<DVec2> = [(el, nb), (er, nb), (er, nt), (el, nt)]
+            .iter()
+            .map(|&(e, n)| {
+                let (x, y) = g.to_scene(e, n);
+                DVec2::new(x, y)
+            })
+            .collect();
+        let mut clipped = clip_to_rect(&poly, 0.0, 0.0, size.0, size.1);
+        clipped.dedup_by(|a, b| a.distance(*b) < 1e-9);
+        if clipped.len() > 1 && clipped[0].distance(clipped[clipped.len() - 1]) < 1e-9 {
+            clipped.pop();
+        }
+        clipped
+    };
+    let min_area = 1e-9 * dx * dy;
     if c_lo < 0.0 || r_lo < 0.0 || c_hi > (nx - 1) as f64 || r_hi > (ny - 1) as f64 {
         return Err(err(
             &p,
             None,
             "extent",
             format!(
-                "the scene's map extent E [{e0}, {}], N [{n0}, {}] m is not inside the map's \
-                 pixels E [{}, {}], N [{}, {}] m; enlarge the map or move \
+                "the scene's map extent E [{e_min}, {e_max}], N [{n_min}, {n_max}] m is not inside \
+                 the map's pixels E [{}, {}], N [{}, {}] m; enlarge the map or move \
                  georeference.origin_map_m",
-                e0 + size.0,
-                n0 + size.1,
                 t[0],
                 t[0] + nx as f64 * dx,
                 t[3] - ny as f64 * dy,
@@ -191,6 +231,9 @@ pub fn expand_land_cover(
             let v = r.values[col + nx * row];
             if r.nodata == Some(v) {
                 continue;
+            }
+            if !g.north_up() && signed_area(&scene_poly(col, col, row, row)).abs() <= min_area {
+                continue; // in the bounding box, not in the rotated scene
             }
             if !(v >= 0.0 && v <= u32::MAX as f64 && v.fract() == 0.0) {
                 return Err(err(
@@ -223,15 +266,28 @@ pub fn expand_land_cover(
     let mut trees = 0usize;
     for (k, a, b, ra, rb) in merge_rectangles(wx, wy, &cls) {
         let (c0, c1, r0, r1) = (a + c_lo, b + c_lo, ra + r_lo, rb + r_lo);
-        let x0 = (t[0] + c0 as f64 * dx - e0).max(0.0);
-        let x1 = (t[0] + (c1 + 1) as f64 * dx - e0).min(size.0);
-        let y1 = (t[3] - r0 as f64 * dy - n0).min(size.1);
-        let y0 = (t[3] - (r1 + 1) as f64 * dy - n0).max(0.0);
-        if !(x1 > x0 && y1 > y0) {
-            continue;
-        }
         let class = &l.classes[&k];
-        let Some(mut o) = class_object(class, (x0, y0, x1, y1)) else {
+        let footprint = if g.north_up() {
+            let x0 = (t[0] + c0 as f64 * dx - e0).max(0.0);
+            let x1 = (t[0] + (c1 + 1) as f64 * dx - e0).min(size.0);
+            let y1 = (t[3] - r0 as f64 * dy - n0).min(size.1);
+            let y0 = (t[3] - (r1 + 1) as f64 * dy - n0).max(0.0);
+            if !(x1 > x0 && y1 > y0) {
+                continue;
+            }
+            FootprintDesc::Box((x0, y0, x1, y1))
+        } else {
+            let poly = scene_poly(c0, c1, r0, r1);
+            if poly.len() < 3 || signed_area(&poly).abs() <= min_area {
+                continue;
+            }
+            FootprintDesc::Polygon(poly.iter().map(|v| (v.x, v.y)).collect())
+        };
+        let (x0, y0, x1, y1) = match &footprint {
+            FootprintDesc::Box(b) => *b,
+            FootprintDesc::Polygon(_) => (0.0, 0.0, 0.0, 0.0), // no tree stands when rotated
+        };
+        let Some(mut o) = class_object(class, footprint) else {
             continue;
         };
         if let (

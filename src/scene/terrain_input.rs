@@ -302,6 +302,81 @@ pub fn read_geotiff_dem(
     })
 }
 
+/// The nodes of a GeoTIFF DEM under a rotated scene (+x not east), in scene coordinates: every
+/// node within a pixel diagonal of the scene rectangle, for a Delaunay TIN (the raster's own
+/// lattice, rotated: the surface passes through every node). The raster must cover the
+/// scene's map bounding box; no-data nodes are refused near the scene and dropped farther
+/// away. Errors as [`read_geotiff_dem`].
+pub fn read_geotiff_dem_nodes(
+    path: &Path,
+    bytes: &[u8],
+    g: &Georeference,
+    size: (f64, f64),
+) -> Result<Vec<TinVertex>, SceneError> {
+    let (r, t) = read_placed_geotiff(path, bytes, g)?;
+    let (nx, ny) = r.size;
+    let is_nodata = |v: f64| !v.is_finite() || r.nodata == Some(v);
+    if r.values.iter().all(|&v| is_nodata(v)) {
+        return Err(err(
+            path,
+            None,
+            "GDAL_NODATA",
+            "every pixel is no-data: the raster holds no elevation",
+        ));
+    }
+    let (dx, dy) = (t[1], -t[5]);
+    let half = if r.pixel_is_point { 0.0 } else { 0.5 };
+    let (e_node0, n_node0) = (t[0] + half * dx, t[3] - half * dy);
+    let (e_min, n_min, e_max, n_max) = g.map_bounds(size);
+    let eps = 1e-9;
+    let c_lo = ((e_min - e_node0) / dx + eps).floor();
+    let c_hi = ((e_max - e_node0) / dx - eps).ceil();
+    let r_lo = ((n_node0 - n_max) / dy + eps).floor();
+    let r_hi = ((n_node0 - n_min) / dy - eps).ceil();
+    if c_lo < 0.0 || r_lo < 0.0 || c_hi > (nx - 1) as f64 || r_hi > (ny - 1) as f64 {
+        return Err(err(
+            path,
+            None,
+            "extent",
+            format!(
+                "the scene's map bounding box E [{e_min}, {e_max}], N [{n_min}, {n_max}] m is not \
+                 inside the raster's nodes E [{}, {}], N [{}, {}] m; enlarge the raster or move \
+                 georeference.origin_map_m",
+                e_node0,
+                e_node0 + (nx - 1) as f64 * dx,
+                n_node0 - (ny - 1) as f64 * dy,
+                n_node0
+            ),
+        ));
+    }
+    let margin = dx.hypot(dy);
+    let mut verts = Vec::new();
+    for row in r_lo as usize..=r_hi as usize {
+        for col in c_lo as usize..=c_hi as usize {
+            let (x, y) = g.to_scene(e_node0 + col as f64 * dx, n_node0 - row as f64 * dy);
+            if x < -margin || y < -margin || x > size.0 + margin || y > size.1 + margin {
+                continue;
+            }
+            let v = r.values[col + nx * row];
+            if is_nodata(v) {
+                return Err(err(
+                    path,
+                    None,
+                    "GDAL_NODATA",
+                    format!(
+                        "pixel (column {col}, row {row}) next to the scene is no-data ({v}): DEM \
+                         holes are not supported; fill them (e.g. gdal_fillnodata) or move the scene"
+                    ),
+                ));
+            }
+            verts.push(TinVertex {
+                p: DVec3::new(x, y, v),
+            });
+        }
+    }
+    Ok(verts)
+}
+
 /// Largest number of nodes of a ground raster (2²⁸: 2 GiB of f64 altitudes), checked before
 /// the altitudes are allocated.
 pub const MAX_RASTER_NODES: usize = 1 << 28;
@@ -366,18 +441,18 @@ pub fn build_terrain(
                                 .into(),
                         ));
                     }
-                    if !g.north_up() {
-                        return Err(inv(format!(
-                            "a GeoTiff DEM needs a scene with +x east (georeference.x_axis_bearing_deg \
-                             = 90), got {}°",
-                            g.x_axis_bearing_deg
-                        )));
-                    }
                     let bytes = std::fs::read(&p).map_err(|e| SceneError::Io {
                         path: p.clone(),
                         source: e,
                     })?;
-                    Terrain::Raster(read_geotiff_dem(&p, &bytes, g, size)?)
+                    if g.north_up() {
+                        Terrain::Raster(read_geotiff_dem(&p, &bytes, g, size)?)
+                    } else {
+                        let verts = read_geotiff_dem_nodes(&p, &bytes, g, size)?;
+                        let dt = DelaunayTriangulation::<TinVertex>::bulk_load(verts)
+                            .map_err(|e| inv(format!("cannot triangulate the DEM: {e:?}")))?;
+                        Terrain::Tin(Box::new(dt))
+                    }
                 }
                 RasterFormat::BinaryF32 { nodes, spacing_m } => {
                     let bytes = std::fs::read(&p).map_err(|e| SceneError::Io {

@@ -94,7 +94,7 @@ impl V<'_> {
                 self.non_negative(&format!("{fk}.min_spacing_m"), *min_spacing_m)?;
                 continue;
             }
-            match crate::scene::landcover::class_object(class, square) {
+            match crate::scene::landcover::class_object(class, FootprintDesc::Box(square)) {
                 Some(ObjectDesc::TurbidPlot(p)) => self.turbid_plot(&fk, &p)?,
                 Some(ObjectDesc::Water(w)) => self.water(&fk, &w)?,
                 Some(ObjectDesc::Building(b)) => self.building(&fk, &b)?,
