@@ -326,12 +326,20 @@ pub fn spawn_scene(
                         ObjectDesc::TreeStand(s) => {
                             let seed =
                                 desc.seed ^ (k as u64 + 1).wrapping_mul(0x9E37_79B9_7F4A_7C15);
-                            spawn_stand(world, &ctx, i, s, &mats, seed)?
+                            spawn_stand(world, &ctx, i, s, &mats, seed).map_err(|e| match e {
+                                // A placement that does not fit: the class's entry is at fault.
+                                SceneError::Invalid { message, .. } => {
+                                    src.invalid(format!("objects[{i}].classes"), message)
+                                }
+                                other => other,
+                            })?
                         }
                         ObjectDesc::TurbidPlot(p) => spawn_plot(world, idx, p, &mats),
                         ObjectDesc::Building(b) => spawn_building(world, &ctx, idx, b, &mats),
                         ObjectDesc::Water(w) => spawn_water(world, &ctx, idx, w, &mats),
-                        _ => unreachable!("land-cover classes are plots, water or buildings"),
+                        _ => {
+                            unreachable!("land-cover classes are plots, stands, water or buildings")
+                        }
                     }
                 }
             }

@@ -1272,6 +1272,14 @@ const GEOSPATIAL: &[Case] = &[
         "extent",
     ),
     land_cover(
+        "landcover_stand_does_not_fit",
+        LC_FROM,
+        "version: 1, georeference: (crs: Epsg(32631), origin_map_m: (500000.0, 4800000.0)),||Ground((optics: \"soil\")), LandCover((path: \"d.tif\", classes: {1: TreeStand(species: [(name: \"a\", crown: (shape: Ellipsoid, base_height_m: 1.0, height_m: 2.0, radius_x_m: 1.0, foliage: Lai(1.0), optics: \"veg\"))], trees_per_ha: [100000.0], min_spacing_m: 5.0)})),",
+        || class_map(1.0),
+        "",
+        "objects[1].classes",
+    ),
+    land_cover(
         "landcover_stand_rotated",
         LC_FROM,
         "version: 1, georeference: (crs: Epsg(32631), origin_map_m: (500000.0, 4800000.0), x_axis_bearing_deg: 30.0),||Ground((optics: \"soil\")), LandCover((path: \"d.tif\", classes: {1: TreeStand(species: [(name: \"a\", crown: (shape: Ellipsoid, base_height_m: 1.0, height_m: 2.0, radius_x_m: 1.0, foliage: Lai(1.0), optics: \"veg\"))], trees_per_ha: [100.0])})),",
