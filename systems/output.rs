@@ -12,10 +12,12 @@ use bevy_ecs::prelude::*;
 
 pub use crate::resources::scene::OutputDir;
 
-/// Output · reads GridSpec, CellGrid, FacetStore, Materials, MaketReport · writes files into
-/// `OutputDir`.
+/// Output · reads GridSpec, CellGrid, FacetStore, Materials, MaketReport, SceneInfo (its
+/// georeference) · writes files into `OutputDir`.
+#[allow(clippy::too_many_arguments)]
 pub fn write_maket_products(
     out: Res<OutputDir>,
+    info: Option<Res<crate::resources::scene::SceneInfo>>,
     spec: Res<GridSpec>,
     grid: Res<CellGrid>,
     facets: Res<FacetStore>,
@@ -28,7 +30,8 @@ pub fn write_maket_products(
     if sel.is_some_and(|s| !wanted.iter().any(|p| s.wants(p))) {
         return;
     }
-    if let Err(e) = write_maket(&out.0, &spec, &grid, &facets, &mats, &report) {
+    let georef = info.as_ref().and_then(|i| i.georeference.as_ref());
+    if let Err(e) = write_maket(&out.0, &spec, &grid, &facets, &mats, &report, georef) {
         errors.0.push(e);
     }
 }

@@ -206,6 +206,29 @@ fn mesh_transform(m: &MeshDesc, is_gltf: bool, ground_z: f64) -> DMat4 {
         * axes
 }
 
+/// A scene error of a referenced file or of an object's field, given the scene line of the
+/// field (`field`: the object's path); an unreadable file is named with the scene line of its
+/// `path`.
+fn located(src: &SceneSource, field: &str, e: SceneError) -> SceneError {
+    match e {
+        SceneError::Invalid { at, field, message }
+            if at.line_col.is_none() && at.file == src.path =>
+        {
+            SceneError::Invalid {
+                at: src.at(&field),
+                field,
+                message,
+            }
+        }
+        // A referenced file that cannot be read: name it, and the scene line that refers to it.
+        SceneError::Io { path, source } => src.invalid(
+            format!("{field}.path"),
+            format!("{}: cannot read file: {source}", path.display()),
+        ),
+        other => other,
+    }
+}
+
 /// Spawns a validated scene into `world` (resources `SceneInfo`, `Materials`, `TerrainRes`,
 /// `Warnings`, and one or more entities per object).
 pub fn spawn_scene(
@@ -223,32 +246,27 @@ pub fn spawn_scene(
     let mut warnings = Vec::new();
     let base_dir = src.base_dir();
     let size = desc.grid.size_m;
+    let georef = match &desc.georeference {
+        Some(g) => Some(
+            crate::scene::georef::Georeference::from_desc(g)
+                .map_err(|(f, m)| src.invalid(format!("georeference.{f}"), m))?,
+        ),
+        None => None,
+    };
     // Terrain first: every object sits on it.
     let mut terrain = Terrain::Flat(0.0);
     for (i, o) in desc.objects.iter().enumerate() {
         if let ObjectDesc::Ground(g) = o {
             let field = format!("objects[{i}].topography");
-            terrain =
-                build_terrain(&g.topography, &base_dir, &src.path, &field, size).map_err(|e| {
-                    match e {
-                        SceneError::Invalid { at, field, message }
-                            if at.line_col.is_none() && at.file == src.path =>
-                        {
-                            SceneError::Invalid {
-                                at: src.at(&field),
-                                field,
-                                message,
-                            }
-                        }
-                        // A referenced file that cannot be read: name it, and the scene line
-                        // that refers to it.
-                        SceneError::Io { path, source } => src.invalid(
-                            format!("{field}.path"),
-                            format!("{}: cannot read file: {source}", path.display()),
-                        ),
-                        other => other,
-                    }
-                })?;
+            terrain = build_terrain(
+                &g.topography,
+                &base_dir,
+                &src.path,
+                &field,
+                size,
+                georef.as_ref(),
+            )
+            .map_err(|e| located(src, &field, e))?;
             world.spawn((
                 SourceObject(i as u32),
                 Ground {
@@ -280,7 +298,7 @@ pub fn spawn_scene(
                 &terrain,
                 &mats,
             ),
-            ObjectDesc::TreeStand(s) => spawn_stand(world, &ctx, i, s, &mats)?,
+            ObjectDesc::TreeStand(s) => spawn_stand(world, &ctx, i, s, &mats, desc.seed)?,
             ObjectDesc::TurbidPlot(p) => spawn_plot(world, idx, p, &mats),
             ObjectDesc::Building(b) => spawn_building(world, &ctx, idx, b, &mats),
             ObjectDesc::Water(w) => spawn_water(world, &ctx, idx, w, &mats),
@@ -289,6 +307,42 @@ pub fn spawn_scene(
                 spawn_leaf_list(world, &ctx, i, l, &mut mats, &mut warnings)?
             }
             ObjectDesc::Mesh(m) => spawn_mesh(world, &ctx, i, m, &mut mats, &mut warnings)?,
+            ObjectDesc::LandCover(l) => {
+                // The map's objects, spawned as the same objects written by hand.
+                let field = format!("objects[{i}]");
+                let objects = crate::scene::landcover::expand_land_cover(
+                    l,
+                    &ctx.base_dir,
+                    &src.path,
+                    &field,
+                    georef.as_ref(),
+                    size,
+                    desc.grid.boundary == BoundaryMode::Isolated,
+                )
+                .map_err(|e| located(src, &field, e))?;
+                for (k, o) in objects.iter().enumerate() {
+                    match o {
+                        // Each rectangle's stand draws from its own stream.
+                        ObjectDesc::TreeStand(s) => {
+                            let seed =
+                                desc.seed ^ (k as u64 + 1).wrapping_mul(0x9E37_79B9_7F4A_7C15);
+                            spawn_stand(world, &ctx, i, s, &mats, seed).map_err(|e| match e {
+                                // A placement that does not fit: the class's entry is at fault.
+                                SceneError::Invalid { message, .. } => {
+                                    src.invalid(format!("objects[{i}].classes"), message)
+                                }
+                                other => other,
+                            })?
+                        }
+                        ObjectDesc::TurbidPlot(p) => spawn_plot(world, idx, p, &mats),
+                        ObjectDesc::Building(b) => spawn_building(world, &ctx, idx, b, &mats),
+                        ObjectDesc::Water(w) => spawn_water(world, &ctx, idx, w, &mats),
+                        _ => {
+                            unreachable!("land-cover classes are plots, stands, water or buildings")
+                        }
+                    }
+                }
+            }
         }
     }
     let g = &desc.grid;
@@ -306,6 +360,7 @@ pub fn spawn_scene(
         height: g.height_m,
         subcells: g.subcells,
         boundary: g.boundary,
+        georeference: georef,
     });
     world.insert_resource(mats);
     world.insert_resource(crate::resources::tracking::DirectionRequest(
@@ -396,6 +451,7 @@ fn spawn_stand(
     i: usize,
     s: &TreeStandDesc,
     mats: &Materials,
+    seed: u64,
 ) -> Result<(), SceneError> {
     let idx = i as u32;
     let list = match &s.placement {
@@ -411,7 +467,7 @@ fn spawn_stand(
             } else {
                 None
             };
-            place_random(counts, *min_spacing_m, region, per, ctx.desc.seed, idx)
+            place_random(counts, *min_spacing_m, region, per, seed, idx)
                 .map_err(|m| ctx.src.invalid(format!("objects[{i}].placement"), m))?
         }
     };

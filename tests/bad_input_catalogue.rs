@@ -9,9 +9,14 @@
 //!
 //! Scene cases start from small inline scenes ([`BASE`], [`LIDAR`]) and replace one piece of
 //! text (the replacement must apply); a few start from the example scenes in `assets/scenes`.
+//! GeoTIFF DEM cases (issue #37) write a `d.tif` made by the `tiff` crate's own encoder
+//! (`common/geo.rs`) when they run.
 
 use std::path::{Path, PathBuf};
 use std::process::Command;
+
+#[path = "common/geo.rs"]
+mod geo;
 
 /// A small valid scene with every object kind that needs no file.
 const BASE: &str = r#"(
@@ -84,6 +89,9 @@ struct Case {
     to: &'static str,
     /// A file (name, content) written beside the scene.
     file: Option<(&'static str, &'static [u8])>,
+    /// A file (name, maker of its content) written beside the scene: GeoTIFFs made by the
+    /// `tiff` crate when the case runs.
+    made: Option<(&'static str, fn() -> Vec<u8>)>,
     /// Extra CLI arguments (after the scene path).
     args: &'static [&'static str],
     /// Text stderr must contain (field path, file name or flag).
@@ -108,6 +116,7 @@ const fn c(name: &'static str, from: &'static str, to: &'static str, needle: &'s
         from,
         to,
         file: None,
+        made: None,
         args: &[],
         needle,
         names: "",
@@ -168,6 +177,30 @@ const fn scene_file(
     }
 }
 
+/// A GeoTIFF DEM case: the base scene with a georeference and a GeoTiff ground reading `d.tif`,
+/// made by `make`; stderr must name `d.tif` and `needle`.
+const fn geotiff(name: &'static str, make: fn() -> Vec<u8>, needle: &'static str) -> Case {
+    Case {
+        made: Some(("d.tif", make)),
+        names: "d.tif",
+        ..c(name, GEO_FROM, GEO_TO, needle)
+    }
+}
+
+/// A GeoTIFF DEM case whose fault is in the scene (`to` replaces the georeferenced base's
+/// ground); stderr must name the scene and `needle`.
+const fn geotiff_scene(
+    name: &'static str,
+    from: &'static str,
+    to: &'static str,
+    needle: &'static str,
+) -> Case {
+    Case {
+        made: Some(("d.tif", good_dem)),
+        ..c(name, from, to, needle)
+    }
+}
+
 /// A valid scene with bad command-line arguments; stderr must name the flag.
 const fn args(name: &'static str, a: &'static [&'static str], needle: &'static str) -> Case {
     Case {
@@ -220,6 +253,9 @@ fn run_case(case: &Case) -> Result<(), String> {
     std::fs::write(&scene, &text).unwrap();
     if let Some((n, content)) = case.file {
         std::fs::write(dir.join(n), content).unwrap();
+    }
+    if let Some((n, make)) = case.made {
+        std::fs::write(dir.join(n), make()).unwrap();
     }
     let out_dir = dir.join("out");
     let named = match case.names {
@@ -1107,6 +1143,352 @@ const FILES: &[Case] = &[
     file("binary_nan", GROUND, "Ground((optics: \"soil\", topography: RasterFile((path: \"d.bin\", format: BinaryF32(nodes: (2, 2), spacing_m: (10.0, 10.0)))))),", ("d.bin", b"\x00\x00\xc0\x7f\x00\x00\x00\x00\x00\x00\x00\x00\x00\x00\x00\x00"), "d.bin"),
 ];
 
+/// The georeferenced base: origin (500000, 4800000) in EPSG:32631, ground from `d.tif`.
+const GEO_FROM: &str = "version: 1,||Ground((optics: \"soil\")),";
+const GEO_TO: &str = "version: 1, georeference: (crs: Epsg(32631), origin_map_m: (500000.0, 4800000.0)),||Ground((optics: \"soil\", topography: RasterFile((path: \"d.tif\", format: GeoTiff)))),";
+
+/// A DEM covering the base scene's map extent: 8 × 8 pixels of 2 m from (499997, 4800013).
+fn base_dem() -> geo::Dem {
+    geo::Dem {
+        nx: 8,
+        ny: 8,
+        values: (0..64).map(|k| 10.0 + 0.25 * (k % 8) as f64).collect(),
+        tie: (499_997.0, 4_800_013.0),
+        pixel_m: 2.0,
+        epsg: Some(32631),
+        nodata: None,
+        raster_type: 1,
+    }
+}
+
+fn tif(d: &geo::Dem) -> Vec<u8> {
+    geo::dem_tiff(
+        d,
+        geo::Sample::F32,
+        tiff::encoder::Compression::Uncompressed,
+    )
+}
+
+fn good_dem() -> Vec<u8> {
+    tif(&base_dem())
+}
+
+/// The georeferenced base with a land-cover map `d.tif` whose table knows class 1 only.
+const LC_FROM: &str = "version: 1,||Ground((optics: \"soil\")),";
+const LC_TO: &str = "version: 1, georeference: (crs: Epsg(32631), origin_map_m: (500000.0, 4800000.0)),||Ground((optics: \"soil\")), LandCover((path: \"d.tif\", classes: {1: TurbidPlot(top_m: 1.0, foliage: Lai(2.0), optics: \"veg\")})),";
+
+/// A class map over the base scene (classes 1, and `other` at pixel (3, 4)).
+fn class_map(other: f64) -> Vec<u8> {
+    let mut d = geo::Dem {
+        values: vec![1.0; 64],
+        ..base_dem()
+    };
+    d.values[3 + 8 * 4] = other;
+    geo::dem_tiff(
+        &d,
+        geo::Sample::F32,
+        tiff::encoder::Compression::Uncompressed,
+    )
+}
+
+/// A land-cover case: stderr must name `names` ("" the scene, else the file) and `needle`.
+const fn land_cover(
+    name: &'static str,
+    from: &'static str,
+    to: &'static str,
+    make: fn() -> Vec<u8>,
+    names: &'static str,
+    needle: &'static str,
+) -> Case {
+    Case {
+        made: Some(("d.tif", make)),
+        names,
+        ..c(name, from, to, needle)
+    }
+}
+
+const GEOSPATIAL: &[Case] = &[
+    c(
+        "geo_crs_geographic",
+        "version: 1,",
+        "version: 1, georeference: (crs: Epsg(4326), origin_map_m: (500000.0, 4800000.0)),",
+        "georeference.crs",
+    ),
+    c(
+        "geo_crs_unknown",
+        "version: 1,",
+        "version: 1, georeference: (crs: Epsg(12), origin_map_m: (500000.0, 4800000.0)),",
+        "georeference.crs",
+    ),
+    c(
+        "geo_crs_huge",
+        "version: 1,",
+        "version: 1, georeference: (crs: Epsg(4294967295), origin_map_m: (500000.0, 4800000.0)),",
+        "georeference.crs",
+    ),
+    c(
+        "geo_wkt_geographic",
+        "version: 1,",
+        "version: 1, georeference: (crs: Wkt(\"GEOGCS[\\\"WGS 84\\\"]\"), origin_map_m: (0.0, 0.0)),",
+        "georeference.crs",
+    ),
+    c(
+        "geo_wkt_feet",
+        "version: 1,",
+        "version: 1, georeference: (crs: Wkt(\"PROJCS[\\\"x\\\",UNIT[\\\"foot\\\",0.3048]]\"), origin_map_m: (0.0, 0.0)),",
+        "georeference.crs",
+    ),
+    c(
+        "geo_origin_inf",
+        "version: 1,",
+        "version: 1, georeference: (crs: Epsg(32631), origin_map_m: (inf, 0.0)),",
+        "georeference.origin_map_m",
+    ),
+    c(
+        "geo_bearing_range",
+        "version: 1,",
+        "version: 1, georeference: (crs: Epsg(32631), origin_map_m: (0.0, 0.0), x_axis_bearing_deg: 360.0),",
+        "georeference.x_axis_bearing_deg",
+    ),
+    c(
+        "geo_unknown_field",
+        "version: 1,",
+        "version: 1, georeference: (crs: Epsg(32631), origin_m: (0.0, 0.0)),",
+        LINE,
+    ),
+    geotiff_scene(
+        "dem_tif_without_georeference",
+        GROUND,
+        "Ground((optics: \"soil\", topography: RasterFile((path: \"d.tif\", format: GeoTiff)))),",
+        "topography",
+    ),
+    // Rotated 30°, the scene's map bounding box leaves the DEM that covers it north-up.
+    land_cover(
+        "dem_tif_rotated_scene_outside",
+        GEO_FROM,
+        "version: 1, georeference: (crs: Epsg(32631), origin_map_m: (500000.0, 4800000.0), x_axis_bearing_deg: 30.0),||Ground((optics: \"soil\", topography: RasterFile((path: \"d.tif\", format: GeoTiff)))),",
+        good_dem,
+        "d.tif",
+        "extent",
+    ),
+    land_cover(
+        "landcover_stand_does_not_fit",
+        LC_FROM,
+        "version: 1, georeference: (crs: Epsg(32631), origin_map_m: (500000.0, 4800000.0)),||Ground((optics: \"soil\")), LandCover((path: \"d.tif\", classes: {1: TreeStand(species: [(name: \"a\", crown: (shape: Ellipsoid, base_height_m: 1.0, height_m: 2.0, radius_x_m: 1.0, foliage: Lai(1.0), optics: \"veg\"))], trees_per_ha: [100000.0], min_spacing_m: 5.0)})),",
+        || class_map(1.0),
+        "",
+        "objects[1].classes",
+    ),
+    land_cover(
+        "landcover_stand_rotated",
+        LC_FROM,
+        "version: 1, georeference: (crs: Epsg(32631), origin_map_m: (500000.0, 4800000.0), x_axis_bearing_deg: 30.0),||Ground((optics: \"soil\")), LandCover((path: \"d.tif\", classes: {1: TreeStand(species: [(name: \"a\", crown: (shape: Ellipsoid, base_height_m: 1.0, height_m: 2.0, radius_x_m: 1.0, foliage: Lai(1.0), optics: \"veg\"))], trees_per_ha: [100.0])})),",
+        || class_map(1.0),
+        "",
+        "objects[1].classes[1]",
+    ),
+    geotiff_scene(
+        "dem_tif_origin_m",
+        GEO_FROM,
+        "version: 1, georeference: (crs: Epsg(32631), origin_map_m: (500000.0, 4800000.0)),||Ground((optics: \"soil\", topography: RasterFile((path: \"d.tif\", format: GeoTiff, origin_m: (1.0, 0.0))))),",
+        "origin_m",
+    ),
+    geotiff_scene(
+        "dem_tif_missing",
+        GEO_FROM,
+        "version: 1, georeference: (crs: Epsg(32631), origin_map_m: (500000.0, 4800000.0)),||Ground((optics: \"soil\", topography: RasterFile((path: \"nope.tif\", format: GeoTiff)))),",
+        "nope.tif",
+    ),
+    geotiff(
+        "dem_tif_wrong_crs",
+        || {
+            tif(&geo::Dem {
+                epsg: Some(32632),
+                ..base_dem()
+            })
+        },
+        "ProjectedCRSGeoKey",
+    ),
+    geotiff(
+        "dem_tif_no_geokeys",
+        || {
+            tif(&geo::Dem {
+                epsg: None,
+                ..base_dem()
+            })
+        },
+        "ModelTiepointTag",
+    ),
+    geotiff(
+        "dem_tif_nodata_everywhere",
+        || {
+            tif(&geo::Dem {
+                values: vec![-9999.0; 64],
+                nodata: Some(-9999.0),
+                ..base_dem()
+            })
+        },
+        "GDAL_NODATA",
+    ),
+    geotiff(
+        "dem_tif_nodata_inside",
+        || {
+            let mut d = base_dem();
+            d.values[3 + 8 * 4] = -9999.0;
+            d.nodata = Some(-9999.0);
+            tif(&d)
+        },
+        "GDAL_NODATA",
+    ),
+    geotiff(
+        "dem_tif_nan_inside",
+        || {
+            let mut d = base_dem();
+            d.values[3 + 8 * 4] = f64::NAN;
+            tif(&d)
+        },
+        "GDAL_NODATA",
+    ),
+    geotiff(
+        "dem_tif_extent_outside",
+        || {
+            tif(&geo::Dem {
+                tie: (600_000.0, 4_800_013.0),
+                ..base_dem()
+            })
+        },
+        "extent",
+    ),
+    geotiff(
+        "dem_tif_extent_partly_outside",
+        || {
+            tif(&geo::Dem {
+                tie: (500_001.0, 4_800_013.0),
+                ..base_dem()
+            })
+        },
+        "extent",
+    ),
+    geotiff("dem_tif_palette_16bit", geo::palette_tiff, "palette"),
+    geotiff("dem_tif_rgb", geo::rgb_tiff, "bands"),
+    geotiff(
+        "dem_tif_truncated",
+        || {
+            let b = good_dem();
+            b[..b.len() / 2].to_vec()
+        },
+        "image",
+    ),
+    geotiff(
+        "dem_tif_not_a_tiff",
+        || b"ncols 2\nnrows 2\n".to_vec(),
+        "image",
+    ),
+    geotiff("dem_tif_empty", Vec::new, "image"),
+    land_cover(
+        "landcover_unknown_class",
+        LC_FROM,
+        LC_TO,
+        || class_map(7.0),
+        "",
+        "objects[1].classes",
+    ),
+    land_cover(
+        "landcover_fractional_code",
+        LC_FROM,
+        LC_TO,
+        || class_map(1.5),
+        "d.tif",
+        "image",
+    ),
+    land_cover(
+        "landcover_outside",
+        LC_FROM,
+        LC_TO,
+        || {
+            tif(&geo::Dem {
+                values: vec![1.0; 64],
+                tie: (400_000.0, 4_800_013.0),
+                ..base_dem()
+            })
+        },
+        "d.tif",
+        "extent",
+    ),
+    land_cover(
+        "landcover_wrong_crs",
+        LC_FROM,
+        LC_TO,
+        || {
+            tif(&geo::Dem {
+                values: vec![1.0; 64],
+                epsg: Some(32630),
+                ..base_dem()
+            })
+        },
+        "d.tif",
+        "ProjectedCRSGeoKey",
+    ),
+    land_cover(
+        "landcover_without_georeference",
+        GROUND,
+        "Ground((optics: \"soil\")), LandCover((path: \"d.tif\", classes: {1: Nothing})),",
+        || class_map(1.0),
+        "",
+        "objects[1]",
+    ),
+    land_cover(
+        "landcover_leaf_area",
+        LC_FROM,
+        "version: 1, georeference: (crs: Epsg(32631), origin_map_m: (500000.0, 4800000.0)),||Ground((optics: \"soil\")), LandCover((path: \"d.tif\", classes: {1: TurbidPlot(top_m: 1.0, foliage: LeafArea(20.0), optics: \"veg\")})),",
+        || class_map(1.0),
+        "",
+        "foliage",
+    ),
+    land_cover(
+        "landcover_bad_optics",
+        LC_FROM,
+        "version: 1, georeference: (crs: Epsg(32631), origin_map_m: (500000.0, 4800000.0)),||Ground((optics: \"soil\")), LandCover((path: \"d.tif\", classes: {1: Water(optics: \"veg\")})),",
+        || class_map(1.0),
+        "",
+        "optics",
+    ),
+    c(
+        "sun_position_no_place",
+        "illumination: (sun_zenith_deg: 30.0, sun_azimuth_deg: 0.0, skyl: [0.1]),",
+        "illumination: (sun_position: (utc: \"2024-06-21T10:00:00\"), skyl: [0.1]),",
+        "illumination.sun_position.latitude_deg",
+    ),
+    c(
+        "sun_position_lambert_crs",
+        "version: 1,||illumination: (sun_zenith_deg: 30.0, sun_azimuth_deg: 0.0, skyl: [0.1]),",
+        "version: 1, georeference: (crs: Epsg(2154), origin_map_m: (700000.0, 6600000.0)),||illumination: (sun_position: (utc: \"2024-06-21T10:00:00\"), skyl: [0.1]),",
+        "illumination.sun_position.latitude_deg",
+    ),
+    c(
+        "sun_position_half_place",
+        "version: 1,||illumination: (sun_zenith_deg: 30.0, sun_azimuth_deg: 0.0, skyl: [0.1]),",
+        "version: 1, georeference: (crs: Epsg(32631), origin_map_m: (500000.0, 4800000.0)),||illumination: (sun_position: (utc: \"2024-06-21T10:00:00\", latitude_deg: 43.0), skyl: [0.1]),",
+        "illumination.sun_position.latitude_deg",
+    ),
+    land_cover(
+        "landcover_stand_densities",
+        LC_FROM,
+        "version: 1, georeference: (crs: Epsg(32631), origin_map_m: (500000.0, 4800000.0)),||Ground((optics: \"soil\")), LandCover((path: \"d.tif\", classes: {1: TreeStand(species: [(name: \"a\", crown: (shape: Ellipsoid, base_height_m: 1.0, height_m: 2.0, radius_x_m: 1.0, foliage: Lai(1.0), optics: \"veg\"))], trees_per_ha: [100.0, 50.0])})),",
+        || class_map(1.0),
+        "",
+        "trees_per_ha",
+    ),
+    land_cover(
+        "landcover_missing",
+        LC_FROM,
+        "version: 1, georeference: (crs: Epsg(32631), origin_map_m: (500000.0, 4800000.0)),||Ground((optics: \"soil\")), LandCover((path: \"nope.tif\", classes: {1: Nothing})),",
+        || class_map(1.0),
+        "",
+        "nope.tif",
+    ),
+];
+
 const LIDARS: &[Case] = &[
     lidar(
         "lidar_band",
@@ -1489,6 +1871,11 @@ fn section_and_syntax_cases() {
 }
 
 #[test]
+fn geospatial_cases() {
+    run_all(GEOSPATIAL);
+}
+
+#[test]
 fn cli_cases() {
     run_all(CLI);
 }
@@ -1508,6 +1895,7 @@ fn catalogue_is_complete_and_its_bases_are_valid() {
         FILES,
         LIDARS,
         SECTIONS_AND_SYNTAX,
+        GEOSPATIAL,
         CLI,
     ]
     .iter()

@@ -14,11 +14,11 @@ import sys
 SOURCES = [
     ("src/scene/desc.rs", [
         "SceneDesc", "GridDesc", "BoundaryMode", "BandDesc", "OpticsDesc", "IlluminationDesc",
-        "SunPositionDesc", "ObjectDesc", "GroundDesc", "TopographyDesc", "RasterDesc",
+        "SunPositionDesc", "GeoreferenceDesc", "CrsDesc", "ObjectDesc", "GroundDesc", "TopographyDesc", "RasterDesc",
         "RasterFileDesc", "RasterFormat", "TreeDesc", "TreeStandDesc", "SpeciesDesc",
         "PlacementDesc", "TrunkDesc", "CrownDesc", "FoliageDesc", "TurbidPlotDesc",
         "FootprintDesc", "BuildingDesc", "RoofDesc", "WaterDesc", "MeshDesc", "MeshGroupOptics",
-        "LeavesDesc", "LeafListDesc", "RadiativeDesc", "Preset", "TurbidSubfaces", "LidarDesc",
+        "LeavesDesc", "LeafListDesc", "LandCoverDesc", "LandCoverClass", "RadiativeDesc", "Preset", "TurbidSubfaces", "LidarDesc",
         "LidarPlatform", "PulsePattern", "PhotonCountingDesc", "LidarSampler", "LidarEstimator",
     ]),
     ("src/geometry/crown.rs", ["CrownShape"]),

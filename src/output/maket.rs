@@ -1,7 +1,8 @@
 //! Maket products: `maket.json` (the `MaketReport`), `lai.exr` (leaf area index per column, one
 //! channel per turbid material plus `total`), `dsm.exr` (digital surface model: highest object
 //! point per column, metres), `density.csv` (non-empty turbid cells: i, j, k, material,
-//! density_m2_m3).
+//! density_m2_m3); with a scene georeference also `lai.tif`/`dsm.tif` and their ENVI pairs
+//! ([`crate::output::geo`]).
 
 use crate::io::atomic::write_atomic;
 use crate::io::exr_out::{ExrLayer, write_exr_layers};
@@ -50,7 +51,8 @@ pub fn dsm(spec: &GridSpec, grid: &CellGrid, facets: &FacetStore) -> Vec<f64> {
     h
 }
 
-/// Writes `maket.json`, `lai.exr`, `dsm.exr` and `density.csv` into `dir` (atomic writes).
+/// Writes `maket.json`, `lai.exr`, `dsm.exr` and `density.csv` into `dir` (atomic writes), and
+/// with a georeference `lai.tif`, `lai.dat`, `lai.hdr`, `dsm.tif`, `dsm.dat`, `dsm.hdr`.
 #[allow(clippy::too_many_arguments)]
 pub fn write_maket(
     dir: &std::path::Path,
@@ -59,6 +61,7 @@ pub fn write_maket(
     facets: &FacetStore,
     mats: &Materials,
     report: &MaketReport,
+    georef: Option<&crate::scene::georef::Georeference>,
 ) -> Result<(), String> {
     std::fs::create_dir_all(dir)
         .map_err(|e| format!("{}: cannot create output folder: {e}", dir.display()))?;
@@ -77,6 +80,24 @@ pub fn write_maket(
         }
     }
     channels.push(("lai.total".to_string(), total));
+    let pixels = crate::output::geo::PixelGrid {
+        n: (nx, ny),
+        pixel_m: (spec.cell.x, spec.cell.y),
+        origin_m: (spec.origin.x, spec.origin.y),
+    };
+    let geo_raster = |stem: &str, channels: &[(String, Vec<f64>)]| -> Result<(), String> {
+        let Some(g) = georef else { return Ok(()) };
+        let bands: Vec<crate::io::geotiff::TiffBand> = channels
+            .iter()
+            .map(|(name, v)| crate::io::geotiff::TiffBand {
+                name: name.clone(),
+                wavelength_nm: None,
+                values: v,
+            })
+            .collect();
+        crate::output::geo::write_geo_raster(&dir.join(stem), &pixels, &bands, g)
+    };
+    geo_raster("lai", &channels)?;
     write_exr_layers(
         &dir.join("lai.exr"),
         nx,
@@ -86,14 +107,15 @@ pub fn write_maket(
             channels,
         }],
     )?;
-    let d = dsm(spec, grid, facets);
+    let d = vec![("dsm.altitude_m".to_string(), dsm(spec, grid, facets))];
+    geo_raster("dsm", &d)?;
     write_exr_layers(
         &dir.join("dsm.exr"),
         nx,
         ny,
         &[ExrLayer {
             name: "dsm".into(),
-            channels: vec![("dsm.altitude_m".into(), d)],
+            channels: d,
         }],
     )?;
     let mut csv = String::from("i,j,k,material,density_m2_m3\n");

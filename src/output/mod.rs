@@ -4,5 +4,6 @@
 //! are written by [`crate::lidar::products`]. The ECS glue that calls these writers is
 //! `systems/output.rs`.
 
+pub mod geo;
 pub mod maket;
 pub mod radiative;

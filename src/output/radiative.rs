@@ -398,7 +398,9 @@ impl Budget<'_> {
 /// The image mean equals the direction's BRF. The EXR header carries the pixel size
 /// (`pixel_size_x_m`, `pixel_size_y_m`, `pixelAspectRatio`), η (`image_oversampling`), the
 /// scene origin and the view direction. A PNG quick-look of the first band (linear grey scale
-/// from 0 to the image maximum) goes alongside.
+/// from 0 to the image maximum) goes alongside, and with a scene georeference a GeoTIFF and an
+/// ENVI pair of the same values ([`crate::output::geo`]: every `brf` band, then every `hdrf`
+/// band, with the band names and wavelengths).
 fn write_images(
     dir: &std::path::Path,
     p: &crate::radiative::products::RadiativeProducts,
@@ -468,6 +470,32 @@ fn write_images(
             }
         }
         let name = format!("view_{:05.1}_{:05.1}", d.zenith_deg(), d.azimuth_deg());
+        if let Some(g) = &info.georeference {
+            let mut bands: Vec<crate::io::geotiff::TiffBand> = Vec::new();
+            for kind in ["brf.", "hdrf."] {
+                for (k, (cname, v)) in channels.iter().enumerate() {
+                    if cname.starts_with(kind) {
+                        let b = if raw.has_sky { k / 2 } else { k };
+                        bands.push(crate::io::geotiff::TiffBand {
+                            name: cname.clone(),
+                            wavelength_nm: Some(info.bands[b].wavelength_nm),
+                            values: v,
+                        });
+                    }
+                }
+            }
+            let grid = crate::output::geo::PixelGrid {
+                n: (nx, ny),
+                pixel_m: ig.pixel_m,
+                origin_m: (spec.origin.x, spec.origin.y),
+            };
+            crate::output::geo::write_geo_raster(
+                &dir.join("images").join(&name),
+                &grid,
+                &bands,
+                g,
+            )?;
+        }
         write_exr_layers_with(
             &dir.join("images").join(format!("{name}.exr")),
             nx,

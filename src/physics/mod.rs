@@ -1,5 +1,6 @@
 //! Pure physics: formulas with their sources and units, no ECS.
 pub mod brdf;
+pub mod geodesy;
 pub mod lad;
 pub mod phase;
 pub mod prospect;

@@ -43,6 +43,9 @@ pub struct SceneInfo {
     pub subcells: u32,
     /// Boundary mode.
     pub boundary: BoundaryMode,
+    /// Where the scene lies on a map (`georeference` of the scene); `None`: no geospatial
+    /// products.
+    pub georeference: Option<crate::scene::georef::Georeference>,
 }
 
 pub use crate::scene::resolve::Illumination;

@@ -62,6 +62,37 @@ pub struct SceneDesc {
     /// instrument needs the passive radiance.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub passive: Option<bool>,
+    /// Where the scene lies on a map (CRS, map coordinates of the scene origin, bearing of
+    /// +x). Absent: no geospatial work (no GeoTIFF/ENVI products, no GeoTIFF DEM).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub georeference: Option<GeoreferenceDesc>,
+}
+
+/// The scene's place on a map: a projected CRS in metres, the map coordinates (easting,
+/// northing) of the scene origin (x = y = 0), and the grid bearing of the scene's +x axis.
+/// A scene point (x, y) lies at E = E₀ + x·sin β − y·cos β, N = N₀ + x·cos β + y·sin β.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct GeoreferenceDesc {
+    /// The map's coordinate reference system: `Epsg(32631)` or `Wkt("PROJCS[...]")`; a
+    /// projected CRS whose unit is the metre.
+    pub crs: CrsDesc,
+    /// Map coordinates (easting, northing) of the scene origin, metres.
+    pub origin_map_m: Xy,
+    /// Grid bearing of the scene's +x axis, degrees clockwise from grid north, in [0, 360)
+    /// (default 90: +x points east and +y north, as `sun_position.scene_x_bearing_deg`).
+    #[serde(default = "default_scene_x_bearing")]
+    pub x_axis_bearing_deg: f64,
+}
+
+/// A coordinate reference system.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub enum CrsDesc {
+    /// An EPSG code (projected, metres), e.g. 32631 (WGS 84 / UTM zone 31N).
+    Epsg(u32),
+    /// A WKT definition (`PROJCS[...]` or `PROJCRS[...]`, metres); its EPSG authority code,
+    /// when it ends with one, is what the products carry.
+    Wkt(String),
 }
 
 impl SceneDesc {
@@ -411,7 +442,8 @@ pub struct IlluminationDesc {
 /// Sun position from a UTC date-time and a place, computed at spawn by the NREL Solar Position
 /// Algorithm (Reda & Andreas 2004, *Solar Energy* 76:577; `physics::sun::solar_position`,
 /// ±0.0003°), e.g. `sun_position: (utc: "2003-10-17T19:30:30", latitude_deg: 39.742476,
-/// longitude_deg: -105.1786, altitude_m: 1830.14)`.
+/// longitude_deg: -105.1786, altitude_m: 1830.14)`; in a georeferenced scene the place and the
+/// bearing may be left to the georeference (`sun_position: (utc: "2024-06-21T11:00:00")`).
 ///
 /// The scene sun zenith is the apparent (refracted) topocentric zenith when `refraction` is on,
 /// the geometric one otherwise; the scene azimuth is φ = (β − γ) mod 360°, γ the compass
@@ -423,17 +455,23 @@ pub struct SunPositionDesc {
     /// UTC date-time `YYYY-MM-DDTHH:MM:SS` (a space may replace `T`; fractions of a second and a
     /// trailing `Z` are accepted), year −2000…6000.
     pub utc: String,
-    /// Geodetic latitude, degrees north, in [−90, 90].
-    pub latitude_deg: f64,
-    /// Longitude, degrees east of Greenwich, in [−180, 180] (west negative).
-    pub longitude_deg: f64,
+    /// Geodetic latitude, degrees north, in [−90, 90]. Default (with `longitude_deg` absent
+    /// too): that of the scene centre, from the scene's `georeference` (UTM and transverse
+    /// Mercator CRSs; required without a georeference).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub latitude_deg: Option<f64>,
+    /// Longitude, degrees east of Greenwich, in [−180, 180] (west negative). Default: as
+    /// `latitude_deg`.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub longitude_deg: Option<f64>,
     /// Altitude of the scene above sea level, metres (default 0).
     #[serde(default)]
     pub altitude_m: f64,
-    /// Compass bearing of the scene's +x axis, degrees clockwise from north (default 90: +x
-    /// points east and +y north, DART's convention).
-    #[serde(default = "default_scene_x_bearing")]
-    pub scene_x_bearing_deg: f64,
+    /// Compass bearing of the scene's +x axis, degrees clockwise from true north (default: from
+    /// the scene's `georeference`, its grid bearing plus the meridian convergence at the scene
+    /// centre; without a georeference 90: +x points east and +y north, DART's convention).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub scene_x_bearing_deg: Option<f64>,
     /// Apply atmospheric refraction to the zenith angle (default true; Reda & Andreas 2004,
     /// §3.14, with `pressure_hpa` and `temperature_c`).
     #[serde(default = "yes")]
@@ -491,6 +529,77 @@ pub enum ObjectDesc {
     Leaves(LeavesDesc),
     /// Disk leaves read from a RAMI leaf-list file.
     LeafList(LeafListDesc),
+    /// Objects from a land-cover classification GeoTIFF and a class table (needs the scene's
+    /// `georeference`).
+    LandCover(LandCoverDesc),
+}
+
+/// A land-cover map (DART 5 paper §2, "Maket": landscapes from classification maps): a
+/// single-band GeoTIFF of integer class codes in the scene's CRS, north-up, covering the
+/// scene's map extent, and a table giving what each class becomes. Pixels of one class are
+/// merged into rectangles (row runs joined down the rows) and each rectangle becomes one
+/// object exactly as if written by hand with a `Box` footprint, clipped to the scene (pixels at
+/// the scene edge are clipped, not dropped); in a rotated scene the footprint is the rotated
+/// rectangle clipped to the scene (a `Polygon`; `TreeStand` classes need +x east). A cell
+/// shared by several classes gets each one's share by exact area. Pixels equal to the raster's
+/// `GDAL_NODATA` are left bare.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+pub struct LandCoverDesc {
+    /// Path of the classification GeoTIFF, relative to the scene file's folder.
+    pub path: String,
+    /// Class code → what it becomes; a code found in the map without an entry is an error.
+    pub classes: BTreeMap<u32, LandCoverClass>,
+}
+
+/// What the pixels of one land-cover class become.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub enum LandCoverClass {
+    /// Nothing: the scene's ground shows (bare soil, roads).
+    Nothing,
+    /// Turbid vegetation (grass, crops, a closed canopy as a layer): a `TurbidPlot` per
+    /// rectangle.
+    TurbidPlot {
+        /// Bottom of the vegetation above the local ground, metres.
+        #[serde(default)]
+        bottom_m: f64,
+        /// Top of the vegetation above the local ground, metres.
+        top_m: f64,
+        /// `Lai` or `LeafAreaDensity` (a `LeafArea` total has no meaning per pixel).
+        foliage: FoliageDesc,
+        /// Name of a `Turbid` optical property.
+        optics: String,
+    },
+    /// A water surface: a `Water` object per rectangle.
+    Water {
+        /// Altitude of the surface, metres (default: as `Water`).
+        #[serde(default)]
+        altitude_m: Option<f64>,
+        /// Name of a facet optical property.
+        optics: String,
+    },
+    /// A tree stand: per rectangle a `TreeStand` with seeded random placement (its own stream
+    /// per rectangle), the number of trees of each species its density × the rectangle's area
+    /// (fractions carried from rectangle to rectangle, so a class gets its density × area to
+    /// within one tree). In an isolated scene trunks keep a crown radius from the scene's edges.
+    TreeStand {
+        /// Species templates (trunk, crown).
+        species: Vec<SpeciesDesc>,
+        /// Trees per hectare of each species.
+        trees_per_ha: Vec<f64>,
+        /// Minimum distance between trunks, metres (default 0).
+        #[serde(default)]
+        min_spacing_m: f64,
+    },
+    /// Buildings of the footprint height: a flat-roofed `Building` per rectangle.
+    Building {
+        /// Wall height above the lowest ground point under the rectangle, metres.
+        wall_height_m: f64,
+        /// Name of a facet optical property for walls.
+        wall_optics: String,
+        /// Name of a facet optical property for the roof.
+        roof_optics: String,
+    },
 }
 
 /// A RAMI leaf list (`radius x y z nx ny nz` per line, metres; see [`crate::io::leaf_list`]).
@@ -596,6 +705,13 @@ pub enum RasterFormat {
     /// ESRI ASCII grid (`ncols`, `nrows`, `xllcorner`/`xllcenter`, `cellsize`, optional `nodata_value`).
     /// Rows are stored north (max y) first; node values are taken at cell centres.
     EsriAscii,
+    /// A single-band GeoTIFF of elevations, metres (8–64-bit integers or floats; GDAL's
+    /// no-data value honoured): placed on the scene through the scene's `georeference` (same
+    /// CRS), cropped to the scene's map extent. Pixel values are nodes at pixel centres
+    /// (PixelIsArea) or at the tie point (PixelIsPoint). With +x east the nodes form the same
+    /// raster ground as an ESRI grid; in a rotated scene they are triangulated (Delaunay) at
+    /// their scene positions. `origin_m` must be left at (0, 0).
+    GeoTiff,
     /// Raw little-endian f32 values, x fastest then y; dimensions and spacing given in the scene.
     BinaryF32 {
         /// Number of nodes along x and y.

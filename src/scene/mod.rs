@@ -5,6 +5,8 @@
 pub mod desc;
 pub mod error;
 pub mod generators;
+pub mod georef;
+pub mod landcover;
 pub mod locate;
 pub mod resolve;
 pub mod terrain_input;

@@ -205,17 +205,54 @@ fn sun_error(e: SunError) -> (&'static str, String) {
 /// on the sub-field `utc`.
 pub fn sun_from_position(
     p: &SunPositionDesc,
+    georeference: Option<&crate::scene::desc::GeoreferenceDesc>,
+    size: (f64, f64),
 ) -> Result<(SolarPosition, SceneAngles), (&'static str, String)> {
     let time = UtcDateTime::parse(&p.utc).map_err(sun_error)?;
-    if !p.scene_x_bearing_deg.is_finite() {
+    // The place and the bearing of +x from the georeference (scene centre), when not given.
+    let derived = || -> Result<(f64, f64, f64), (&'static str, String)> {
+        let g = georeference.ok_or((
+            "latitude_deg",
+            "give latitude_deg and longitude_deg (or a scene georeference to take them from)"
+                .to_string(),
+        ))?;
+        let g = crate::scene::georef::Georeference::from_desc(g)
+            .map_err(|(_, m)| ("latitude_deg", format!("the georeference is invalid: {m}")))?;
+        g.geographic(size.0 / 2.0, size.1 / 2.0).map_err(|m| {
+            (
+                "latitude_deg",
+                format!("{m}; give latitude_deg, longitude_deg and scene_x_bearing_deg"),
+            )
+        })
+    };
+    let (latitude_deg, longitude_deg) = match (p.latitude_deg, p.longitude_deg) {
+        (Some(la), Some(lo)) => (la, lo),
+        (None, None) => {
+            let (la, lo, _) = derived()?;
+            (la, lo)
+        }
+        (Some(_), None) | (None, Some(_)) => {
+            return Err((
+                "latitude_deg",
+                "give both latitude_deg and longitude_deg, or neither (georeferenced scene)"
+                    .to_string(),
+            ));
+        }
+    };
+    let bearing = match p.scene_x_bearing_deg {
+        Some(b) => b,
+        None if georeference.is_some() => derived()?.2,
+        None => crate::physics::sun::DEFAULT_SCENE_X_BEARING_DEG,
+    };
+    if !bearing.is_finite() {
         return Err((
             "scene_x_bearing_deg",
-            format!("must be a finite angle, got {}", p.scene_x_bearing_deg),
+            format!("must be a finite angle, got {bearing}"),
         ));
     }
     let observer = Observer {
-        latitude_deg: p.latitude_deg,
-        longitude_deg: p.longitude_deg,
+        latitude_deg,
+        longitude_deg,
         altitude_m: p.altitude_m,
     };
     let refraction = Refraction {
@@ -233,14 +270,14 @@ pub fn sun_from_position(
         p.refraction.then_some(&refraction),
     )
     .map_err(sun_error)?;
-    let angles = pos.scene_angles(p.scene_x_bearing_deg);
+    let angles = pos.scene_angles(bearing);
     if angles.zenith_deg.is_nan() || angles.zenith_deg >= 90.0 {
         return Err((
             "utc",
             format!(
                 "the sun is below the horizon at {time} UTC, latitude {}°, longitude {}° ({} zenith {:.4}°): choose a daytime date and time",
-                p.latitude_deg,
-                p.longitude_deg,
+                latitude_deg,
+                longitude_deg,
                 if p.refraction {
                     "apparent"
                 } else {
@@ -298,7 +335,7 @@ pub fn illumination(
         il.sun_azimuth_deg,
     ) {
         (Some(p), _, _) => {
-            let (pos, angles) = sun_from_position(p)
+            let (pos, angles) = sun_from_position(p, desc.georeference.as_ref(), desc.grid.size_m)
                 .map_err(|(f, m)| src.invalid(format!("illumination.sun_position.{f}"), m))?;
             let factor = p
                 .earth_sun_distance_correction

@@ -1,15 +1,23 @@
-//! The scene's ground from its description: ESRI ASCII and raw `f32` raster files, inline
-//! rasters and scattered points, turned into a [`Terrain`] (the geometry lives in
+//! The scene's ground from its description: ESRI ASCII, GeoTIFF (placed through the scene's
+//! georeference and cropped to the scene's map extent; issue #37) and raw `f32` raster files,
+//! inline rasters and scattered points, turned into a [`Terrain`] (the geometry lives in
 //! [`crate::geometry::terrain`]). Errors name the scene file, the raster file and the field.
 
 use crate::geometry::terrain::{Raster, Terrain, TinVertex};
 use crate::scene::desc::{RasterDesc, RasterFileDesc, RasterFormat, TopographyDesc};
 use crate::scene::error::{Location, SceneError};
+use crate::scene::georef::Georeference;
 use glam::DVec3;
 use spade::{DelaunayTriangulation, Point2, Triangulation};
 use std::path::Path;
 
-fn err(path: &Path, line: Option<usize>, field: &str, message: impl Into<String>) -> SceneError {
+/// An `Invalid` error located in `path` (a raster file, or the scene), at `line` when known.
+pub fn err(
+    path: &Path,
+    line: Option<usize>,
+    field: &str,
+    message: impl Into<String>,
+) -> SceneError {
     SceneError::Invalid {
         at: Location {
             file: path.to_path_buf(),
@@ -138,6 +146,237 @@ pub fn read_esri_ascii(path: &Path, text: &str, offset: (f64, f64)) -> Result<Ra
     })
 }
 
+/// Reads a single-band GeoTIFF that must lie in the scene's map frame: it has a placement
+/// (tie point and pixel scale, or a transformation) that is north-up, and its CRS is the
+/// scene's (EPSG codes compared; a user-defined CRS is taken as is). Returns the raster and its
+/// pixel-corner transform. Errors name the file and the tag at fault.
+pub fn read_placed_geotiff(
+    path: &Path,
+    bytes: &[u8],
+    g: &Georeference,
+) -> Result<(crate::io::geotiff::GeoRaster, [f64; 6]), SceneError> {
+    let r =
+        crate::io::geotiff::read_geotiff_band(bytes).map_err(|m| err(path, None, "image", m))?;
+    let t = r.transform.ok_or_else(|| {
+        err(
+            path,
+            None,
+            "ModelTiepointTag",
+            "no georeferencing (ModelTiepointTag + ModelPixelScaleTag, or ModelTransformationTag): \
+             give a GeoTIFF with its map placement",
+        )
+    })?;
+    if !(t[2] == 0.0 && t[4] == 0.0 && t[1] > 0.0 && t[5] < 0.0) {
+        return Err(err(
+            path,
+            None,
+            "ModelTransformationTag",
+            "the raster is rotated or flipped; resample it north-up (e.g. gdalwarp) first",
+        ));
+    }
+    if r.model_type == Some(2) {
+        return Err(err(
+            path,
+            None,
+            "GeoKeyDirectoryTag.GTModelTypeGeoKey",
+            "the raster is in geographic coordinates (degrees); reproject it to the scene's CRS",
+        ));
+    }
+    let scene_crs = g
+        .crs
+        .epsg
+        .map(|c| format!("EPSG:{c}"))
+        .unwrap_or_else(|| g.crs.name.clone());
+    match r.projected_crs {
+        None => {
+            return Err(err(
+                path,
+                None,
+                "GeoKeyDirectoryTag.ProjectedCRSGeoKey",
+                format!(
+                    "the raster names no projected CRS; it must be in the scene's CRS ({scene_crs})"
+                ),
+            ));
+        }
+        Some(crate::io::geotiff::USER_DEFINED) => {}
+        Some(c) if g.crs.epsg == Some(c as u32) => {}
+        Some(c) => {
+            return Err(err(
+                path,
+                None,
+                "GeoKeyDirectoryTag.ProjectedCRSGeoKey",
+                format!(
+                    "wrong CRS: the raster is in EPSG:{c}, the scene's georeference.crs is \
+                     {scene_crs}; reproject the raster (e.g. gdalwarp -t_srs) or fix georeference.crs"
+                ),
+            ));
+        }
+    }
+    Ok((r, t))
+}
+
+/// Reads a GeoTIFF DEM (OGC GeoTIFF 1.1; [`crate::io::geotiff::read_geotiff_band`]) and crops
+/// it to the nodes that cover the scene's map extent, [E₀, E₀ + X] × [N₀, N₀ + Y] for a
+/// north-up georeference: pixel values are nodes at pixel centres (PixelIsArea) or at the
+/// transform's points (PixelIsPoint). The raster must be north-up, in the scene's CRS (EPSG
+/// codes compared; a user-defined CRS is taken as is), cover the extent, and hold no no-data
+/// (`GDAL_NODATA`) or non-finite value among the kept nodes. Errors name the raster file and
+/// the tag or property at fault.
+pub fn read_geotiff_dem(
+    path: &Path,
+    bytes: &[u8],
+    g: &Georeference,
+    size: (f64, f64),
+) -> Result<Raster, SceneError> {
+    let (r, t) = read_placed_geotiff(path, bytes, g)?;
+    let (nx, ny) = r.size;
+    let is_nodata = |v: f64| !v.is_finite() || r.nodata == Some(v);
+    if r.values.iter().all(|&v| is_nodata(v)) {
+        return Err(err(
+            path,
+            None,
+            "GDAL_NODATA",
+            "every pixel is no-data: the raster holds no elevation",
+        ));
+    }
+    let (dx, dy) = (t[1], -t[5]);
+    let half = if r.pixel_is_point { 0.0 } else { 0.5 };
+    // Map coordinates of node (0, 0) (top-left) and the scene's map extent.
+    let (e_node0, n_node0) = (t[0] + half * dx, t[3] - half * dy);
+    let (e0, n0) = g.origin_map_m;
+    let (e1, n1) = (e0 + size.0, n0 + size.1);
+    let eps = 1e-9;
+    let c_lo = ((e0 - e_node0) / dx + eps).floor();
+    let c_hi = ((e1 - e_node0) / dx - eps).ceil();
+    let r_lo = ((n_node0 - n1) / dy + eps).floor();
+    let r_hi = ((n_node0 - n0) / dy - eps).ceil();
+    if c_lo < 0.0 || r_lo < 0.0 || c_hi > (nx - 1) as f64 || r_hi > (ny - 1) as f64 {
+        return Err(err(
+            path,
+            None,
+            "extent",
+            format!(
+                "the scene's map extent E [{e0}, {e1}], N [{n0}, {n1}] m is not inside the \
+                 raster's nodes E [{}, {}], N [{}, {}] m; enlarge the raster or move \
+                 georeference.origin_map_m",
+                e_node0,
+                e_node0 + (nx - 1) as f64 * dx,
+                n_node0 - (ny - 1) as f64 * dy,
+                n_node0
+            ),
+        ));
+    }
+    let (c_lo, c_hi, r_lo, r_hi) = (c_lo as usize, c_hi as usize, r_lo as usize, r_hi as usize);
+    let (mx, my) = (c_hi - c_lo + 1, r_hi - r_lo + 1);
+    let mut z = vec![0.0; mx * my];
+    for row in r_lo..=r_hi {
+        for col in c_lo..=c_hi {
+            let v = r.values[col + nx * row];
+            if is_nodata(v) {
+                return Err(err(
+                    path,
+                    None,
+                    "GDAL_NODATA",
+                    format!(
+                        "pixel (column {col}, row {row}) inside the scene is no-data ({v}): DEM \
+                         holes are not supported; fill them (e.g. gdal_fillnodata) or move the scene"
+                    ),
+                ));
+            }
+            z[(col - c_lo) + (r_hi - row) * mx] = v;
+        }
+    }
+    // Lowest-left kept node, written as the ESRI reader does (corner + half a cell − offset).
+    let x_ll = t[0] + c_lo as f64 * dx;
+    let y_ll = t[3] - (r_hi + 1) as f64 * dy;
+    let (x0, y0) = if r.pixel_is_point {
+        (t[0] + c_lo as f64 * dx, t[3] - r_hi as f64 * dy)
+    } else {
+        (x_ll + 0.5 * dx, y_ll + 0.5 * dy)
+    };
+    Ok(Raster {
+        nodes: (mx, my),
+        spacing: (dx, dy),
+        origin: (x0 - e0, y0 - n0),
+        z,
+    })
+}
+
+/// The nodes of a GeoTIFF DEM under a rotated scene (+x not east), in scene coordinates: every
+/// node within a pixel diagonal of the scene rectangle, for a Delaunay TIN (the raster's own
+/// lattice, rotated: the surface passes through every node). The raster must cover the
+/// scene's map bounding box; no-data nodes are refused near the scene and dropped farther
+/// away. Errors as [`read_geotiff_dem`].
+pub fn read_geotiff_dem_nodes(
+    path: &Path,
+    bytes: &[u8],
+    g: &Georeference,
+    size: (f64, f64),
+) -> Result<Vec<TinVertex>, SceneError> {
+    let (r, t) = read_placed_geotiff(path, bytes, g)?;
+    let (nx, ny) = r.size;
+    let is_nodata = |v: f64| !v.is_finite() || r.nodata == Some(v);
+    if r.values.iter().all(|&v| is_nodata(v)) {
+        return Err(err(
+            path,
+            None,
+            "GDAL_NODATA",
+            "every pixel is no-data: the raster holds no elevation",
+        ));
+    }
+    let (dx, dy) = (t[1], -t[5]);
+    let half = if r.pixel_is_point { 0.0 } else { 0.5 };
+    let (e_node0, n_node0) = (t[0] + half * dx, t[3] - half * dy);
+    let (e_min, n_min, e_max, n_max) = g.map_bounds(size);
+    let eps = 1e-9;
+    let c_lo = ((e_min - e_node0) / dx + eps).floor();
+    let c_hi = ((e_max - e_node0) / dx - eps).ceil();
+    let r_lo = ((n_node0 - n_max) / dy + eps).floor();
+    let r_hi = ((n_node0 - n_min) / dy - eps).ceil();
+    if c_lo < 0.0 || r_lo < 0.0 || c_hi > (nx - 1) as f64 || r_hi > (ny - 1) as f64 {
+        return Err(err(
+            path,
+            None,
+            "extent",
+            format!(
+                "the scene's map bounding box E [{e_min}, {e_max}], N [{n_min}, {n_max}] m is not \
+                 inside the raster's nodes E [{}, {}], N [{}, {}] m; enlarge the raster or move \
+                 georeference.origin_map_m",
+                e_node0,
+                e_node0 + (nx - 1) as f64 * dx,
+                n_node0 - (ny - 1) as f64 * dy,
+                n_node0
+            ),
+        ));
+    }
+    let margin = dx.hypot(dy);
+    let mut verts = Vec::new();
+    for row in r_lo as usize..=r_hi as usize {
+        for col in c_lo as usize..=c_hi as usize {
+            let (x, y) = g.to_scene(e_node0 + col as f64 * dx, n_node0 - row as f64 * dy);
+            if x < -margin || y < -margin || x > size.0 + margin || y > size.1 + margin {
+                continue;
+            }
+            let v = r.values[col + nx * row];
+            if is_nodata(v) {
+                return Err(err(
+                    path,
+                    None,
+                    "GDAL_NODATA",
+                    format!(
+                        "pixel (column {col}, row {row}) next to the scene is no-data ({v}): DEM \
+                         holes are not supported; fill them (e.g. gdal_fillnodata) or move the scene"
+                    ),
+                ));
+            }
+            verts.push(TinVertex {
+                p: DVec3::new(x, y, v),
+            });
+        }
+    }
+    Ok(verts)
+}
+
 /// Largest number of nodes of a ground raster (2²⁸: 2 GiB of f64 altitudes), checked before
 /// the altitudes are allocated.
 pub const MAX_RASTER_NODES: usize = 1 << 28;
@@ -150,6 +389,7 @@ pub fn build_terrain(
     scene_file: &Path,
     field: &str,
     size: (f64, f64),
+    georef: Option<&Georeference>,
 ) -> Result<Terrain, SceneError> {
     let inv = |m: String| SceneError::Invalid {
         at: Location {
@@ -185,6 +425,34 @@ pub fn build_terrain(
                         source: e,
                     })?;
                     Terrain::Raster(read_esri_ascii(&p, &text, *origin_m)?)
+                }
+                RasterFormat::GeoTiff => {
+                    let Some(g) = georef else {
+                        return Err(inv(
+                            "a GeoTiff DEM is placed through the scene's map coordinates: add a \
+                             `georeference` section (CRS and origin_map_m) to the scene"
+                                .into(),
+                        ));
+                    };
+                    if *origin_m != (0.0, 0.0) {
+                        return Err(inv(
+                            "origin_m must be (0, 0) with a GeoTiff DEM (its placement comes from \
+                             georeference.origin_map_m)"
+                                .into(),
+                        ));
+                    }
+                    let bytes = std::fs::read(&p).map_err(|e| SceneError::Io {
+                        path: p.clone(),
+                        source: e,
+                    })?;
+                    if g.north_up() {
+                        Terrain::Raster(read_geotiff_dem(&p, &bytes, g, size)?)
+                    } else {
+                        let verts = read_geotiff_dem_nodes(&p, &bytes, g, size)?;
+                        let dt = DelaunayTriangulation::<TinVertex>::bulk_load(verts)
+                            .map_err(|e| inv(format!("cannot triangulate the DEM: {e:?}")))?;
+                        Terrain::Tin(Box::new(dt))
+                    }
                 }
                 RasterFormat::BinaryF32 { nodes, spacing_m } => {
                     let bytes = std::fs::read(&p).map_err(|e| SceneError::Io {

@@ -392,7 +392,8 @@ fn footprint_bounds(fp: &FootprintDesc) -> (f64, f64, f64, f64) {
 }
 
 /// Checks a scene; returns the first error found (the sections in this order: format,
-/// directions, radiative settings, LiDARs, grid, images, bands, optics, illumination, objects).
+/// directions, radiative settings, LiDARs, grid, images, bands, optics, georeference,
+/// illumination, objects).
 pub fn validate(desc: &SceneDesc, src: &SceneSource) -> Result<(), SceneError> {
     let v = V {
         src,
@@ -407,12 +408,24 @@ pub fn validate(desc: &SceneDesc, src: &SceneSource) -> Result<(), SceneError> {
     v.images()?;
     v.spectral_bands()?;
     v.optics()?;
+    v.georeference()?;
     v.illumination()?;
     v.objects()
 }
 
 /// The sections of [`validate`], one method each.
 impl V<'_> {
+    /// The georeference: a known projected CRS in metres, a finite origin, a bearing in
+    /// [0, 360) (`scene::georef`).
+    fn georeference(&self) -> R {
+        match &self.desc.georeference {
+            Some(g) => crate::scene::georef::Georeference::from_desc(g)
+                .map(|_| ())
+                .map_err(|(f, m)| self.src.invalid(format!("georeference.{f}"), m)),
+            None => Ok(()),
+        }
+    }
+
     /// The format version and the sections not supported yet.
     fn header(&self) -> R {
         let (desc, src) = (self.desc, self.src);
@@ -861,9 +874,10 @@ impl V<'_> {
         let il = &desc.illumination;
         match (&il.sun_position, il.sun_zenith_deg, il.sun_azimuth_deg) {
             (Some(p), None, None) => {
-                super::resolve::sun_from_position(p).map_err(|(sub, m)| {
-                    src.invalid(format!("illumination.sun_position.{sub}"), m)
-                })?;
+                super::resolve::sun_from_position(p, desc.georeference.as_ref(), desc.grid.size_m)
+                    .map_err(|(sub, m)| {
+                        src.invalid(format!("illumination.sun_position.{sub}"), m)
+                    })?;
             }
             (Some(_), _, _) => {
                 return Err(src.invalid(

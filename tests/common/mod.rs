@@ -112,6 +112,7 @@ pub fn base_scene(size: (f64, f64), cell: (f64, f64, f64), boundary: BoundaryMod
         directions: None,
         radiative: None,
         passive: None,
+        georeference: None,
     }
 }
 

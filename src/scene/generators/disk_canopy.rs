@@ -251,6 +251,7 @@ pub fn disk_canopy(p: &DiskCanopyParams) -> Result<SceneDesc, String> {
         directions: Some(rami_directions(p.sun_azimuth_deg)),
         radiative: None,
         passive: None,
+        georeference: None,
     })
 }
 

@@ -217,5 +217,6 @@ pub fn forest(p: &ForestParams) -> SceneDesc {
         directions: None,
         radiative: None,
         passive: None,
+        georeference: None,
     }
 }

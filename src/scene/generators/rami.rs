@@ -542,6 +542,7 @@ pub fn rami_het01(case: &RamiCase, opts: &RamiOptions) -> Result<SceneDesc, Stri
         directions: Some(rami_measurement_directions(opts.sun_azimuth_deg)),
         radiative: None,
         passive: None,
+        georeference: None,
     })
 }
 

@@ -66,5 +66,6 @@ pub fn turbid_layer(p: &TurbidLayerParams) -> SceneDesc {
         directions: Some(rami_directions(p.sun_azimuth_deg)),
         radiative: None,
         passive: None,
+        georeference: None,
     }
 }

@@ -126,5 +126,6 @@ pub fn urban(p: &UrbanParams) -> SceneDesc {
         directions: None,
         radiative: None,
         passive: None,
+        georeference: None,
     }
 }

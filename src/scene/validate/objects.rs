@@ -27,6 +27,78 @@ impl V<'_> {
                 ObjectDesc::LeafList(l) => self.leaf_list(&f, l)?,
                 ObjectDesc::Leaves(l) => self.leaves(&f, l)?,
                 ObjectDesc::Mesh(m) => self.mesh(&f, m)?,
+                ObjectDesc::LandCover(l) => self.land_cover(&f, l)?,
+            }
+        }
+        Ok(())
+    }
+
+    /// A land-cover map: a georeference to place it, and every class template valid as the
+    /// object it becomes (checked on a 1 m square at the scene origin).
+    fn land_cover(&self, f: &str, l: &LandCoverDesc) -> R {
+        if self.desc.georeference.is_none() {
+            return Err(self.src.invalid(
+                f,
+                "a LandCover map is placed through the scene's map coordinates: add a \
+                 `georeference` section (CRS and origin_map_m) to the scene",
+            ));
+        }
+        if l.path.trim().is_empty() {
+            return Err(self.src.invalid(format!("{f}.path"), "must name a GeoTIFF"));
+        }
+        let (sx, sy) = self.desc.grid.size_m;
+        let square = (0.0, 0.0, sx.min(1.0), sy.min(1.0));
+        for (k, class) in &l.classes {
+            let fk = format!("{f}.classes[{k}]");
+            if let LandCoverClass::TurbidPlot {
+                foliage: FoliageDesc::LeafArea(_),
+                ..
+            } = class
+            {
+                return Err(self.src.invalid(
+                    format!("{fk}.foliage"),
+                    "a LeafArea total has no meaning per pixel: give Lai or LeafAreaDensity",
+                ));
+            }
+            if let LandCoverClass::TreeStand {
+                species,
+                trees_per_ha,
+                min_spacing_m,
+            } = class
+            {
+                if species.is_empty() {
+                    return Err(self.src.invalid(
+                        format!("{fk}.species"),
+                        "a stand needs at least one species",
+                    ));
+                }
+                for (s, sp) in species.iter().enumerate() {
+                    self.crown(&format!("{fk}.species[{s}].crown"), &sp.crown)?;
+                    if let Some(tr) = &sp.trunk {
+                        self.trunk(&format!("{fk}.species[{s}].trunk"), tr)?;
+                    }
+                }
+                if trees_per_ha.len() != species.len() {
+                    return Err(self.src.invalid(
+                        format!("{fk}.trees_per_ha"),
+                        format!(
+                            "needs one density per species ({}), got {}",
+                            species.len(),
+                            trees_per_ha.len()
+                        ),
+                    ));
+                }
+                for (s, &d) in trees_per_ha.iter().enumerate() {
+                    self.in_range(&format!("{fk}.trees_per_ha[{s}]"), d, 0.0, 1e5)?;
+                }
+                self.non_negative(&format!("{fk}.min_spacing_m"), *min_spacing_m)?;
+                continue;
+            }
+            match crate::scene::landcover::class_object(class, FootprintDesc::Box(square)) {
+                Some(ObjectDesc::TurbidPlot(p)) => self.turbid_plot(&fk, &p)?,
+                Some(ObjectDesc::Water(w)) => self.water(&fk, &w)?,
+                Some(ObjectDesc::Building(b)) => self.building(&fk, &b)?,
+                _ => {}
             }
         }
         Ok(())
