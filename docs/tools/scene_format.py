@@ -3,7 +3,7 @@
 
 Usage (from the repository root):  python3 docs/tools/scene_format.py > docs/guide/scene-format.md
 
-The types are the serde types a scene file is read into (`src/scene/desc.rs` and the types it
+The types are the serde types a scene file is read into (`src/scene/desc.rs`, `desc/lidar.rs` and the types it
 uses from other modules). `tests/docs.rs` parses the same sources independently and fails when a
 field or variant is missing from the generated file, so re-run this script after changing them.
 """
@@ -18,14 +18,17 @@ SOURCES = [
         "RasterFileDesc", "RasterFormat", "TreeDesc", "TreeStandDesc", "SpeciesDesc",
         "PlacementDesc", "TrunkDesc", "CrownDesc", "FoliageDesc", "TurbidPlotDesc",
         "FootprintDesc", "BuildingDesc", "RoofDesc", "WaterDesc", "MeshDesc", "MeshGroupOptics",
-        "LeavesDesc", "LeafListDesc", "LandCoverDesc", "LandCoverClass", "RadiativeDesc", "Preset", "TurbidSubfaces", "LidarDesc",
-        "LidarPlatform", "PulsePattern", "PhotonCountingDesc", "LidarSampler", "LidarEstimator",
+        "LeavesDesc", "LeafListDesc", "LandCoverDesc", "LandCoverClass", "RadiativeDesc", "Preset", "TurbidSubfaces",
+    ]),
+    ("src/scene/desc/lidar.rs", [
+        "LidarDesc", "LidarPlatform", "PulsePattern", "PhotonCountingDesc", "LidarSampler",
+        "LidarEstimator",
     ]),
     ("src/geometry/crown.rs", ["CrownShape"]),
     ("src/physics/lad.rs", ["Lad", "LeafSpecular"]),
     ("src/physics/prospect.rs", ["ProspectModel"]),
     ("src/direction/mod.rs", ["DirectionParams", "ExactDirection", "OversampleRegion"]),
-    ("src/scene/desc.rs", ["BeamProfile", "ReturnsMethod"]),
+    ("src/scene/desc/lidar.rs", ["BeamProfile", "ReturnsMethod"]),
 ]
 
 # Defaults that are not a literal in a `default = "fn"` function.
