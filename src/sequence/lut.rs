@@ -103,7 +103,7 @@ impl Layout {
 /// Gathers the sequence folder `dir` into `table` (CSV) and the same table as Parquet next to
 /// it (`table` with the extension `.parquet`), in point order. Two passes over the points'
 /// files: the columns (the union over every point, sorted, so independent of which shard
-/// wrote what) and their types, then the rows, written in batches of [`BATCH_ROWS`]. Fails on a
+/// wrote what) and their types, then the rows, written in batches of 65 536 (`BATCH_ROWS`). Fails on a
 /// folder without `plan.json` or on a finished point whose files cannot be read; unfinished
 /// points are reported.
 pub fn gather(dir: &Path, table: &Path) -> Result<GatherReport, String> {
