@@ -11,6 +11,13 @@ fn bin() -> Command {
     Command::new(env!("CARGO_BIN_EXE_lumenscape"))
 }
 
+/// `lumenscape sequence -q SEQ --out OUT`.
+fn sequence(seq: &Path, out: &Path) -> Command {
+    let mut c = bin();
+    c.args(["sequence", "-q"]).arg(seq).arg("--out").arg(out);
+    c
+}
+
 fn root() -> PathBuf {
     PathBuf::from(env!("CARGO_MANIFEST_DIR"))
 }
@@ -106,14 +113,7 @@ fn sharded_runs_gather_into_the_same_table() {
     for n in [1usize, 3, 7] {
         let out = dir.join(format!("out{n}"));
         for k in 0..n {
-            run_ok(
-                bin()
-                    .args(["sequence", "-q"])
-                    .arg(&seq)
-                    .arg("--out")
-                    .arg(&out)
-                    .args(["--shard", &format!("{k}/{n}")]),
-            );
+            run_ok(sequence(&seq, &out).args(["--shard", &format!("{k}/{n}")]));
         }
         let msg = run_ok(bin().arg("gather").arg(&out));
         assert!(msg.contains("from 8 of 8 points"), "{msg}");
@@ -146,14 +146,7 @@ fn sharded_runs_gather_into_the_same_table() {
     );
     // A gather of a partial folder reports what is missing.
     let part = dir.join("part");
-    run_ok(
-        bin()
-            .args(["sequence", "-q"])
-            .arg(&seq)
-            .arg("--out")
-            .arg(&part)
-            .args(["--shard", "1/3"]),
-    );
+    run_ok(sequence(&seq, &part).args(["--shard", "1/3"]));
     let msg = run_ok(bin().arg("gather").arg(&part));
     // Points that differ only in the leaf reflectance share a run (units {0, 2}, {1, 3},
     // {4, 6}, {5, 7}); shards take whole units (unit u to shard u mod N): shard 1 of 3 has {1, 3}.
@@ -237,13 +230,7 @@ fn a_point_run_alone_equals_its_scene_run_bit_for_bit() {
     let keep = "keep: [\"images\", \"brf.csv\"],";
     let seq = write_sequence_with(&dir, &[3.0], &[(40.0, 90.0)], "Preview", keep);
     let out = dir.join("out");
-    run_ok(
-        bin()
-            .args(["sequence", "-q"])
-            .arg(&seq)
-            .arg("--out")
-            .arg(&out),
-    );
+    run_ok(&mut sequence(&seq, &out));
     let (a, b) = point_and_alone(&dir, &seq, &out);
     assert_eq!(a, b);
     assert_eq!(
@@ -271,13 +258,7 @@ fn points_sharing_a_run_agree_with_their_standalone_runs() {
     let dir = tmp("shared");
     let seq = write_sequence_with(&dir, &[3.0], &[(40.0, 90.0)], "Default", "");
     let out = dir.join("out");
-    let msg = run_ok(
-        bin()
-            .args(["sequence", "-q"])
-            .arg(&seq)
-            .arg("--out")
-            .arg(&out),
-    );
+    let msg = run_ok(&mut sequence(&seq, &out));
     assert!(msg.contains("2 points run"), "{msg}");
     let point: serde_json::Value = serde_json::from_str(
         &std::fs::read_to_string(out.join("points/p000001/point.json")).unwrap(),
@@ -319,13 +300,7 @@ fn a_killed_sweep_resumes_without_losing_or_repeating_points() {
     let seq = write_sequence(&dir, &lai, &[(0.0, 0.0), (20.0, 30.0), (40.0, 90.0)]);
     let n = 6 * 2 * 3;
     let out = dir.join("out");
-    let mut child = bin()
-        .args(["sequence", "-q"])
-        .arg(&seq)
-        .arg("--out")
-        .arg(&out)
-        .spawn()
-        .unwrap();
+    let mut child = sequence(&seq, &out).spawn().unwrap();
     let done = |o: &Path| {
         (0..n)
             .filter(|&i| o.join(format!("points/p{i:06}/point.json")).exists())
@@ -354,13 +329,7 @@ fn a_killed_sweep_resumes_without_losing_or_repeating_points() {
             );
         }
     }
-    let msg = run_ok(
-        bin()
-            .args(["sequence", "-q"])
-            .arg(&seq)
-            .arg("--out")
-            .arg(&out),
-    );
+    let msg = run_ok(&mut sequence(&seq, &out));
     let expect = format!("{} points run, {before} already done, 0 failed", n - before);
     assert!(msg.contains(&expect), "{msg} (expected `{expect}`)");
     // No staging leftovers, and the same table as an uninterrupted sweep.
@@ -376,13 +345,7 @@ fn a_killed_sweep_resumes_without_losing_or_repeating_points() {
         .collect();
     assert!(hidden.is_empty(), "{hidden:?}");
     let clean = dir.join("clean");
-    run_ok(
-        bin()
-            .args(["sequence", "-q"])
-            .arg(&seq)
-            .arg("--out")
-            .arg(&clean),
-    );
+    run_ok(&mut sequence(&seq, &clean));
     run_ok(bin().arg("gather").arg(&out));
     run_ok(bin().arg("gather").arg(&clean));
     assert_eq!(
@@ -495,13 +458,7 @@ fn bad_sequence_files_are_refused_with_the_place() {
         let seq = dir.join("seq.ron");
         std::fs::write(&seq, &text).unwrap();
         let out = dir.join("out");
-        let o = bin()
-            .args(["sequence", "-q"])
-            .arg(&seq)
-            .arg("--out")
-            .arg(&out)
-            .output()
-            .unwrap();
+        let o = sequence(&seq, &out).output().unwrap();
         let err = String::from_utf8_lossy(&o.stderr);
         let code = o.status.code().unwrap_or(-1);
         assert!(code != 0 && code != 101, "{what}: exit {code}: {err}");
@@ -527,21 +484,9 @@ fn another_sweeps_folder_is_refused() {
     let dir = tmp("other");
     let seq = write_sequence(&dir, &[1.0], &[(0.0, 0.0)]);
     let out = dir.join("out");
-    run_ok(
-        bin()
-            .args(["sequence", "-q"])
-            .arg(&seq)
-            .arg("--out")
-            .arg(&out),
-    );
+    run_ok(&mut sequence(&seq, &out));
     let seq2 = write_sequence(&dir, &[2.0], &[(0.0, 0.0)]);
-    let o = bin()
-        .args(["sequence", "-q"])
-        .arg(&seq2)
-        .arg("--out")
-        .arg(&out)
-        .output()
-        .unwrap();
+    let o = sequence(&seq2, &out).output().unwrap();
     assert_eq!(o.status.code(), Some(1));
     assert!(String::from_utf8_lossy(&o.stderr).contains("another sequence"));
     let _ = std::fs::remove_dir_all(&dir);
@@ -555,14 +500,7 @@ fn monte_carlo_and_lidar_points_run_alone() {
     let seq = write_sequence(&dir, &[3.0], &[(40.0, 90.0)]);
     let out = dir.join("mc");
     let mc = ["--solver", "monte-carlo", "--photons", "20000"];
-    run_ok(
-        bin()
-            .args(["sequence", "-q"])
-            .arg(&seq)
-            .arg("--out")
-            .arg(&out)
-            .args(mc),
-    );
+    run_ok(sequence(&seq, &out).args(mc));
     let plan = Plan::load(&seq).unwrap();
     let scene = dir.join("point1.ron");
     std::fs::write(
@@ -604,13 +542,7 @@ fn monte_carlo_and_lidar_points_run_alone() {
     )
     .unwrap();
     let lo = dir.join("lidar-out");
-    run_ok(
-        bin()
-            .args(["sequence", "-q"])
-            .arg(&lidar)
-            .arg("--out")
-            .arg(&lo),
-    );
+    run_ok(&mut sequence(&lidar, &lo));
     for i in 0..2 {
         assert!(
             lo.join(format!("points/p{i:06}/lidar/als/returns.las"))

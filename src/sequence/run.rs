@@ -217,16 +217,9 @@ impl Plan {
     ) -> Result<(), String> {
         let desc = self.merged_scene(unit)?;
         let nb = desc.bands.len() / unit.len();
-        let mut sim =
-            Simulation::from_desc(&desc, &self.src, settings.clone()).map_err(|e| e.to_string())?;
-        let mem = sim.memory_plan().map_err(|e| e.to_string())?;
-        if let Some(s) = mem.over(settings.max_memory_bytes) {
-            return Err(format!(
-                "the shared run of points {unit:?}: the {} stage needs an estimated {} bytes, above the limit of {} bytes (--max-memory)",
-                s.stage, s.bytes, settings.max_memory_bytes
-            ));
-        }
-        sim.world.insert_resource(mem);
+        let mut sim = self
+            .simulation(&desc, settings)
+            .map_err(|e| format!("the shared run of points {unit:?}: {e}"))?;
         sim.world
             .insert_resource(crate::resources::scene::ProductSelection(self.keep.clone()));
         let shared = out.join("points").join(format!(
@@ -270,11 +263,15 @@ impl Plan {
         res
     }
 
-    /// Runs point `i` into `dir` (staged, committed when complete).
-    fn run_point(&self, i: usize, dir: &Path, settings: &RunSettings) -> Result<(), String> {
-        let p = self.point(i).map_err(|e| e.to_string())?;
-        let mut sim = Simulation::from_desc(&p.desc, &self.src, settings.clone())
-            .map_err(|e| e.to_string())?;
+    /// The simulation of `desc` (a point's or a shared run's scene) with its memory plan, refused
+    /// when a stage's estimate is above `--max-memory` (as `lumenscape run` does).
+    fn simulation(
+        &self,
+        desc: &crate::scene::desc::SceneDesc,
+        settings: &RunSettings,
+    ) -> Result<Simulation, String> {
+        let mut sim =
+            Simulation::from_desc(desc, &self.src, settings.clone()).map_err(|e| e.to_string())?;
         let mem = sim.memory_plan().map_err(|e| e.to_string())?;
         if let Some(s) = mem.over(settings.max_memory_bytes) {
             return Err(format!(
@@ -283,6 +280,13 @@ impl Plan {
             ));
         }
         sim.world.insert_resource(mem);
+        Ok(sim)
+    }
+
+    /// Runs point `i` into `dir` (staged, committed when complete).
+    fn run_point(&self, i: usize, dir: &Path, settings: &RunSettings) -> Result<(), String> {
+        let p = self.point(i).map_err(|e| e.to_string())?;
+        let mut sim = self.simulation(&p.desc, settings)?;
         // A LiDAR scene's products are what its points are run for: always kept.
         let mut keep = self.keep.clone();
         if p.desc.lidars.as_ref().is_some_and(|l| !l.is_empty())
