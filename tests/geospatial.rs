@@ -19,7 +19,6 @@ use geo::{Dem, Sample, crop, dem_tiff, esri_ascii, scene_dem};
 use lumenscape::io::envi::{envi_list, parse_envi_header};
 use lumenscape::io::exr_out::read_exr_channels;
 use std::path::{Path, PathBuf};
-use std::process::Command;
 use tiff::decoder::{Decoder, DecodingResult};
 use tiff::encoder::Compression;
 use tiff::tags::Tag;
@@ -56,41 +55,10 @@ fn scene(georeference: &str, topography: &str) -> String {
     )
 }
 
-fn tmp(name: &str) -> PathBuf {
-    let d = std::env::temp_dir()
-        .join(format!("lumenscape-geo-{}", std::process::id()))
-        .join(name);
-    let _ = std::fs::remove_dir_all(&d);
-    std::fs::create_dir_all(&d).unwrap();
-    d
-}
-
 /// Writes `text` (and `files`) into a fresh folder and runs `cmd` (`run` or `maket`) on it;
 /// returns the output folder.
 fn run(name: &str, cmd: &str, text: &str, files: &[(&str, &[u8])]) -> PathBuf {
-    let dir = tmp(name);
-    let scene = dir.join("scene.ron");
-    std::fs::write(&scene, text).unwrap();
-    for (n, b) in files {
-        std::fs::write(dir.join(n), b).unwrap();
-    }
-    let out = dir.join("out");
-    let o = Command::new(env!("CARGO_BIN_EXE_lumenscape"))
-        .args([
-            cmd,
-            scene.to_str().unwrap(),
-            "--out",
-            out.to_str().unwrap(),
-            "--quiet",
-        ])
-        .output()
-        .unwrap();
-    assert!(
-        o.status.success(),
-        "{name}: {}",
-        String::from_utf8_lossy(&o.stderr)
-    );
-    out
+    geo::run_scene("geo", name, cmd, text, files)
 }
 
 /// What the independent reader finds in a product GeoTIFF.

@@ -41,34 +41,10 @@ fn scene(objects: &str) -> String {
     )
 }
 
+/// Writes `text` (and `files`) into a fresh folder and runs `cmd` (`run` or `maket`) on it;
+/// returns the output folder.
 fn run(name: &str, cmd: &str, text: &str, files: &[(&str, &[u8])]) -> PathBuf {
-    let dir = std::env::temp_dir()
-        .join(format!("lumenscape-landcover-{}", std::process::id()))
-        .join(name);
-    let _ = std::fs::remove_dir_all(&dir);
-    std::fs::create_dir_all(&dir).unwrap();
-    let scene = dir.join("scene.ron");
-    std::fs::write(&scene, text).unwrap();
-    for (n, b) in files {
-        std::fs::write(dir.join(n), b).unwrap();
-    }
-    let out = dir.join("out");
-    let o = Command::new(env!("CARGO_BIN_EXE_lumenscape"))
-        .args([
-            cmd,
-            scene.to_str().unwrap(),
-            "--out",
-            out.to_str().unwrap(),
-            "--quiet",
-        ])
-        .output()
-        .unwrap();
-    assert!(
-        o.status.success(),
-        "{name}: {}",
-        String::from_utf8_lossy(&o.stderr)
-    );
-    out
+    geo::run_scene("landcover", name, cmd, text, files)
 }
 
 /// A class map of `pixel_m` pixels from (E, N) = `tie` (top-left), `f(c, r)` the class code.

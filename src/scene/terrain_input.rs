@@ -215,6 +215,42 @@ pub fn read_placed_geotiff(
     Ok((r, t))
 }
 
+/// A DEM GeoTIFF in the scene's map frame: the raster, its transform, its node spacing (E, N; m) and the map
+/// coordinates of node (0, 0), the top-left one (pixel centres for PixelIsArea, the transform's
+/// points for PixelIsPoint).
+struct PlacedDem {
+    r: crate::io::geotiff::GeoRaster,
+    /// The pixel-corner transform (GDAL order).
+    t: [f64; 6],
+    spacing: (f64, f64),
+    node0: (f64, f64),
+}
+
+/// [`read_placed_geotiff`] for a DEM: refuses a raster that is no-data everywhere and gives
+/// its node placement.
+fn read_placed_dem(path: &Path, bytes: &[u8], g: &Georeference) -> Result<PlacedDem, SceneError> {
+    let (r, t) = read_placed_geotiff(path, bytes, g)?;
+    if r.values
+        .iter()
+        .all(|&v| !v.is_finite() || r.nodata == Some(v))
+    {
+        return Err(err(
+            path,
+            None,
+            "GDAL_NODATA",
+            "every pixel is no-data: the raster holds no elevation",
+        ));
+    }
+    let (dx, dy) = (t[1], -t[5]);
+    let half = if r.pixel_is_point { 0.0 } else { 0.5 };
+    Ok(PlacedDem {
+        t,
+        spacing: (dx, dy),
+        node0: (t[0] + half * dx, t[3] - half * dy),
+        r,
+    })
+}
+
 /// Reads a GeoTIFF DEM (OGC GeoTIFF 1.1; [`crate::io::geotiff::read_geotiff_band`]) and crops
 /// it to the nodes that cover the scene's map extent, [E₀, E₀ + X] × [N₀, N₀ + Y] for a
 /// north-up georeference: pixel values are nodes at pixel centres (PixelIsArea) or at the
@@ -228,21 +264,14 @@ pub fn read_geotiff_dem(
     g: &Georeference,
     size: (f64, f64),
 ) -> Result<Raster, SceneError> {
-    let (r, t) = read_placed_geotiff(path, bytes, g)?;
+    let PlacedDem {
+        r,
+        t,
+        spacing: (dx, dy),
+        node0: (e_node0, n_node0),
+    } = read_placed_dem(path, bytes, g)?;
     let (nx, ny) = r.size;
     let is_nodata = |v: f64| !v.is_finite() || r.nodata == Some(v);
-    if r.values.iter().all(|&v| is_nodata(v)) {
-        return Err(err(
-            path,
-            None,
-            "GDAL_NODATA",
-            "every pixel is no-data: the raster holds no elevation",
-        ));
-    }
-    let (dx, dy) = (t[1], -t[5]);
-    let half = if r.pixel_is_point { 0.0 } else { 0.5 };
-    // Map coordinates of node (0, 0) (top-left) and the scene's map extent.
-    let (e_node0, n_node0) = (t[0] + half * dx, t[3] - half * dy);
     let (e0, n0) = g.origin_map_m;
     let (e1, n1) = (e0 + size.0, n0 + size.1);
     let eps = 1e-9;
@@ -313,20 +342,14 @@ pub fn read_geotiff_dem_nodes(
     g: &Georeference,
     size: (f64, f64),
 ) -> Result<Vec<TinVertex>, SceneError> {
-    let (r, t) = read_placed_geotiff(path, bytes, g)?;
+    let PlacedDem {
+        r,
+        t: _,
+        spacing: (dx, dy),
+        node0: (e_node0, n_node0),
+    } = read_placed_dem(path, bytes, g)?;
     let (nx, ny) = r.size;
     let is_nodata = |v: f64| !v.is_finite() || r.nodata == Some(v);
-    if r.values.iter().all(|&v| is_nodata(v)) {
-        return Err(err(
-            path,
-            None,
-            "GDAL_NODATA",
-            "every pixel is no-data: the raster holds no elevation",
-        ));
-    }
-    let (dx, dy) = (t[1], -t[5]);
-    let half = if r.pixel_is_point { 0.0 } else { 0.5 };
-    let (e_node0, n_node0) = (t[0] + half * dx, t[3] - half * dy);
     let (e_min, n_min, e_max, n_max) = g.map_bounds(size);
     let eps = 1e-9;
     let c_lo = ((e_min - e_node0) / dx + eps).floor();

@@ -203,3 +203,41 @@ pub fn esri_ascii(d: &Dem) -> String {
     }
     s
 }
+
+/// Writes `text` (and `files`) into a fresh folder `lumenscape-<suite>-<pid>/<name>` and runs
+/// `cmd` (`run` or `maket`) on it; returns the output folder (asserts success).
+pub fn run_scene(
+    suite: &str,
+    name: &str,
+    cmd: &str,
+    text: &str,
+    files: &[(&str, &[u8])],
+) -> std::path::PathBuf {
+    let dir = std::env::temp_dir()
+        .join(format!("lumenscape-{suite}-{}", std::process::id()))
+        .join(name);
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    let scene = dir.join("scene.ron");
+    std::fs::write(&scene, text).unwrap();
+    for (n, b) in files {
+        std::fs::write(dir.join(n), b).unwrap();
+    }
+    let out = dir.join("out");
+    let o = std::process::Command::new(env!("CARGO_BIN_EXE_lumenscape"))
+        .args([
+            cmd,
+            scene.to_str().unwrap(),
+            "--out",
+            out.to_str().unwrap(),
+            "--quiet",
+        ])
+        .output()
+        .unwrap();
+    assert!(
+        o.status.success(),
+        "{name}: {}",
+        String::from_utf8_lossy(&o.stderr)
+    );
+    out
+}
