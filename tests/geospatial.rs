@@ -507,41 +507,59 @@ fn the_sun_position_takes_its_place_from_the_georeference() {
         lumenscape::scene::validate::validate(&d, &src).unwrap_or_else(|e| panic!("{e}"));
         resolve::illumination(&d, &src).unwrap_or_else(|e| panic!("{e}"))
     };
-    // Scene centre at (650000, 4800000): 150 km east of zone 31's central meridian.
-    let geo = "georeference: (crs: Epsg(32631), origin_map_m: (649990.0, 4799990.0)),";
-    let by_map = scene(geo, "Flat").replace(
-        "illumination: (sun_zenith_deg: 30.0, sun_azimuth_deg: 20.0,",
-        "illumination: (sun_position: (utc: \"2024-06-21T09:30:00\"),",
-    );
+    // The sun of a scene placed by `geo` (centre at latitude `lat`, longitude `lon` by PROJ,
+    // grid north `gamma` east of true north there) equals the sun of the same scene given
+    // that place and the true bearing of +x (90° + γ) by hand.
+    let check = |geo: &str, lat: f64, lon: f64, gamma: f64| {
+        let by_map = scene(geo, "Flat").replace(
+            "illumination: (sun_zenith_deg: 30.0, sun_azimuth_deg: 20.0,",
+            "illumination: (sun_position: (utc: \"2024-06-21T09:30:00\"),",
+        );
+        let by_hand = scene("", "Flat").replace(
+            "illumination: (sun_zenith_deg: 30.0, sun_azimuth_deg: 20.0,",
+            &format!(
+                "illumination: (sun_position: (utc: \"2024-06-21T09:30:00\", latitude_deg: {lat}, longitude_deg: {lon}, scene_x_bearing_deg: {}),",
+                90.0 + gamma
+            ),
+        );
+        let (m, h) = (resolve(&by_map), resolve(&by_hand));
+        let (zm, am) = (
+            m.illumination.sun_zenith_deg,
+            m.illumination.sun_azimuth_deg,
+        );
+        let (zh, ah) = (
+            h.illumination.sun_zenith_deg,
+            h.illumination.sun_azimuth_deg,
+        );
+        assert!(gamma > 1.0, "convergence {gamma}°");
+        assert!(
+            (zm - zh).abs() < 1e-6 && (am - ah).abs() < 1e-5,
+            "{geo}: ({zm}, {am}) against ({zh}, {ah})"
+        );
+    };
+    // UTM 31N, scene centre at (650000, 4800000): 150 km east of the central meridian.
     // PROJ: the centre at (43.3378837055532 N, 4.85045491139206 E); 10 m grid north at
-    // (43.3379737040746, 4.85045764532076): grid north lies γ east of true north.
+    // (43.3379737040746, 4.85045764532076).
     let (lat, lon) = (43.3378837055532f64, 4.85045491139206f64);
     let (a, f) = (6_378_137.0f64, 1.0 / 298.257_223_563f64);
     let e2 = f * (2.0 - f);
     let w = (1.0 - e2 * lat.to_radians().sin().powi(2)).sqrt();
     let dn = (43.3379737040746f64 - lat).to_radians() * a * (1.0 - e2) / w.powi(3);
     let de = (4.85045764532076f64 - lon).to_radians() * a / w * lat.to_radians().cos();
-    let gamma = de.atan2(dn).to_degrees();
-    let by_hand = scene("", "Flat").replace(
-        "illumination: (sun_zenith_deg: 30.0, sun_azimuth_deg: 20.0,",
-        &format!(
-            "illumination: (sun_position: (utc: \"2024-06-21T09:30:00\", latitude_deg: {lat}, longitude_deg: {lon}, scene_x_bearing_deg: {}),",
-            90.0 + gamma
-        ),
+    check(
+        "georeference: (crs: Epsg(32631), origin_map_m: (649990.0, 4799990.0)),",
+        lat,
+        lon,
+        de.atan2(dn).to_degrees(),
     );
-    let (m, h) = (resolve(&by_map), resolve(&by_hand));
-    let (zm, am) = (
-        m.illumination.sun_zenith_deg,
-        m.illumination.sun_azimuth_deg,
-    );
-    let (zh, ah) = (
-        h.illumination.sun_zenith_deg,
-        h.illumination.sun_azimuth_deg,
-    );
-    assert!(gamma > 1.0, "convergence {gamma}°");
-    assert!(
-        (zm - zh).abs() < 1e-6 && (am - ah).abs() < 1e-5,
-        "({zm}, {am}) against ({zh}, {ah})"
+    // Lambert-93 (EPSG:2154, Lambert conformal conic), centre at PROJ's grid point of 45° N,
+    // 5° E, (857581.8993196681, 6435414.747835401); PROJ's meridian convergence there
+    // 1.4512155301030194° (pyproj 3.7.2, PROJ 9.5.1).
+    check(
+        "georeference: (crs: Epsg(2154), origin_map_m: (857571.8993196681, 6435404.747835401)),",
+        45.0,
+        5.0,
+        1.4512155301030194,
     );
 }
 

@@ -1,7 +1,8 @@
 //! Geodesy for placing a georeferenced scene on the Earth (issue #37): the inverse transverse
 //! Mercator projection (UTM and other transverse Mercator grids with their origin latitude on
-//! the equator) by Krüger's series to order n⁶ as given by Karney (2011), and the true bearing of
-//! a map direction.
+//! the equator) by Krüger's series to order n⁶ as given by Karney (2011), the inverse Lambert
+//! conformal conic projection (one or two standard parallels; Snyder 1987, §15), and the true
+//! bearing of a map direction.
 //!
 //! Karney, C. F. F. (2011), "Transverse Mercator with an accuracy of a few nanometers",
 //! *J. Geodesy* 85:475–485: eq. (14) (rectifying radius A), eq. (36) (the β coefficients of the
@@ -99,18 +100,161 @@ impl TransverseMercator {
     /// meridional and prime-vertical radii of curvature (the step is small enough for the
     /// local flat approximation: error below 1e-6°).
     pub fn true_bearing_deg(&self, easting_m: f64, northing_m: f64, grid_bearing_deg: f64) -> f64 {
-        let (s, c) = grid_bearing_deg.to_radians().sin_cos();
-        let (lat0, lon0) = self.inverse(easting_m, northing_m);
-        let (lat1, lon1) = self.inverse(easting_m + s, northing_m + c);
-        let e2 = self.f * (2.0 - self.f);
-        let phi = lat0.to_radians();
-        let w = (1.0 - e2 * phi.sin().powi(2)).sqrt();
-        let m = self.a_m * (1.0 - e2) / (w * w * w);
-        let nu = self.a_m / w;
-        let d_north = (lat1 - lat0).to_radians() * m;
-        let d_east = (lon1 - lon0).to_radians() * nu * phi.cos();
-        d_east.atan2(d_north).to_degrees().rem_euclid(360.0)
+        true_bearing(
+            |e, n| self.inverse(e, n),
+            (self.a_m, self.f),
+            (easting_m, northing_m),
+            grid_bearing_deg,
+        )
     }
+}
+
+/// A Lambert conformal conic grid on the ellipsoid (semi-major axis `a_m`, flattening `f`):
+/// origin latitude `lat0_deg` and central meridian `lon0_deg`, standard parallels
+/// `lat1_deg`, `lat2_deg` (equal for the one-parallel form, whose scale on it is `k0`), false
+/// easting and northing (m). Snyder, J. P. (1987), *Map Projections — A Working Manual*, USGS
+/// Prof. Paper 1395, eqs. (14-15), (15-9) to (15-11) forward constants and (15-5), (7-9),
+/// (14-4), (15-10) inverse.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct LambertConformal {
+    /// Semi-major axis, m.
+    pub a_m: f64,
+    /// Flattening.
+    pub f: f64,
+    /// Latitude of the origin, degrees.
+    pub lat0_deg: f64,
+    /// Central meridian, degrees east.
+    pub lon0_deg: f64,
+    /// First standard parallel, degrees.
+    pub lat1_deg: f64,
+    /// Second standard parallel, degrees (= `lat1_deg` for one parallel).
+    pub lat2_deg: f64,
+    /// Scale factor on the standard parallel (one-parallel form; 1 with two).
+    pub k0: f64,
+    /// False easting, m.
+    pub false_easting_m: f64,
+    /// False northing, m.
+    pub false_northing_m: f64,
+}
+
+impl LambertConformal {
+    fn e(&self) -> f64 {
+        (self.f * (2.0 - self.f)).sqrt()
+    }
+
+    /// Snyder (14-15): m = cos φ / √(1 − e² sin² φ).
+    fn m(&self, phi: f64) -> f64 {
+        let e = self.e();
+        phi.cos() / (1.0 - (e * phi.sin()).powi(2)).sqrt()
+    }
+
+    /// Snyder (15-9): t = tan(π/4 − φ/2) / ((1 − e sin φ)/(1 + e sin φ))^{e/2}.
+    fn t(&self, phi: f64) -> f64 {
+        let (e, es) = (self.e(), self.e() * phi.sin());
+        (std::f64::consts::FRAC_PI_4 - phi / 2.0).tan() / ((1.0 - es) / (1.0 + es)).powf(e / 2.0)
+    }
+
+    /// The cone constant n (15-8, or sin φ₁ for one parallel), a·F·k₀ (15-10) and ρ₀ (15-7).
+    fn constants(&self) -> (f64, f64, f64) {
+        let (p1, p2) = (self.lat1_deg.to_radians(), self.lat2_deg.to_radians());
+        let n = if (p1 - p2).abs() < 1e-12 {
+            p1.sin()
+        } else {
+            (self.m(p1).ln() - self.m(p2).ln()) / (self.t(p1).ln() - self.t(p2).ln())
+        };
+        let af = self.a_m * self.k0 * self.m(p1) / (n * self.t(p1).powf(n));
+        let rho0 = af * self.t(self.lat0_deg.to_radians()).powf(n);
+        (n, af, rho0)
+    }
+
+    /// Geodetic latitude and longitude (degrees) of the grid point (easting, northing), m.
+    pub fn inverse(&self, easting_m: f64, northing_m: f64) -> (f64, f64) {
+        let (n, af, rho0) = self.constants();
+        let (x, y) = (
+            easting_m - self.false_easting_m,
+            northing_m - self.false_northing_m,
+        );
+        let sgn = n.signum();
+        let rho = sgn * (x * x + (rho0 - y) * (rho0 - y)).sqrt();
+        let theta = (sgn * x).atan2(sgn * (rho0 - y));
+        let t = (rho / af).powf(1.0 / n);
+        // (7-9) by fixed-point iteration from the sphere's value.
+        let e = self.e();
+        let mut phi = std::f64::consts::FRAC_PI_2 - 2.0 * t.atan();
+        for _ in 0..30 {
+            let es = e * phi.sin();
+            let next = std::f64::consts::FRAC_PI_2
+                - 2.0 * (t * ((1.0 - es) / (1.0 + es)).powf(e / 2.0)).atan();
+            let done = (next - phi).abs() < 1e-15;
+            phi = next;
+            if done {
+                break;
+            }
+        }
+        (phi.to_degrees(), (theta / n).to_degrees() + self.lon0_deg)
+    }
+}
+
+/// A map projection whose inverse lumenscape computes.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum MapProjection {
+    /// Transverse Mercator (UTM).
+    TransverseMercator(TransverseMercator),
+    /// Lambert conformal conic (e.g. Lambert-93, EPSG:2154).
+    LambertConformal(LambertConformal),
+}
+
+impl MapProjection {
+    /// Geodetic latitude and longitude (degrees) of the grid point (easting, northing), m.
+    pub fn inverse(&self, easting_m: f64, northing_m: f64) -> (f64, f64) {
+        match self {
+            MapProjection::TransverseMercator(p) => p.inverse(easting_m, northing_m),
+            MapProjection::LambertConformal(p) => p.inverse(easting_m, northing_m),
+        }
+    }
+
+    /// The ellipsoid (a, f).
+    fn ellipsoid(&self) -> (f64, f64) {
+        match self {
+            MapProjection::TransverseMercator(p) => (p.a_m, p.f),
+            MapProjection::LambertConformal(p) => (p.a_m, p.f),
+        }
+    }
+
+    /// True bearing (degrees clockwise from true north, in [0, 360)) at the grid point of the
+    /// grid direction of grid bearing `grid_bearing_deg` (see
+    /// [`TransverseMercator::true_bearing_deg`]).
+    pub fn true_bearing_deg(&self, easting_m: f64, northing_m: f64, grid_bearing_deg: f64) -> f64 {
+        let (a, f) = self.ellipsoid();
+        true_bearing(
+            |e, n| self.inverse(e, n),
+            (a, f),
+            (easting_m, northing_m),
+            grid_bearing_deg,
+        )
+    }
+}
+
+/// The true bearing of a 1 m grid step of bearing `grid_bearing_deg` from `(e, n)`, from the
+/// inverse projection `inverse` on the ellipsoid (a, f): latitude and longitude differences
+/// scaled by the meridional and prime-vertical radii of curvature.
+fn true_bearing(
+    inverse: impl Fn(f64, f64) -> (f64, f64),
+    (a, f): (f64, f64),
+    (easting_m, northing_m): (f64, f64),
+    grid_bearing_deg: f64,
+) -> f64 {
+    let (s, c) = grid_bearing_deg.to_radians().sin_cos();
+    let (lat0, lon0) = inverse(easting_m, northing_m);
+    let (lat1, lon1) = inverse(easting_m + s, northing_m + c);
+    let e2 = f * (2.0 - f);
+    let phi = lat0.to_radians();
+    let w = (1.0 - e2 * phi.sin().powi(2)).sqrt();
+    let m = a * (1.0 - e2) / (w * w * w);
+    let nu = a / w;
+    let d_north = (lat1 - lat0).to_radians() * m;
+    let d_east = (lon1 - lon0).to_radians() * nu * phi.cos();
+    d_east.atan2(d_north).to_degrees().rem_euclid(360.0)
 }
 
 #[cfg(test)]
@@ -192,5 +336,62 @@ mod tests {
         // A grid direction turns with it.
         let east = tm.true_bearing_deg(650_000.0, 4_800_000.0, 90.0);
         assert!((east - (90.0 + got)).abs() < 1e-5, "{east}");
+    }
+
+    /// Lambert-93 (EPSG:2154: `+proj=lcc +lat_0=46.5 +lon_0=3 +lat_1=49 +lat_2=44 +x_0=700000
+    /// +y_0=6600000 +ellps=GRS80`) against PROJ 9 (pyproj 3.7 `Transformer.from_crs(2154,
+    /// 4326)`), and its meridian convergence n(λ − λ₀) (pyproj `get_factors`).
+    #[test]
+    fn lambert_93_inverse_matches_proj() {
+        let p = LambertConformal {
+            a_m: 6_378_137.0,
+            f: 1.0 / 298.257_222_101,
+            lat0_deg: 46.5,
+            lon0_deg: 3.0,
+            lat1_deg: 49.0,
+            lat2_deg: 44.0,
+            k0: 1.0,
+            false_easting_m: 700_000.0,
+            false_northing_m: 6_600_000.0,
+        };
+        for (e, n, lat, lon) in [
+            (
+                652_470.0,
+                6_862_035.0,
+                48.856597739161856,
+                2.3522133479107232,
+            ),
+            (700_000.0, 6_600_000.0, 46.5, 3.0),
+            (
+                1_000_000.0,
+                7_000_000.0,
+                50.0268908194505,
+                7.184615122623171,
+            ),
+            (
+                200_000.0,
+                6_200_000.0,
+                42.72557343834631,
+                -3.1036148909017096,
+            ),
+        ] {
+            let (la, lo) = p.inverse(e, n);
+            assert!(
+                (la - lat).abs() < 1e-9 && (lo - lon).abs() < 1e-9,
+                "{e} {n}: {la} {lo}"
+            );
+        }
+        // The true bearing of grid north at 45° N, 5° E (grid point from PROJ) is PROJ's
+        // meridian convergence there, +1.4512155301° (= n (λ − λ₀)).
+        let m = MapProjection::LambertConformal(p);
+        let (e, n) = (857_581.899_319_668_1, 6_435_414.747_835_401);
+        let (la, lo) = m.inverse(e, n);
+        assert!(
+            (la - 45.0).abs() < 1e-9 && (lo - 5.0).abs() < 1e-9,
+            "{la} {lo}"
+        );
+        let b = m.true_bearing_deg(e, n, 0.0);
+        assert!((b - 1.451_215_530_103_019_4).abs() < 1e-5, "{b}");
+        assert!((p.constants().0 * 2.0 - b).abs() < 1e-5);
     }
 }

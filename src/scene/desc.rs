@@ -459,8 +459,8 @@ pub struct SunPositionDesc {
     /// trailing `Z` are accepted), year −2000…6000.
     pub utc: String,
     /// Geodetic latitude, degrees north, in [−90, 90]. Default (with `longitude_deg` absent
-    /// too): that of the scene centre, from the scene's `georeference` (UTM and transverse
-    /// Mercator CRSs; required without a georeference).
+    /// too): that of the scene centre, from the scene's `georeference` (transverse Mercator
+    /// and Lambert conformal conic CRSs; required without a georeference).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub latitude_deg: Option<f64>,
     /// Longitude, degrees east of Greenwich, in [−180, 180] (west negative). Default: as

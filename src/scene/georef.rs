@@ -8,7 +8,7 @@
 //! N = N₀ + x·cos β + y·sin β.
 
 use crate::io::geotiff::{MapPlacement, TiffCrs};
-use crate::physics::geodesy::TransverseMercator;
+use crate::physics::geodesy::{LambertConformal, MapProjection, TransverseMercator};
 use crate::scene::desc::{CrsDesc, GeoreferenceDesc};
 
 /// A resolved projected CRS in metres.
@@ -133,10 +133,11 @@ fn sin_cos_deg(deg: f64) -> (f64, f64) {
     }
 }
 
-/// The transverse Mercator grid of a PROJ string (`+proj=utm +zone=Z [+south]` or
-/// `+proj=tmerc +lat_0=0 +lon_0 +k +x_0 +y_0`, ellipsoid from `+ellps` or `+datum`), or why
-/// not.
-pub fn transverse_mercator(proj4: &str) -> Result<TransverseMercator, String> {
+/// The map projection of a PROJ string — transverse Mercator (`+proj=utm +zone=Z [+south]`
+/// or `+proj=tmerc +lat_0=0 +lon_0 +k +x_0 +y_0`) or Lambert conformal conic (`+proj=lcc
+/// +lat_0 +lon_0 +lat_1 [+lat_2] [+k_0] +x_0 +y_0`), ellipsoid from `+ellps` or `+datum` — or
+/// why not.
+pub fn map_projection(proj4: &str) -> Result<MapProjection, String> {
     let param = |k: &str| -> Option<&str> {
         proj4
             .split_whitespace()
@@ -174,19 +175,43 @@ pub fn transverse_mercator(proj4: &str) -> Result<TransverseMercator, String> {
                 return Err(format!("no UTM zone in `{proj4}`"));
             }
             let south = proj4.split_whitespace().any(|t| t == "+south");
-            Ok(TransverseMercator::utm(zone as u32, south, ellipsoid))
+            Ok(MapProjection::TransverseMercator(TransverseMercator::utm(
+                zone as u32,
+                south,
+                ellipsoid,
+            )))
         }
-        Some("tmerc") if num("lat_0", 0.0)? == 0.0 => Ok(TransverseMercator {
-            a_m: ellipsoid.0,
-            f: 1.0 / ellipsoid.1,
-            lon0_deg: num("lon_0", 0.0)?,
-            k0: num("k", num("k_0", 1.0)?)?,
-            false_easting_m: num("x_0", 0.0)?,
-            false_northing_m: num("y_0", 0.0)?,
-        }),
+        Some("tmerc") if num("lat_0", 0.0)? == 0.0 => {
+            Ok(MapProjection::TransverseMercator(TransverseMercator {
+                a_m: ellipsoid.0,
+                f: 1.0 / ellipsoid.1,
+                lon0_deg: num("lon_0", 0.0)?,
+                k0: num("k", num("k_0", 1.0)?)?,
+                false_easting_m: num("x_0", 0.0)?,
+                false_northing_m: num("y_0", 0.0)?,
+            }))
+        }
+        Some("lcc") => {
+            let lat1 = num("lat_1", f64::NAN)?;
+            if !lat1.is_finite() || lat1 == 0.0 {
+                return Err(format!("no standard parallel (+lat_1, not 0) in `{proj4}`"));
+            }
+            Ok(MapProjection::LambertConformal(LambertConformal {
+                a_m: ellipsoid.0,
+                f: 1.0 / ellipsoid.1,
+                lat0_deg: num("lat_0", lat1)?,
+                lon0_deg: num("lon_0", 0.0)?,
+                lat1_deg: lat1,
+                lat2_deg: num("lat_2", lat1)?,
+                k0: num("k_0", num("k", 1.0)?)?,
+                false_easting_m: num("x_0", 0.0)?,
+                false_northing_m: num("y_0", 0.0)?,
+            }))
+        }
         _ => Err(format!(
-            "latitude and longitude are derived for UTM and transverse Mercator grids with origin \
-             latitude 0 only, not `{proj4}`"
+            "latitude and longitude are derived for transverse Mercator (UTM, origin latitude 0) \
+             and Lambert conformal conic grids only, not `{proj4}`: give latitude_deg and \
+             longitude_deg in sun_position"
         )),
     }
 }
@@ -203,7 +228,7 @@ impl Georeference {
                 self.crs.name
             )
         })?;
-        let tm = transverse_mercator(proj4)?;
+        let tm = map_projection(proj4)?;
         let (e, n) = self.to_map(x, y);
         let (lat, lon) = tm.inverse(e, n);
         Ok((lat, lon, tm.true_bearing_deg(e, n, self.x_axis_bearing_deg)))
