@@ -87,11 +87,12 @@ fn spawn_tree(
 }
 
 /// Random placement with a minimum spacing (dart throwing with a hash grid), per species
-/// counts, seeded by (scene seed, object index).
+/// counts, seeded by (scene seed, object index); with `polygon`, only points inside it.
 fn place_random(
     counts: &[usize],
     min_spacing: f64,
     region: (f64, f64, f64, f64),
+    polygon: Option<&[glam::DVec2]>,
     periodic: Option<(f64, f64)>,
     seed: u64,
     idx: u32,
@@ -120,6 +121,11 @@ fn place_random(
             }
             let x = x0 + (x1 - x0) * uniform(&mut rng);
             let y = y0 + (y1 - y0) * uniform(&mut rng);
+            if polygon
+                .is_some_and(|p| !crate::geometry::polygon::contains(p, glam::DVec2::new(x, y)))
+            {
+                continue;
+            }
             let bi = (((x - x0) / cw) as usize).min(gx - 1);
             let bj = (((y - y0) / ch) as usize).min(gy - 1);
             // At most the whole bucket grid: a larger reach (a huge spacing) would only visit
@@ -460,15 +466,40 @@ fn spawn_stand(
             counts,
             min_spacing_m,
             region_m,
+            polygon_m,
         } => {
-            let region = region_m.unwrap_or((0.0, 0.0, ctx.size.0, ctx.size.1));
-            let per = if region_m.is_none() {
+            let mut region = region_m.unwrap_or((0.0, 0.0, ctx.size.0, ctx.size.1));
+            let poly: Option<Vec<glam::DVec2>> = polygon_m
+                .as_ref()
+                .map(|p| p.iter().map(|&(x, y)| glam::DVec2::new(x, y)).collect());
+            if let Some(p) = &poly {
+                // The polygon's bounding box within the region.
+                let (x0, y0, x1, y1) = p.iter().fold(
+                    (f64::MAX, f64::MAX, f64::MIN, f64::MIN),
+                    |(a, b, c, d), v| (a.min(v.x), b.min(v.y), c.max(v.x), d.max(v.y)),
+                );
+                region = (
+                    region.0.max(x0),
+                    region.1.max(y0),
+                    region.2.min(x1),
+                    region.3.min(y1),
+                );
+            }
+            let per = if region_m.is_none() && poly.is_none() {
                 ctx.periodic
             } else {
                 None
             };
-            place_random(counts, *min_spacing_m, region, per, seed, idx)
-                .map_err(|m| ctx.src.invalid(format!("objects[{i}].placement"), m))?
+            place_random(
+                counts,
+                *min_spacing_m,
+                region,
+                poly.as_deref(),
+                per,
+                seed,
+                idx,
+            )
+            .map_err(|m| ctx.src.invalid(format!("objects[{i}].placement"), m))?
         }
     };
     for (sp, x, y) in list {

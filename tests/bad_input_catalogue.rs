@@ -1279,14 +1279,6 @@ const GEOSPATIAL: &[Case] = &[
         "",
         "objects[1].classes",
     ),
-    land_cover(
-        "landcover_stand_rotated",
-        LC_FROM,
-        "version: 1, georeference: (crs: Epsg(32631), origin_map_m: (500000.0, 4800000.0), x_axis_bearing_deg: 30.0),||Ground((optics: \"soil\")), LandCover((path: \"d.tif\", classes: {1: TreeStand(species: [(name: \"a\", crown: (shape: Ellipsoid, base_height_m: 1.0, height_m: 2.0, radius_x_m: 1.0, foliage: Lai(1.0), optics: \"veg\"))], trees_per_ha: [100.0])})),",
-        || class_map(1.0),
-        "",
-        "objects[1].classes[1]",
-    ),
     geotiff_scene(
         "dem_tif_origin_m",
         GEO_FROM,
@@ -1460,9 +1452,9 @@ const GEOSPATIAL: &[Case] = &[
         "illumination.sun_position.latitude_deg",
     ),
     c(
-        "sun_position_lambert_crs",
+        "sun_position_laea_crs",
         "version: 1,||illumination: (sun_zenith_deg: 30.0, sun_azimuth_deg: 0.0, skyl: [0.1]),",
-        "version: 1, georeference: (crs: Epsg(2154), origin_map_m: (700000.0, 6600000.0)),||illumination: (sun_position: (utc: \"2024-06-21T10:00:00\"), skyl: [0.1]),",
+        "version: 1, georeference: (crs: Epsg(3035), origin_map_m: (4321000.0, 3210000.0)),||illumination: (sun_position: (utc: \"2024-06-21T10:00:00\"), skyl: [0.1]),",
         "illumination.sun_position.latitude_deg",
     ),
     c(

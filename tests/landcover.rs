@@ -260,6 +260,42 @@ fn a_rotated_scene_tiles_the_classes_as_polygons() {
     );
 }
 
+/// Tree-stand classes in a rotated scene (+x at bearing 60°): the trunks are placed inside
+/// each class polygon (clipped rotated rectangle), and a class covering the whole scene gets
+/// its density × the scene's area in trees (to within one per species).
+#[test]
+fn a_rotated_scene_gets_its_tree_stands() {
+    let stand = r#"LandCover((path: "lc.tif", classes: {
+            5: TreeStand(species: [
+                (name: "a", crown: (shape: Ellipsoid, base_height_m: 2.0, height_m: 2.0, radius_x_m: 0.8, foliage: LeafArea(10.0), optics: "grass")),
+                (name: "b", crown: (shape: Cone, base_height_m: 1.0, height_m: 3.0, radius_x_m: 0.6, foliage: LeafArea(10.0), optics: "crop")),
+            ], trees_per_ha: [3000.0, 1250.0], min_spacing_m: 0.5),
+        })),"#;
+    let text = scene(stand).replace(
+        "origin_map_m: (500000.0, 4800000.0))",
+        "origin_map_m: (500000.0, 4800000.0), x_axis_bearing_deg: 60.0)",
+    );
+    assert!(text.contains("x_axis_bearing_deg: 60.0"));
+    // 3 m pixels from (499975, 4800030), all of class 5: they cover the rotated scene.
+    let map = class_map(16, 12, 3.0, (499_975.0, 4_800_030.0), |_, _| 5.0);
+    let tif = dem_tiff(&map, Sample::U16, Compression::Uncompressed);
+    let out = run("rotated_stand", "maket", &text, &[("lc.tif", &tif)]);
+    let report: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(out.join("maket.json")).unwrap()).unwrap();
+    let area_ha = 400.0 / 1e4;
+    for (material, density) in [("grass", 3000.0), ("crop", 1250.0)] {
+        let trees = report["leaf_area"][material]["analytic_m2"]
+            .as_f64()
+            .unwrap()
+            / 10.0;
+        let want = density * area_ha;
+        assert!(
+            (trees - want).abs() <= 1.0 && (trees - trees.round()).abs() < 1e-9,
+            "{material}: {trees} trees for {want}"
+        );
+    }
+}
+
 /// The example scene runs and writes its georeferenced products.
 #[test]
 fn the_example_land_cover_scene_runs() {

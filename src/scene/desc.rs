@@ -845,6 +845,10 @@ pub enum PlacementDesc {
         /// Area to fill (x_min, y_min, x_max, y_max), metres; default the whole scene.
         #[serde(default)]
         region_m: Option<(f64, f64, f64, f64)>,
+        /// A simple polygon to fill instead (vertices in order, metres; with `region_m`, the
+        /// trunks lie in both), e.g. a stand's outline.
+        #[serde(default, skip_serializing_if = "Option::is_none")]
+        polygon_m: Option<Vec<(f64, f64)>>,
     },
 }
 

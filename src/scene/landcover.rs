@@ -62,6 +62,10 @@ pub fn class_object(class: &LandCoverClass, footprint: FootprintDesc) -> Option<
                 counts: vec![1; species.len()],
                 min_spacing_m: *min_spacing_m,
                 region_m: Some(region),
+                polygon_m: match &footprint {
+                    FootprintDesc::Polygon(p) => Some(p.clone()),
+                    FootprintDesc::Box(_) => None,
+                },
             },
         })),
         LandCoverClass::Building {
@@ -155,22 +159,6 @@ pub fn expand_land_cover(
                 .into(),
         ));
     };
-    if !g.north_up()
-        && let Some(k) = l
-            .classes
-            .iter()
-            .find(|(_, c)| matches!(c, LandCoverClass::TreeStand { .. }))
-            .map(|(k, _)| *k)
-    {
-        return Err(inv(
-            &format!(".classes[{k}]"),
-            format!(
-                "TreeStand classes need a scene with +x east (georeference.x_axis_bearing_deg = \
-                 90), got {}°",
-                g.x_axis_bearing_deg
-            ),
-        ));
-    }
     let p = base_dir.join(&l.path);
     let bytes = std::fs::read(&p).map_err(|e| SceneError::Io {
         path: p.clone(),
@@ -283,9 +271,17 @@ pub fn expand_land_cover(
             }
             FootprintDesc::Polygon(poly.iter().map(|v| (v.x, v.y)).collect())
         };
-        let (x0, y0, x1, y1) = match &footprint {
-            FootprintDesc::Box(b) => *b,
-            FootprintDesc::Polygon(_) => (0.0, 0.0, 0.0, 0.0), // no tree stands when rotated
+        // The rectangle's area (trees owed) and bounding box (the isolated inset below).
+        let (area_m2, (x0, y0, x1, y1)) = match &footprint {
+            FootprintDesc::Box(b) => ((b.2 - b.0) * (b.3 - b.1), *b),
+            FootprintDesc::Polygon(p) => {
+                let v: Vec<DVec2> = p.iter().map(|&(x, y)| DVec2::new(x, y)).collect();
+                let bb = p.iter().fold(
+                    (f64::MAX, f64::MAX, f64::MIN, f64::MIN),
+                    |(a, b, c, d), &(x, y)| (a.min(x), b.min(y), c.max(x), d.max(y)),
+                );
+                (signed_area(&v).abs(), bb)
+            }
         };
         let Some(mut o) = class_object(class, footprint) else {
             continue;
@@ -305,7 +301,7 @@ pub fn expand_land_cover(
             }),
         ) = (class, &mut o)
         {
-            let area_ha = (x1 - x0) * (y1 - y0) / 1e4;
+            let area_ha = area_m2 / 1e4;
             let owed = carry.entry(k).or_insert_with(|| vec![0.0; species.len()]);
             for (s, n) in counts.iter_mut().enumerate() {
                 owed[s] += trees_per_ha[s] * area_ha;

@@ -173,6 +173,7 @@ pub fn forest(p: &ForestParams) -> SceneDesc {
                 counts: cnt,
                 min_spacing_m: p.min_spacing_m,
                 region_m: None,
+                polygon_m: None,
             },
         }
     } else {
@@ -182,6 +183,7 @@ pub fn forest(p: &ForestParams) -> SceneDesc {
                 counts,
                 min_spacing_m: p.min_spacing_m,
                 region_m: None,
+                polygon_m: None,
             },
         }
     };

@@ -220,6 +220,7 @@ impl V<'_> {
                 counts,
                 min_spacing_m,
                 region_m,
+                polygon_m,
             } => {
                 let pf = format!("{f}.placement");
                 if counts.len() != s.species.len() {
@@ -243,21 +244,35 @@ impl V<'_> {
                     ));
                 }
                 self.non_negative(&format!("{pf}.min_spacing_m"), *min_spacing_m)?;
+                let r = s
+                    .species
+                    .iter()
+                    .map(|sp| sp.crown.radius_x_m.max(sp.crown.radius_y_m.unwrap_or(0.0)))
+                    .fold(0.0, f64::max);
+                if let Some(p) = polygon_m {
+                    self.footprint(
+                        &format!("{pf}.polygon_m"),
+                        &FootprintDesc::Polygon(p.clone()),
+                    )?;
+                }
                 if let Some((x0, y0, x1, y1)) = region_m {
                     self.footprint(
                         &format!("{pf}.region_m"),
                         &FootprintDesc::Box((*x0, *y0, *x1, *y1)),
                     )?;
-                    let r = s
-                        .species
-                        .iter()
-                        .map(|sp| sp.crown.radius_x_m.max(sp.crown.radius_y_m.unwrap_or(0.0)))
-                        .fold(0.0, f64::max);
                     self.inside(&format!("{pf}.region_m"), x0 - r, y0 - r, x1 + r, y1 + r)?;
+                } else if let Some(p) = polygon_m
+                    && desc.grid.boundary == BoundaryMode::Isolated
+                {
+                    let (x0, y0, x1, y1) = p.iter().fold(
+                        (f64::MAX, f64::MAX, f64::MIN, f64::MIN),
+                        |(a, b, c, d), &(x, y)| (a.min(x), b.min(y), c.max(x), d.max(y)),
+                    );
+                    self.inside(&format!("{pf}.polygon_m"), x0 - r, y0 - r, x1 + r, y1 + r)?;
                 } else if desc.grid.boundary == BoundaryMode::Isolated {
                     return Err(src.invalid(
                         format!("{pf}.region_m"),
-                        "random placement in an isolated scene needs a `region_m` that keeps crowns inside the scene",
+                        "random placement in an isolated scene needs a `region_m` (or `polygon_m`) that keeps crowns inside the scene",
                     ));
                 }
             }
