@@ -1,6 +1,6 @@
 //! Geodesy for placing a georeferenced scene on the Earth (issue #37): the inverse transverse
-//! Mercator projection (UTM and other transverse Mercator grids with their origin latitude on
-//! the equator) by Krüger's series to order n⁶ as given by Karney (2011), the inverse Lambert
+//! Mercator projection (UTM, the British National Grid and other transverse Mercator grids) by
+//! Krüger's series to order n⁶ as given by Karney (2011), the inverse Lambert
 //! conformal conic projection (one or two standard parallels; Snyder 1987, §15), and the true
 //! bearing of a map direction.
 //!
@@ -11,8 +11,8 @@
 //! §4).
 
 /// A transverse Mercator grid: ellipsoid (semi-major axis `a_m`, flattening `f`), central
-/// meridian `lon0_deg`, scale on it `k0`, false easting and northing (m). The origin latitude is
-/// the equator.
+/// meridian `lon0_deg`, origin latitude `lat0_deg`, scale on the central meridian `k0`, false
+/// easting and northing (m).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct TransverseMercator {
     /// Semi-major axis, m.
@@ -21,6 +21,9 @@ pub struct TransverseMercator {
     pub f: f64,
     /// Central meridian, degrees east.
     pub lon0_deg: f64,
+    /// Latitude of the grid origin, degrees (0 for UTM; e.g. 49 for the British National
+    /// Grid): the northing there is the false northing.
+    pub lat0_deg: f64,
     /// Scale factor on the central meridian.
     pub k0: f64,
     /// False easting, m.
@@ -40,6 +43,7 @@ impl TransverseMercator {
             a_m: ellipsoid.0,
             f: 1.0 / ellipsoid.1,
             lon0_deg: 6.0 * zone as f64 - 183.0,
+            lat0_deg: 0.0,
             k0: 0.9996,
             false_easting_m: 500_000.0,
             false_northing_m: if south { 10_000_000.0 } else { 0.0 },
@@ -64,7 +68,14 @@ impl TransverseMercator {
             4583.0 * n5 / 161280.0 - 108847.0 * n6 / 3991680.0,
             20648693.0 * n6 / 638668800.0,
         ];
-        let xi = (northing_m - self.false_northing_m) / (self.k0 * a_rect);
+        // Meridian distance of the origin latitude: A μ₀, μ₀ its rectifying latitude by
+        // Helmert's series in n (Snyder 1987 eq. (3-35) with e₁ = n).
+        let p0 = self.lat0_deg.to_radians();
+        let mu0 = p0 - (1.5 * n - 9.0 * n3 / 16.0) * (2.0 * p0).sin()
+            + (15.0 * n2 / 16.0 - 15.0 * n4 / 32.0) * (4.0 * p0).sin()
+            - (35.0 * n3 / 48.0) * (6.0 * p0).sin()
+            + (315.0 * n4 / 512.0) * (8.0 * p0).sin();
+        let xi = (northing_m - self.false_northing_m) / (self.k0 * a_rect) + mu0;
         let eta = (easting_m - self.false_easting_m) / (self.k0 * a_rect);
         let (mut xi1, mut eta1) = (xi, eta);
         for (j, b) in beta.iter().enumerate() {
@@ -393,5 +404,36 @@ mod tests {
         let b = m.true_bearing_deg(e, n, 0.0);
         assert!((b - 1.451_215_530_103_019_4).abs() < 1e-5, "{b}");
         assert!((p.constants().0 * 2.0 - b).abs() < 1e-5);
+    }
+
+    /// The British National Grid (EPSG:27700, transverse Mercator with origin latitude 49° on
+    /// the Airy ellipsoid) against PROJ 9.5.1 (pyproj 3.7.2, to OSGB36 geographic, EPSG:4277).
+    #[test]
+    fn british_national_grid_inverse_matches_proj() {
+        let p = TransverseMercator {
+            a_m: 6_377_563.396,
+            f: 1.0 / 299.324_964_6,
+            lon0_deg: -2.0,
+            lat0_deg: 49.0,
+            k0: 0.999_601_271_7,
+            false_easting_m: 400_000.0,
+            false_northing_m: -100_000.0,
+        };
+        for (e, n, lat, lon) in [
+            (400_000.0, -100_000.0, 49.0, -2.0),
+            (
+                530_000.0,
+                180_000.0,
+                51.503480036972256,
+                -0.12674767994594327,
+            ),
+            (326_000.0, 674_000.0, 55.95336296133763, -3.1852290370371796),
+        ] {
+            let (la, lo) = p.inverse(e, n);
+            assert!(
+                (la - lat).abs() < 1e-9 && (lo - lon).abs() < 1e-9,
+                "{e} {n}: {la} {lo}"
+            );
+        }
     }
 }

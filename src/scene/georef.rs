@@ -134,7 +134,7 @@ fn sin_cos_deg(deg: f64) -> (f64, f64) {
 }
 
 /// The map projection of a PROJ string — transverse Mercator (`+proj=utm +zone=Z [+south]`
-/// or `+proj=tmerc +lat_0=0 +lon_0 +k +x_0 +y_0`) or Lambert conformal conic (`+proj=lcc
+/// or `+proj=tmerc +lat_0 +lon_0 +k +x_0 +y_0`) or Lambert conformal conic (`+proj=lcc
 /// +lat_0 +lon_0 +lat_1 [+lat_2] [+k_0] +x_0 +y_0`), ellipsoid from `+ellps` or `+datum` — or
 /// why not.
 pub fn map_projection(proj4: &str) -> Result<MapProjection, String> {
@@ -160,10 +160,11 @@ pub fn map_projection(proj4: &str) -> Result<MapProjection, String> {
         Some("intl") => (6_378_388.0, 297.0),
         Some("bessel") => (6_377_397.155, 299.152_812_8),
         Some("clrk66") => (6_378_206.4, 294.978_698_2),
+        Some("airy") => (6_377_563.396, 299.324_964_6),
         other => {
             return Err(format!(
                 "the ellipsoid {} of `{proj4}` is not one lumenscape knows (WGS84, GRS80, intl, \
-                 bessel, clrk66)",
+                 bessel, clrk66, airy)",
                 other.unwrap_or("(none)")
             ));
         }
@@ -181,16 +182,15 @@ pub fn map_projection(proj4: &str) -> Result<MapProjection, String> {
                 ellipsoid,
             )))
         }
-        Some("tmerc") if num("lat_0", 0.0)? == 0.0 => {
-            Ok(MapProjection::TransverseMercator(TransverseMercator {
-                a_m: ellipsoid.0,
-                f: 1.0 / ellipsoid.1,
-                lon0_deg: num("lon_0", 0.0)?,
-                k0: num("k", num("k_0", 1.0)?)?,
-                false_easting_m: num("x_0", 0.0)?,
-                false_northing_m: num("y_0", 0.0)?,
-            }))
-        }
+        Some("tmerc") => Ok(MapProjection::TransverseMercator(TransverseMercator {
+            a_m: ellipsoid.0,
+            f: 1.0 / ellipsoid.1,
+            lon0_deg: num("lon_0", 0.0)?,
+            lat0_deg: num("lat_0", 0.0)?,
+            k0: num("k", num("k_0", 1.0)?)?,
+            false_easting_m: num("x_0", 0.0)?,
+            false_northing_m: num("y_0", 0.0)?,
+        })),
         Some("lcc") => {
             let lat1 = num("lat_1", f64::NAN)?;
             if !lat1.is_finite() || lat1 == 0.0 {
@@ -209,8 +209,8 @@ pub fn map_projection(proj4: &str) -> Result<MapProjection, String> {
             }))
         }
         _ => Err(format!(
-            "latitude and longitude are derived for transverse Mercator (UTM, origin latitude 0) \
-             and Lambert conformal conic grids only, not `{proj4}`: give latitude_deg and \
+            "latitude and longitude are derived for transverse Mercator (UTM and others) and \
+             Lambert conformal conic grids only, not `{proj4}`: give latitude_deg and \
              longitude_deg in sun_position"
         )),
     }
