@@ -248,7 +248,7 @@ impl Ctx<'_> {
             let (frac, tr) = attenuation(x);
             let (s1, s2) = HalfBarycentres::get().eval(x, ell);
             let (p1, p2) = (o + d * s1, o + d * s2);
-            let psum: f64 = pw.iter().sum();
+            let psum: f64 = crate::radiative::walk::channel_sum(pw);
             let slot = self.slot_of(j) as u32;
             let mut tur = out.tur.take().expect("accumulator");
             for e in ents {
@@ -261,7 +261,7 @@ impl Ctx<'_> {
                 *x *= tr;
             }
         }
-        let psum: f64 = pw.iter().sum();
+        let psum: f64 = crate::radiative::walk::channel_sum(pw);
         if psum <= 0.0 {
             add(&mut out.lost, pw);
             return;

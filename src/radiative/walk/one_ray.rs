@@ -106,8 +106,8 @@ impl Ctx<'_> {
                 add(&mut out.lost, pw);
                 break 'restart;
             };
-            // Σ pw, kept equal to `pw.iter().sum()` whenever `pw` changes.
-            let mut psum: f64 = pw.iter().sum();
+            // Σ pw, kept equal to `channel_sum(pw)` whenever `pw` changes.
+            let mut psum: f64 = crate::radiative::walk::channel_sum(pw);
             loop {
                 n_cross += 1;
                 let c = dda.index();
@@ -158,7 +158,7 @@ impl Ctx<'_> {
                     if let Some((r, f, th)) = hit {
                         let hp = dda.point(th);
                         let any_direct = self.facet_hit(r, f, hp, c, slot, d, pw, psum, out);
-                        if !any_direct || pw.iter().sum::<f64>() < min_ray {
+                        if !any_direct || crate::radiative::walk::channel_sum(pw) < min_ray {
                             add(&mut out.lost, pw);
                             break 'restart;
                         }
@@ -276,7 +276,7 @@ impl Ctx<'_> {
             for v in pw.iter_mut() {
                 *v *= tr;
             }
-            *psum = pw.iter().sum();
+            *psum = crate::radiative::walk::channel_sum(pw);
             if *psum < min_ray {
                 add(&mut out.lost, pw);
                 return false;

@@ -106,7 +106,7 @@ impl Ctx<'_> {
         };
         let mut n_cross = 0u64;
         let mut wraps = 0u32;
-        let mut psum: f64 = pw.iter().sum();
+        let mut psum: f64 = crate::radiative::walk::channel_sum(pw);
         // The traversal's origin, kept in a local (changes only at a wrap).
         let mut o = dda.origin();
         let mut n_skip = 0u64;
@@ -129,7 +129,7 @@ impl Ctx<'_> {
                         for v in pw.iter_mut() {
                             *v *= tr;
                         }
-                        psum = pw.iter().sum();
+                        psum = crate::radiative::walk::channel_sum(pw);
                         if psum < min_ray {
                             add(&mut out.lost, pw);
                             break;
@@ -259,7 +259,7 @@ impl Ctx<'_> {
         };
         let mut n_cross = 0u64;
         let mut wraps = 0u32;
-        let mut psum: f64 = pw.iter().sum();
+        let mut psum: f64 = crate::radiative::walk::channel_sum(&pw);
         // The traversal's origin, kept in a local (changes only at a wrap).
         let mut o = dda.origin();
         let mut n_skip = 0u64;
@@ -297,7 +297,7 @@ impl Ctx<'_> {
                         for v in pw.iter_mut() {
                             *v *= tr;
                         }
-                        psum = pw.iter().sum();
+                        psum = crate::radiative::walk::channel_sum(&pw);
                         if psum < min_ray {
                             add(&mut out.lost, &pw);
                             break;
