@@ -226,6 +226,42 @@ struct PlacedDem {
     node0: (f64, f64),
 }
 
+/// The raster nodes (columns `c_lo..=c_hi`, rows `r_lo..=r_hi`; row 0 at the top) that cover
+/// the map box `(e_min, n_min, e_max, n_max)` (m), for a raster of `n` nodes spaced `spacing`
+/// from `node0` (the top-left node, map m); an error (`what` names the box) when the raster
+/// does not cover it.
+fn node_range(
+    path: &Path,
+    (nx, ny): (usize, usize),
+    (dx, dy): (f64, f64),
+    (e_node0, n_node0): (f64, f64),
+    (e_min, n_min, e_max, n_max): (f64, f64, f64, f64),
+    what: &str,
+) -> Result<(usize, usize, usize, usize), SceneError> {
+    let eps = 1e-9;
+    let c_lo = ((e_min - e_node0) / dx + eps).floor();
+    let c_hi = ((e_max - e_node0) / dx - eps).ceil();
+    let r_lo = ((n_node0 - n_max) / dy + eps).floor();
+    let r_hi = ((n_node0 - n_min) / dy - eps).ceil();
+    if c_lo < 0.0 || r_lo < 0.0 || c_hi > (nx - 1) as f64 || r_hi > (ny - 1) as f64 {
+        return Err(err(
+            path,
+            None,
+            "extent",
+            format!(
+                "the scene's {what} E [{e_min}, {e_max}], N [{n_min}, {n_max}] m is not inside \
+                 the raster's nodes E [{}, {}], N [{}, {}] m; enlarge the raster or move \
+                 georeference.origin_map_m",
+                e_node0,
+                e_node0 + (nx - 1) as f64 * dx,
+                n_node0 - (ny - 1) as f64 * dy,
+                n_node0
+            ),
+        ));
+    }
+    Ok((c_lo as usize, c_hi as usize, r_lo as usize, r_hi as usize))
+}
+
 /// [`read_placed_geotiff`] for a DEM: refuses a raster that is no-data everywhere and gives
 /// its node placement.
 fn read_placed_dem(path: &Path, bytes: &[u8], g: &Georeference) -> Result<PlacedDem, SceneError> {
@@ -273,29 +309,14 @@ pub fn read_geotiff_dem(
     let (nx, ny) = r.size;
     let is_nodata = |v: f64| !v.is_finite() || r.nodata == Some(v);
     let (e0, n0) = g.origin_map_m;
-    let (e1, n1) = (e0 + size.0, n0 + size.1);
-    let eps = 1e-9;
-    let c_lo = ((e0 - e_node0) / dx + eps).floor();
-    let c_hi = ((e1 - e_node0) / dx - eps).ceil();
-    let r_lo = ((n_node0 - n1) / dy + eps).floor();
-    let r_hi = ((n_node0 - n0) / dy - eps).ceil();
-    if c_lo < 0.0 || r_lo < 0.0 || c_hi > (nx - 1) as f64 || r_hi > (ny - 1) as f64 {
-        return Err(err(
-            path,
-            None,
-            "extent",
-            format!(
-                "the scene's map extent E [{e0}, {e1}], N [{n0}, {n1}] m is not inside the \
-                 raster's nodes E [{}, {}], N [{}, {}] m; enlarge the raster or move \
-                 georeference.origin_map_m",
-                e_node0,
-                e_node0 + (nx - 1) as f64 * dx,
-                n_node0 - (ny - 1) as f64 * dy,
-                n_node0
-            ),
-        ));
-    }
-    let (c_lo, c_hi, r_lo, r_hi) = (c_lo as usize, c_hi as usize, r_lo as usize, r_hi as usize);
+    let (c_lo, c_hi, r_lo, r_hi) = node_range(
+        path,
+        (nx, ny),
+        (dx, dy),
+        (e_node0, n_node0),
+        (e0, n0, e0 + size.0, n0 + size.1),
+        "map extent",
+    )?;
     let (mx, my) = (c_hi - c_lo + 1, r_hi - r_lo + 1);
     let mut z = vec![0.0; mx * my];
     for row in r_lo..=r_hi {
@@ -350,32 +371,18 @@ pub fn read_geotiff_dem_nodes(
     } = read_placed_dem(path, bytes, g)?;
     let (nx, ny) = r.size;
     let is_nodata = |v: f64| !v.is_finite() || r.nodata == Some(v);
-    let (e_min, n_min, e_max, n_max) = g.map_bounds(size);
-    let eps = 1e-9;
-    let c_lo = ((e_min - e_node0) / dx + eps).floor();
-    let c_hi = ((e_max - e_node0) / dx - eps).ceil();
-    let r_lo = ((n_node0 - n_max) / dy + eps).floor();
-    let r_hi = ((n_node0 - n_min) / dy - eps).ceil();
-    if c_lo < 0.0 || r_lo < 0.0 || c_hi > (nx - 1) as f64 || r_hi > (ny - 1) as f64 {
-        return Err(err(
-            path,
-            None,
-            "extent",
-            format!(
-                "the scene's map bounding box E [{e_min}, {e_max}], N [{n_min}, {n_max}] m is not \
-                 inside the raster's nodes E [{}, {}], N [{}, {}] m; enlarge the raster or move \
-                 georeference.origin_map_m",
-                e_node0,
-                e_node0 + (nx - 1) as f64 * dx,
-                n_node0 - (ny - 1) as f64 * dy,
-                n_node0
-            ),
-        ));
-    }
+    let (c_lo, c_hi, r_lo, r_hi) = node_range(
+        path,
+        (nx, ny),
+        (dx, dy),
+        (e_node0, n_node0),
+        g.map_bounds(size),
+        "map bounding box",
+    )?;
     let margin = dx.hypot(dy);
     let mut verts = Vec::new();
-    for row in r_lo as usize..=r_hi as usize {
-        for col in c_lo as usize..=c_hi as usize {
+    for row in r_lo..=r_hi {
+        for col in c_lo..=c_hi {
             let (x, y) = g.to_scene(e_node0 + col as f64 * dx, n_node0 - row as f64 * dy);
             if x < -margin || y < -margin || x > size.0 + margin || y > size.1 + margin {
                 continue;
