@@ -228,6 +228,19 @@ fn check_product(out: &Path, stem: &str, px: f64, spectral: bool) {
     assert_eq!(vals, t.bands.concat(), "{stem}: ENVI raw values");
 }
 
+/// The DSM channel of `out` and its largest difference from `reference`'s, m.
+fn dsm_difference(out: &Path, reference: &Path) -> (Vec<(String, Vec<f32>)>, f32) {
+    let (_, _, a) = read_exr_channels(&out.join("dsm.exr")).unwrap();
+    let (_, _, b) = read_exr_channels(&reference.join("dsm.exr")).unwrap();
+    let worst = a[0]
+        .1
+        .iter()
+        .zip(&b[0].1)
+        .map(|(x, y)| (x - y).abs())
+        .fold(0f32, f32::max);
+    (a, worst)
+}
+
 #[test]
 fn geotiff_and_envi_products_equal_the_exr_and_carry_the_georeference() {
     let out = run(
@@ -475,14 +488,7 @@ fn dem_geotiff_of_an_analytic_surface_gives_the_analytic_ground() {
         alt.join(", ")
     );
     let reference = run("analytic_inline", "maket", &scene(&geo, &inline), &[]);
-    let (_, _, a) = read_exr_channels(&out.join("dsm.exr")).unwrap();
-    let (_, _, b) = read_exr_channels(&reference.join("dsm.exr")).unwrap();
-    let worst = a[0]
-        .1
-        .iter()
-        .zip(&b[0].1)
-        .map(|(x, y)| (x - y).abs())
-        .fold(0f32, f32::max);
+    let (_, worst) = dsm_difference(&out, &reference);
     assert!(worst <= 1e-6, "DSM differs by {worst} m");
     // The ground facets themselves: the same leaf-free ground area and the same density file.
     assert_eq!(
@@ -617,14 +623,7 @@ fn rotated_scene_dem_is_the_same_plane() {
         alt.join(", ")
     );
     let reference = run("rotated_inline", "maket", &scene(geo, &inline), &[]);
-    let (_, _, a) = read_exr_channels(&out.join("dsm.exr")).unwrap();
-    let (_, _, b) = read_exr_channels(&reference.join("dsm.exr")).unwrap();
-    let worst = a[0]
-        .1
-        .iter()
-        .zip(&b[0].1)
-        .map(|(x, y)| (x - y).abs())
-        .fold(0f32, f32::max);
+    let (a, worst) = dsm_difference(&out, &reference);
     // f32 in the EXR: 2 ulp at 100 m.
     assert!(worst <= 1.6e-5, "DSM differs by {worst} m");
     // The plane's slope shows: the DSM is not flat.

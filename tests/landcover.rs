@@ -169,6 +169,22 @@ fn leaf_area_per_class_is_its_clipped_area_times_its_lai() {
     assert!(facets["wall"].as_f64().unwrap() > area[4], "{facets}");
 }
 
+/// The stand classes' tree counts (10 m² of leaves per tree, materials `grass` at 3000 and
+/// `crop` at 1250 trees per hectare) equal density × `area_ha`, to within one tree.
+fn assert_stand_counts(report: &serde_json::Value, area_ha: f64) {
+    for (material, density) in [("grass", 3000.0), ("crop", 1250.0)] {
+        let trees = report["leaf_area"][material]["analytic_m2"]
+            .as_f64()
+            .unwrap()
+            / 10.0;
+        let want = density * area_ha;
+        assert!(
+            (trees - want).abs() <= 1.0 && (trees - trees.round()).abs() < 1e-9,
+            "{material}: {trees} trees for {want}"
+        );
+    }
+}
+
 /// A tree-stand class gets its density × its area in trees (to within one per species), from a
 /// seeded placement: the same map gives the same trees, another seed other positions.
 #[test]
@@ -193,17 +209,7 @@ fn a_tree_stand_class_gets_its_density_times_its_area() {
     let a = run("stand_a", "maket", &text, &[("lc.tif", &tif)]);
     let report: serde_json::Value =
         serde_json::from_slice(&std::fs::read(a.join("maket.json")).unwrap()).unwrap();
-    for (material, density) in [("grass", 3000.0), ("crop", 1250.0)] {
-        let trees = report["leaf_area"][material]["analytic_m2"]
-            .as_f64()
-            .unwrap()
-            / 10.0;
-        let want = density * area_ha;
-        assert!(
-            (trees - want).abs() <= 1.0 && (trees - trees.round()).abs() < 1e-9,
-            "{material}: {trees} trees for {want}"
-        );
-    }
+    assert_stand_counts(&report, area_ha);
     let b = run("stand_b", "maket", &text, &[("lc.tif", &tif)]);
     let seeded = run(
         "stand_seed",
@@ -283,17 +289,7 @@ fn a_rotated_scene_gets_its_tree_stands() {
     let report: serde_json::Value =
         serde_json::from_slice(&std::fs::read(out.join("maket.json")).unwrap()).unwrap();
     let area_ha = 400.0 / 1e4;
-    for (material, density) in [("grass", 3000.0), ("crop", 1250.0)] {
-        let trees = report["leaf_area"][material]["analytic_m2"]
-            .as_f64()
-            .unwrap()
-            / 10.0;
-        let want = density * area_ha;
-        assert!(
-            (trees - want).abs() <= 1.0 && (trees - trees.round()).abs() < 1e-9,
-            "{material}: {trees} trees for {want}"
-        );
-    }
+    assert_stand_counts(&report, area_ha);
 }
 
 /// The example scene runs and writes its georeferenced products.
