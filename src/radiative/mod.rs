@@ -3,6 +3,7 @@
 //! of its orthographic images ([`images`]).
 
 pub mod dda;
+pub mod emission;
 pub mod engine;
 pub mod fastmath;
 pub mod images;
