@@ -259,23 +259,42 @@ impl TurbidPair {
     }
 }
 
-/// `outgoing[j · w + r · nb + b] += wv[r · nb + b] · rows[b][j]` for every direction j,
-/// copy r < `reps` (sun and sky channels) and band b < nb = `rows.len()`.
+/// Channels up to which a slot is scattered channel by channel (each channel's directions a
+/// contiguous, vectorised run at stride w); above, direction by direction (each direction's w
+/// channels contiguous: with hundreds of channels the channel order strode through
+/// `outgoing` by w per direction, 40 % of such a run).
+const CHANNEL_MAJOR_MAX: usize = 8;
+
+/// `outgoing[j · w + r · nb + b] += wv[r · nb + b] · row(b)[j]` for every direction
+/// j < `n_dirs`, copy r < `reps` (sun and sky channels) and band b < `nb`. Both loop orders add
+/// the same products once per element, so the sums do not depend on the order (channels whose
+/// `wv` is 0 are skipped: they would add +0).
 #[inline]
-fn scatter_rows<T: Copy>(
+fn scatter_slot<'r, T: Copy + 'r>(
     outgoing: &mut [f64],
     wv: &[f64],
-    rows: &[&[T]],
-    reps: usize,
+    (nb, reps, n_dirs): (usize, usize, usize),
+    row: impl Fn(usize) -> &'r [T],
     to_f64: impl Fn(T) -> f64,
 ) {
-    let nb = rows.len();
     let w = nb * reps;
-    let n_dirs = rows.first().map_or(0, |r| r.len());
+    if w <= CHANNEL_MAJOR_MAX {
+        for (ch, &val) in wv.iter().enumerate() {
+            if val == 0.0 {
+                continue;
+            }
+            let r = row(ch % nb);
+            for (o, &t) in outgoing.chunks_exact_mut(w).zip(&r[..n_dirs]) {
+                o[ch] += val * to_f64(t);
+            }
+        }
+        return;
+    }
+    let rows: Vec<&[T]> = (0..nb).map(&row).collect();
     for (j, o) in outgoing.chunks_exact_mut(w).take(n_dirs).enumerate() {
         for r in 0..reps {
             let (o, v) = (&mut o[r * nb..(r + 1) * nb], &wv[r * nb..(r + 1) * nb]);
-            for ((o, &v), row) in o.iter_mut().zip(v).zip(rows) {
+            for ((o, &v), row) in o.iter_mut().zip(v).zip(&rows) {
                 *o += v * to_f64(row[j]);
             }
         }
@@ -313,17 +332,13 @@ fn turbid_emitter<'s>(
             }
         }
         // `outgoing[j · w + ch] += wv[ch] · row_{ch mod nb}[j]` for every direction j and
-        // channel ch, direction by direction so that each direction's w channels are written
-        // contiguously (many bands: the channel-by-channel order strode through `outgoing` by
-        // w per direction). A zero `wv[ch]` adds +0: the sums are those of skipping it.
-        let reps = w / nb;
+        // channel ch ([`scatter_slot`]).
+        let dims = (nb, w / nb, n_dirs);
         if slot == ns - 1 {
             let srow = tables[0].sun_row().unwrap_or(0);
-            let rows: Vec<&[f32]> = (0..nb).map(|b| &tables[b].row(srow)[..n_dirs]).collect();
-            scatter_rows(outgoing, wv, &rows, reps, |t| t as f64);
+            scatter_slot(outgoing, wv, dims, |b| tables[b].row(srow), |t| t as f64);
         } else {
-            let rows: Vec<&[f64]> = (0..nb).map(|b| ctx.slot_row(tm, b, slot)).collect();
-            scatter_rows(outgoing, wv, &rows, reps, |t| t);
+            scatter_slot(outgoing, wv, dims, |b| ctx.slot_row(tm, b, slot), |t| t);
         }
     }
     let p = &st.tur_pts[k];
