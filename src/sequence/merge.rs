@@ -127,12 +127,14 @@ impl Plan {
         let mut groups: Vec<Vec<usize>> = Vec::new();
         let mut by_key: BTreeMap<String, usize> = BTreeMap::new();
         for i in 0..n {
-            let p = self.point(i)?;
-            let nb = p.desc.bands.len();
-            let k = if p.desc.lidars.as_ref().is_some_and(|l| !l.is_empty()) || nb == 0 {
+            // The scene read back through serde (its canonical tree), unvalidated: `check`
+            // validated every point.
+            let (_, desc) = self.scene(i)?;
+            let nb = desc.bands.len();
+            let k = if desc.lidars.as_ref().is_some_and(|l| !l.is_empty()) || nb == 0 {
                 None
             } else {
-                let tree = serde_json::to_value(&p.desc).map_err(|e| SequenceError {
+                let tree = serde_json::to_value(&desc).map_err(|e| SequenceError {
                     at: self.file.display().to_string(),
                     message: format!("point {i}: {e}"),
                 })?;
@@ -158,8 +160,9 @@ impl Plan {
     pub(super) fn merged_scene(&self, unit: &[usize]) -> Result<SceneDesc, String> {
         let mut trees = Vec::with_capacity(unit.len());
         for &i in unit {
-            let p = self.point(i).map_err(|e| e.to_string())?;
-            trees.push(band_form(&p.desc, &self.src)?);
+            // The merged scene is validated below as a whole.
+            let (_, desc) = self.scene(i).map_err(|e| e.to_string())?;
+            trees.push(band_form(&desc, &self.src)?);
         }
         let mut merged = trees[0].clone();
         let bands: Vec<Value> = trees

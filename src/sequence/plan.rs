@@ -428,30 +428,34 @@ impl Plan {
             .collect()
     }
 
-    /// Builds and validates point `i`'s scene.
-    pub fn point(&self, i: usize) -> Result<Point, SequenceError> {
+    /// Point `i`'s axis values and scene (read back through serde, not validated: see
+    /// [`Plan::point`]).
+    pub(super) fn scene(
+        &self,
+        i: usize,
+    ) -> Result<(Vec<(String, Value)>, SceneDesc), SequenceError> {
         let values = self.values(i);
         let mut tree = self.base_tree.clone();
-        let label = || {
-            values
-                .iter()
-                .map(|(n, v)| format!("{n} = {v}"))
-                .collect::<Vec<_>>()
-                .join(", ")
-        };
         for (a, (_, v)) in self.axes.iter().zip(&values) {
             set_path(&mut tree, &a.segs, v.clone()).map_err(|m| SequenceError {
                 at: self.file.display().to_string(),
-                message: format!("point {i} ({}): path `{}`: {m}", label(), a.path),
+                message: format!("point {i} ({}): path `{}`: {m}", label(&values), a.path),
             })?;
         }
         let desc: SceneDesc = serde_json::from_value(tree).map_err(|e| SequenceError {
             at: self.file.display().to_string(),
-            message: format!("point {i} ({}): {e}", label()),
+            message: format!("point {i} ({}): {e}", label(&values)),
         })?;
+        Ok((values, desc))
+    }
+
+    /// Builds and validates point `i`'s scene.
+    pub fn point(&self, i: usize) -> Result<Point, SequenceError> {
+        let (values, desc) = self.scene(i)?;
+        let label = label(&values);
         validate(&desc, &self.src).map_err(|e| SequenceError {
             at: self.file.display().to_string(),
-            message: format!("point {i} ({}): {e}", label()),
+            message: format!("point {i} ({label}): {e}"),
         })?;
         let scene_hash = format!("{:016x}", fnv1a64(to_ron(&desc).as_bytes()));
         Ok(Point {
@@ -461,6 +465,15 @@ impl Plan {
             scene_hash,
         })
     }
+}
+
+/// `name = value, …` of a point, for messages.
+fn label(values: &[(String, Value)]) -> String {
+    values
+        .iter()
+        .map(|(n, v)| format!("{n} = {v}"))
+        .collect::<Vec<_>>()
+        .join(", ")
 }
 
 /// The kind of a JSON value, for messages.
