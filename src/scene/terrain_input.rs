@@ -262,6 +262,34 @@ fn node_range(
     Ok((c_lo as usize, c_hi as usize, r_lo as usize, r_hi as usize))
 }
 
+/// The elevation of raster node (`col`, `row`), or an error naming it when it is no-data
+/// (`GDAL_NODATA` or not finite); `place` says where it lies (`inside`, `next to` the scene).
+fn node_value(
+    path: &Path,
+    r: &crate::io::geotiff::GeoRaster,
+    (col, row): (usize, usize),
+    place: &str,
+) -> Result<f64, SceneError> {
+    let v = r.values[col + r.size.0 * row];
+    if is_nodata(r, v) {
+        return Err(err(
+            path,
+            None,
+            "GDAL_NODATA",
+            format!(
+                "pixel (column {col}, row {row}) {place} the scene is no-data ({v}): DEM holes \
+                 are not supported; fill them (e.g. gdal_fillnodata) or move the scene"
+            ),
+        ));
+    }
+    Ok(v)
+}
+
+/// Whether `v` is a no-data value of `r` (its `GDAL_NODATA`, or not finite).
+fn is_nodata(r: &crate::io::geotiff::GeoRaster, v: f64) -> bool {
+    !v.is_finite() || r.nodata == Some(v)
+}
+
 /// [`read_placed_geotiff`] for a DEM: refuses a raster that is no-data everywhere and gives
 /// its node placement.
 fn read_placed_dem(path: &Path, bytes: &[u8], g: &Georeference) -> Result<PlacedDem, SceneError> {
@@ -307,7 +335,6 @@ pub fn read_geotiff_dem(
         node0: (e_node0, n_node0),
     } = read_placed_dem(path, bytes, g)?;
     let (nx, ny) = r.size;
-    let is_nodata = |v: f64| !v.is_finite() || r.nodata == Some(v);
     let (e0, n0) = g.origin_map_m;
     let (c_lo, c_hi, r_lo, r_hi) = node_range(
         path,
@@ -321,18 +348,7 @@ pub fn read_geotiff_dem(
     let mut z = vec![0.0; mx * my];
     for row in r_lo..=r_hi {
         for col in c_lo..=c_hi {
-            let v = r.values[col + nx * row];
-            if is_nodata(v) {
-                return Err(err(
-                    path,
-                    None,
-                    "GDAL_NODATA",
-                    format!(
-                        "pixel (column {col}, row {row}) inside the scene is no-data ({v}): DEM \
-                         holes are not supported; fill them (e.g. gdal_fillnodata) or move the scene"
-                    ),
-                ));
-            }
+            let v = node_value(path, &r, (col, row), "inside")?;
             z[(col - c_lo) + (r_hi - row) * mx] = v;
         }
     }
@@ -370,7 +386,6 @@ pub fn read_geotiff_dem_nodes(
         node0: (e_node0, n_node0),
     } = read_placed_dem(path, bytes, g)?;
     let (nx, ny) = r.size;
-    let is_nodata = |v: f64| !v.is_finite() || r.nodata == Some(v);
     let (c_lo, c_hi, r_lo, r_hi) = node_range(
         path,
         (nx, ny),
@@ -387,18 +402,7 @@ pub fn read_geotiff_dem_nodes(
             if x < -margin || y < -margin || x > size.0 + margin || y > size.1 + margin {
                 continue;
             }
-            let v = r.values[col + nx * row];
-            if is_nodata(v) {
-                return Err(err(
-                    path,
-                    None,
-                    "GDAL_NODATA",
-                    format!(
-                        "pixel (column {col}, row {row}) next to the scene is no-data ({v}): DEM \
-                         holes are not supported; fill them (e.g. gdal_fillnodata) or move the scene"
-                    ),
-                ));
-            }
+            let v = node_value(path, &r, (col, row), "next to")?;
             verts.push(TinVertex {
                 p: DVec3::new(x, y, v),
             });
