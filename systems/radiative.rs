@@ -6,12 +6,14 @@
 
 use crate::components::Ground;
 use crate::phase::lambertian_facet_fractions;
-use crate::radiative::engine::{RadiativeInput, TrackOptics, remap_wrong_side, run};
+use crate::radiative::engine::{
+    RadiativeInput, ThermalSources, TrackOptics, remap_wrong_side, run,
+};
 use crate::radiative::products::RadiativeProducts;
 use crate::resources::facets::FacetStore;
 use crate::resources::grid::{CellGrid, GridSpec};
 use crate::resources::materials::{MaterialKind, Materials};
-use crate::resources::scene::{SceneInfo, StageErrors, TerrainRes};
+use crate::resources::scene::{SceneInfo, StageErrors, TerrainRes, ThermalRun};
 use crate::resources::tracking::{Directions, OpticsTables, RadiativeSettings};
 use crate::systems::tracking_scene;
 use bevy_ecs::prelude::*;
@@ -38,6 +40,7 @@ pub fn track_flux(
     mats: Res<Materials>,
     terrain: Res<TerrainRes>,
     grounds: Query<&Ground>,
+    thermal_run: Option<Res<ThermalRun>>,
     mut errors: ResMut<StageErrors>,
     mut commands: Commands,
 ) {
@@ -69,8 +72,26 @@ pub fn track_flux(
     };
     let fractions = exact_facet_fractions(&facets, &dirs);
     let optics: Vec<TrackOptics> = tables.optics.clone();
+    // Thermal emission (issue #34): ε B(T) per element; a `T` run has no sun and solar sky.
+    let thermal = match thermal_run.as_deref() {
+        Some(t) => match thermal_sources(t, &info, &mats, &grid, &facets, &spec, scene.flat_ground)
+        {
+            Ok(s) => Some(s),
+            Err(e) => {
+                errors.0.push(e);
+                return;
+            }
+        },
+        None => None,
+    };
+    let solar = thermal_run.as_deref().is_none_or(|t| t.mode.solar());
+    let (e_dir, e_diff) = if solar {
+        (scene.e_dir.clone(), scene.e_diff.clone())
+    } else {
+        (vec![0.0; nb], vec![0.0; nb])
+    };
     let image_of = image_indices(&dirs);
-    let input = RadiativeInput {
+    let make_input = |e_dir: Vec<f64>, e_diff: Vec<f64>, thermal| RadiativeInput {
         spec: &spec,
         grid: &grid,
         facets: &facets.facets,
@@ -83,28 +104,147 @@ pub fn track_flux(
         optics: &optics,
         image_of: &image_of,
         image_oversampling: settings.image_oversampling,
-        flat_ground,
-        ground_brdf,
+        flat_ground: flat_ground.clone(),
+        ground_brdf: ground_brdf.clone(),
         sun: dirs.sun,
-        e_dir: scene.e_dir.clone(),
-        e_diff: scene.e_diff.clone(),
+        e_dir,
+        e_diff,
         params: settings.tracking.clone(),
         emitters: &[],
+        thermal,
     };
     let t0 = std::time::Instant::now();
-    let raw = run(&input);
+    let raw = match (thermal.as_ref(), solar) {
+        // R+T: the solar run, then the thermal one (see `RadiativeResult::with_thermal_of`).
+        (Some(th), true) => {
+            let solar_run = run(&make_input(e_dir.clone(), e_diff.clone(), None));
+            let thermal_run = run(&make_input(vec![0.0; nb], vec![0.0; nb], Some(th)));
+            solar_run.with_thermal_of(thermal_run)
+        }
+        _ => run(&make_input(e_dir.clone(), e_diff.clone(), thermal.as_ref())),
+    };
     let secs = t0.elapsed().as_secs_f64();
     commands.insert_resource(ImageDirections(image_of));
-    commands.insert_resource(RadiativeProducts::new(
+    let mut products = RadiativeProducts::new(
         raw,
         &dirs.set,
         &scene.band_names,
         scene.area_m2,
-        &scene.e_dir,
-        &scene.e_diff,
+        &e_dir,
+        &e_diff,
         &scene.ground_facet,
         secs,
-    ));
+    );
+    if let Some(t) = thermal_run.as_deref() {
+        // The mean terrain plane of a continuous-topography scene (its altitude offsets
+        // between opposite sides), the reference of the radiances.
+        let (ox, oy) = spec.topography_offset;
+        let (sx, sy) = info.size;
+        let normal = glam::DVec3::new(-ox / sx, -oy / sy, 1.0).normalize();
+        products = products.with_thermal(
+            t.mode,
+            &dirs.set,
+            &info.band_responses,
+            scene.area_m2,
+            normal,
+        );
+    }
+    commands.insert_resource(products);
+}
+
+/// Step of [`track_flux`]: `ε B(T)` per turbid entry, facet and flat-ground column and band
+/// (physics.md §7.1–7.2): B the band-averaged Planck radiance at the temperature of the
+/// element's optics key (a material derived from a key, `key@objects[i]`, takes the key's),
+/// ε Kirchhoff's `1 − ρ_L − τ_L` (turbid leaves), `1 − R − T_d` (Lambertian facets) or
+/// `1 − ρ` (Lambertian ground); the thermal sky `B(T_sky)`.
+fn thermal_sources(
+    run: &ThermalRun,
+    info: &SceneInfo,
+    mats: &Materials,
+    grid: &CellGrid,
+    facets: &FacetStore,
+    spec: &GridSpec,
+    flat_ground: Option<crate::resources::materials::MaterialId>,
+) -> Result<ThermalSources, String> {
+    let nb = info.bands.len();
+    let planck = |t: f64| -> Result<Vec<f64>, String> {
+        info.band_responses
+            .iter()
+            .map(|r| {
+                crate::physics::thermal::band_planck(r, t)
+                    .map_err(|e| format!("{}: thermal: {e}", info.source.display()))
+            })
+            .collect()
+    };
+    // ε B per material and band (`None`: the material does not emit).
+    let mut per_mat: Vec<Option<Vec<f64>>> = Vec::with_capacity(mats.list.len());
+    for m in &mats.list {
+        let key = m.name.split('@').next().unwrap_or(&m.name);
+        let eps: Option<Vec<f64>> = match &m.kind {
+            MaterialKind::Turbid {
+                reflectance,
+                transmittance,
+                ..
+            }
+            | MaterialKind::Leaf {
+                reflectance,
+                transmittance,
+            } => Some(
+                (0..nb)
+                    .map(|b| 1.0 - reflectance[b] - transmittance.get(b).copied().unwrap_or(0.0))
+                    .collect(),
+            ),
+            MaterialKind::Lambertian {
+                reflectance,
+                diffuse_transmittance,
+                ..
+            } => Some(
+                (0..nb)
+                    .map(|b| {
+                        1.0 - reflectance[b] - diffuse_transmittance.get(b).copied().unwrap_or(0.0)
+                    })
+                    .collect(),
+            ),
+            MaterialKind::Rpv(_) | MaterialKind::Hapke(_) => None,
+        };
+        per_mat.push(match (eps, run.desc.temperature_of(key)) {
+            (Some(eps), Some(t)) => {
+                let b = planck(t)?;
+                Some((0..nb).map(|i| eps[i].max(0.0) * b[i]).collect())
+            }
+            _ => None,
+        });
+    }
+    let need = |id: crate::resources::materials::MaterialId| -> Result<&Vec<f64>, String> {
+        per_mat[id as usize].as_ref().ok_or_else(|| {
+            let m = &mats.list[id as usize];
+            format!(
+                "{}: thermal.temperatures_k: no temperature for optics `{}` (mode {}), which an emitting element is made of",
+                info.source.display(),
+                m.name.split('@').next().unwrap_or(&m.name),
+                run.mode.name()
+            )
+        })
+    };
+    let mut out = ThermalSources::default();
+    out.turbid.reserve(grid.turbid.len() * nb);
+    for e in &grid.turbid {
+        out.turbid.extend_from_slice(need(e.material)?);
+    }
+    out.facet.reserve(facets.facets.len() * nb);
+    for f in &facets.facets {
+        out.facet.extend_from_slice(need(f.material)?);
+    }
+    if let Some(g) = flat_ground {
+        let eb = need(g)?;
+        for _ in 0..spec.n[0] * spec.n[1] {
+            out.ground.extend_from_slice(eb);
+        }
+    }
+    if let Some(t) = run.desc.sky_temperature_k {
+        out.sky = planck(t)?;
+    }
+    Ok(out)
 }
 
 /// Step of [`track_flux`]: the RPV / Hapke tables of the flat ground (one facet table per band

@@ -1625,6 +1625,36 @@ const SECTIONS_AND_SYNTAX: &[Case] = &[
     ),
     c("version_two", "version: 1,", "version: 2,", "version"),
     c(
+        "thermal_unknown_key",
+        "version: 1,",
+        "version: 1, thermal: (mode: T, temperatures_k: {\"bark\": 300.0}, default_temperature_k: Some(300.0)),",
+        "thermal.temperatures_k.bark",
+    ),
+    c(
+        "thermal_negative_temperature",
+        "version: 1,",
+        "version: 1, thermal: (mode: T, temperatures_k: {\"soil\": -3.0}, default_temperature_k: Some(300.0)),",
+        "thermal.temperatures_k.soil",
+    ),
+    c(
+        "thermal_nan_sky",
+        "version: 1,",
+        "version: 1, thermal: (mode: RT, default_temperature_k: Some(300.0), sky_temperature_k: Some(NaN)),",
+        "thermal.sky_temperature_k",
+    ),
+    c(
+        "thermal_missing_temperature",
+        "version: 1,",
+        "version: 1, thermal: (mode: T, temperatures_k: {\"veg\": 300.0, \"soil\": 310.0}),",
+        "thermal.temperatures_k",
+    ),
+    c(
+        "thermal_missing_mode",
+        "version: 1,",
+        "version: 1, thermal: (default_temperature_k: Some(300.0)),",
+        "thermal",
+    ),
+    c(
         "missing_paren",
         "sun_azimuth_deg: 0.0, skyl: [0.1])",
         "sun_azimuth_deg: 0.0, skyl: [0.1]",
@@ -1757,6 +1787,7 @@ const SECTIONS_AND_SYNTAX: &[Case] = &[
 
 const CLI: &[Case] = &[
     args("photons_with_flux", &["--photons", "1000"], "--photons"),
+    args("mode_t_without_thermal", &["--mode", "t"], "--mode T"),
     args("sampler_with_flux", &["--sampler", "alias"], "--sampler"),
     args("box_gamma_with_flux", &["--box-gamma", "3"], "--box-gamma"),
     args(

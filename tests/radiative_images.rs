@@ -287,6 +287,7 @@ fn plate_scene(eta: u32, subcells: u32) -> (RadiativeResult, DirectionSet, Vec<u
             ..TrackingParams::dart_default()
         },
         emitters: &[],
+        thermal: None,
     };
     let r = run(&input);
     assert_eq!(r.launch.subcells, subcells);

@@ -49,6 +49,7 @@ fn ground_scene(e_dir: f64, emitters: &[Emission]) -> RadiativeResult {
         e_diff: vec![0.0],
         params: TrackingParams::dart_default(),
         emitters,
+        thermal: None,
     };
     run(&input)
 }

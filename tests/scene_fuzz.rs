@@ -458,6 +458,7 @@ fn opts(scene: PathBuf) -> SceneOpts {
         preset: None,
         solver: SolverArg::FluxTracking,
         photons: None,
+        mode: None,
         sampler: None,
         box_gamma: None,
         box_budget: None,

@@ -3,7 +3,7 @@
 
 Usage (from the repository root):  python3 docs/tools/scene_format.py > docs/guide/scene-format.md
 
-The types are the serde types a scene file is read into (`src/scene/desc.rs`, `desc/lidar.rs` and the types it
+The types are the serde types a scene file is read into (`src/scene/desc.rs`, `desc/lidar.rs`, `desc/thermal.rs` and the types it
 uses from other modules). `tests/docs.rs` parses the same sources independently and fails when a
 field or variant is missing from the generated file, so re-run this script after changing them.
 """
@@ -24,6 +24,7 @@ SOURCES = [
         "LidarDesc", "LidarPlatform", "PulsePattern", "PhotonCountingDesc", "LidarSampler",
         "LidarEstimator",
     ]),
+    ("src/scene/desc/thermal.rs", ["ThermalDesc", "RunMode"]),
     ("src/geometry/crown.rs", ["CrownShape"]),
     ("src/physics/lad.rs", ["Lad", "LeafSpecular"]),
     ("src/physics/prospect.rs", ["ProspectModel"]),
@@ -51,7 +52,7 @@ STRUCT_DEFAULTS = {  # fields of structs with `#[serde(default)]` on the struct
 UNITS = [  # field-name suffix → unit
     ("_ug_cm2", "µg cm⁻²"), ("_g_cm2", "g cm⁻²"), ("_w_m2_um", "W m⁻² µm⁻¹"), ("_m2", "m²"),
     ("_mrad", "mrad"), ("_deg", "°"), ("_nm", "nm"), ("_ns", "ns"), ("_sr", "sr"), ("_hz", "Hz"),
-    ("_hpa", "hPa"), ("_j", "J"), ("_cm", "cm"), ("temperature_c", "°C"), ("_s", "s"), ("_m", "m"),
+    ("_hpa", "hPa"), ("_k", "K"), ("_j", "J"), ("_cm", "cm"), ("temperature_c", "°C"), ("_s", "s"), ("_m", "m"),
 ]
 
 

@@ -70,6 +70,10 @@ pub struct SceneOpts {
     /// stage, products with standard errors).
     #[arg(long, value_enum, default_value = "flux-tracking")]
     pub solver: SolverArg,
+    /// Run mode (overrides the scene's `thermal.mode`): `r` reflected sunlight, `t` thermal
+    /// emission, `rt` both; `t` and `rt` need the scene's `thermal` section (temperatures).
+    #[arg(long, value_enum)]
+    pub mode: Option<ModeArg>,
     /// Photons for the Monte Carlo solver (sun + sky) [default: 1000000]; only with
     /// `--solver monte-carlo`.
     #[arg(long, value_parser = clap::value_parser!(u64).range(1..))]
@@ -116,6 +120,17 @@ pub enum IsaArg {
     Avx2,
     /// Baseline x86-64.
     Baseline,
+}
+
+/// `--mode` values.
+#[derive(clap::ValueEnum, Debug, Clone, Copy, PartialEq, Eq)]
+pub enum ModeArg {
+    /// Reflected sunlight and sky light only.
+    R,
+    /// Thermal emission only.
+    T,
+    /// Both (R+T).
+    Rt,
 }
 
 /// `--solver` values.
@@ -222,7 +237,31 @@ impl SceneOpts {
     /// (exit 1), before any work.
     fn load(&self) -> Result<Simulation, CliError> {
         self.check_flags()?;
-        let (desc, src) = crate::scene::load_scene(&self.scene)?;
+        let (mut desc, src) = crate::scene::load_scene(&self.scene)?;
+        if let Some(m) = self.mode {
+            use crate::scene::desc::RunMode;
+            let mode = match m {
+                ModeArg::R => RunMode::R,
+                ModeArg::T => RunMode::T,
+                ModeArg::Rt => RunMode::RT,
+            };
+            match desc.thermal.as_mut() {
+                Some(t) => t.mode = mode,
+                None if mode.thermal() => {
+                    return Err(CliError {
+                        message: format!(
+                            "--mode {}: {} has no `thermal` section (the temperatures of its elements)",
+                            mode.name(),
+                            self.scene.display()
+                        ),
+                        code: 1,
+                    });
+                }
+                None => {}
+            }
+            // The mode decides which temperatures are needed.
+            crate::scene::validate::validate(&desc, &src)?;
+        }
         if let Some(eta) = self.image_oversampling {
             let g = &desc.grid;
             let columns = (g.size_m.0 / g.cell_m.0).round() * (g.size_m.1 / g.cell_m.1).round();

@@ -113,6 +113,7 @@ pub fn run(args: &SequenceArgs, out: &mut dyn Write) -> Result<(), CliError> {
         preset: args.preset,
         solver: args.solver,
         photons: args.photons,
+        mode: None,
         sampler: None,
         box_gamma: None,
         box_budget: None,

@@ -33,7 +33,8 @@ pub fn write_radiative(
     if wants("brf.csv") {
         write_brf_csv(dir, p)?;
     }
-    if wants("budget") {
+    // The budget files are solar (per unit incident sun and sky power): none in a `T` run.
+    if wants("budget") && p.mode != "T" {
         std::fs::create_dir_all(dir.join("budget"))
             .map_err(|e| format!("{}: cannot create output folder: {e}", dir.display()))?;
         write_budget(dir, p, info, spec, grid, facets, mats)?;
@@ -435,8 +436,9 @@ fn write_images(
         if !(matches!(d.kind, crate::direction::DirectionKind::Exact { .. }) && d.omega.z > 0.0) {
             continue;
         }
-        let mut channels = Vec::new();
-        for b in 0..nb {
+        let mut channels: Vec<(String, Vec<f64>)> = Vec::new();
+        let solar = p.mode != "T";
+        for b in 0..nb.min(if solar { nb } else { 0 }) {
             let mut brf = vec![0.0; npx];
             let mut hdrf = vec![0.0; npx];
             for px in 0..npx {
@@ -469,13 +471,22 @@ fn write_images(
                 channels.push((format!("hdrf.{:02}_{}", b, info.bands[b].name), hdrf));
             }
         }
+        if raw.has_thermal {
+            thermal_image_channels(raw, img, d, info, spec, &mut channels)?;
+            if !solar {
+                let name = format!("view_{:05.1}_{:05.1}", d.zenith_deg(), d.azimuth_deg());
+                let bt = &channels[1].1;
+                write_png(&dir.join("images").join(format!("{name}.png")), nx, ny, bt)?;
+            }
+        }
         let name = format!("view_{:05.1}_{:05.1}", d.zenith_deg(), d.azimuth_deg());
         if let Some(g) = &info.georeference {
             let mut bands: Vec<crate::io::geotiff::TiffBand> = Vec::new();
-            for kind in ["brf.", "hdrf."] {
-                for (k, (cname, v)) in channels.iter().enumerate() {
+            for kind in ["brf.", "hdrf.", "radiance.", "bt."] {
+                for (cname, v) in channels.iter() {
                     if cname.starts_with(kind) {
-                        let b = if raw.has_sky { k / 2 } else { k };
+                        // Channel names are `<kind><band:02>_<name>`.
+                        let b: usize = cname[kind.len()..kind.len() + 2].parse().unwrap_or(0);
                         bands.push(crate::io::geotiff::TiffBand {
                             name: cname.clone(),
                             wavelength_nm: Some(info.bands[b].wavelength_nm),
@@ -521,6 +532,46 @@ fn write_images(
 }
 
 /// 8-bit grey PNG of `v` (indexed `i + nx·j`, +y up), scaled linearly from 0 to its maximum.
+/// Step of [`write_images`] in a `T` or `R+T` run (issue #34): per band the radiance of each
+/// pixel (thermal plus, in `R+T`, solar; W m⁻² sr⁻¹ µm⁻¹, over the pixel's area as the
+/// summary's radiances: [`crate::radiative::products::radiance_area`]) and its brightness
+/// temperature (K), channels `radiance.<band>` and `bt.<band>`.
+fn thermal_image_channels(
+    raw: &crate::radiative::engine::RadiativeResult,
+    img: usize,
+    d: &crate::direction::Direction,
+    info: &crate::resources::scene::SceneInfo,
+    spec: &GridSpec,
+    channels: &mut Vec<(String, Vec<f64>)>,
+) -> Result<(), String> {
+    let (w, nb) = (raw.n_channels, raw.n_bands);
+    let ig = raw.image_grid;
+    let npx = ig.pixels();
+    let (ox, oy) = spec.topography_offset;
+    let normal = glam::DVec3::new(-ox / info.size.0, -oy / info.size.1, 1.0).normalize();
+    let denom = crate::radiative::products::radiance_area(ig.pixel_m.0 * ig.pixel_m.1, normal, d);
+    for b in 0..nb {
+        let mut rad = vec![0.0; npx];
+        let mut bt = vec![0.0; npx];
+        for px in 0..npx {
+            let base = (img * npx + px) * w;
+            let total: f64 = (0..w)
+                .filter(|ch| ch % nb == b)
+                .map(|ch| raw.images[base + ch])
+                .sum();
+            rad[px] = total / denom;
+            bt[px] = crate::physics::thermal::band_brightness_temperature(
+                &info.band_responses[b],
+                rad[px],
+            )
+            .map_err(|e| format!("band {}: {e}", info.bands[b].name))?;
+        }
+        channels.push((format!("radiance.{:02}_{}", b, info.bands[b].name), rad));
+        channels.push((format!("bt.{:02}_{}", b, info.bands[b].name), bt));
+    }
+    Ok(())
+}
+
 fn write_png(path: &std::path::Path, nx: usize, ny: usize, v: &[f64]) -> Result<(), String> {
     let max = v.iter().cloned().fold(0.0, f64::max).max(1e-300);
     let mut data = vec![0u8; nx * ny];

@@ -45,6 +45,8 @@ pub fn photon_products(
         n_channels: w,
         n_bands: nb,
         has_sky,
+        has_thermal: false,
+        thermal_sky_source: Vec::new(),
         source: res.source.clone(),
         escaped: res.escaped.clone(),
         images: Vec::new(),

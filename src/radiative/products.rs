@@ -80,8 +80,62 @@ pub struct BandProducts {
     /// Standard error of `ftran` (Monte Carlo solver only).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub ftran_se: Option<f64>,
-    /// Reflectance factors for every upward direction.
+    /// Reflectance factors for every upward direction (empty in a `T` run).
     pub brf: Vec<BrfEntry>,
+    /// Radiance and brightness temperature for every upward direction (`T` and `R+T` runs;
+    /// issue #34).
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub radiance: Vec<RadianceEntry>,
+    /// The thermal channels' budget (`T` and `R+T` runs).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub thermal: Option<ThermalBudget>,
+}
+
+/// Radiance leaving the scene top along one upward direction (`T` and `R+T` runs):
+/// `L = W_j / (A ∫_{ΔΩ_j} μ dΩ)` with W_j the power escaping into the direction's sector
+/// (on continuous topography, relative to the mean terrain plane; `NaN`, null in JSON, for
+/// a direction behind it).
+#[derive(Debug, Clone, Serialize)]
+pub struct RadianceEntry {
+    /// View zenith (ground→sensor), degrees.
+    pub zenith_deg: f64,
+    /// View azimuth, degrees anticlockwise from +x.
+    pub azimuth_deg: f64,
+    /// Solid angle of the direction's sector, sr.
+    pub solid_angle_sr: f64,
+    /// Kind of direction (`regular`, `exact`, `oversampled`).
+    pub kind: &'static str,
+    /// Radiance a sensor sees (thermal emission and the reflected thermal sky, plus in `R+T`
+    /// the reflected sun and sky), W m⁻² sr⁻¹ µm⁻¹.
+    pub radiance_w_m2_sr_um: f64,
+    /// The band's brightness temperature of `radiance_w_m2_sr_um` (the T whose band-averaged
+    /// Planck radiance it is), K; 0 for no radiance.
+    pub brightness_temperature_k: f64,
+    /// `R+T`: the thermal part (emission and reflected thermal sky).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub thermal_radiance_w_m2_sr_um: Option<f64>,
+    /// `R+T`: the solar part (reflected sun and sky).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub solar_radiance_w_m2_sr_um: Option<f64>,
+}
+
+/// The thermal channels' budget of one band, per unit horizontal scene area, W m⁻² µm⁻¹.
+#[derive(Debug, Clone, Serialize)]
+pub struct ThermalBudget {
+    /// Power emitted by the scene's elements (vegetation, facets, ground).
+    pub emitted_w_m2_um: f64,
+    /// Downwelling thermal sky irradiance.
+    pub sky_w_m2_um: f64,
+    /// Thermal exitance through the top (emitted and reflected sky that escaped).
+    pub exitance_w_m2_um: f64,
+    /// Absorbed by vegetation and non-ground facets (of all elements' emission and the sky).
+    pub absorbed_w_m2_um: f64,
+    /// Absorbed by the ground.
+    pub absorbed_ground_w_m2_um: f64,
+    /// Booked as lost (thresholds, isolated sides).
+    pub lost_w_m2_um: f64,
+    /// |1 − (absorbed + escaped + lost + remaining) / (emitted + sky)|.
+    pub energy_closure: f64,
 }
 
 /// The Radiative stage's products.
@@ -105,6 +159,9 @@ pub struct RadiativeProducts {
     pub tracking_seconds: f64,
     /// Solver: `flux-tracking` (Radiative stage) or `monte-carlo` (Photon stage).
     pub solver: &'static str,
+    /// Run mode (`T`, `R+T`; issue #34); not written for a solar-only (`R`) run.
+    #[serde(skip_serializing_if = "is_solar_only")]
+    pub mode: &'static str,
     /// Sun and sky launch grids (flux tracking only).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub launch: Option<crate::radiative::engine::LaunchPlan>,
@@ -114,6 +171,31 @@ pub struct RadiativeProducts {
     /// Raw engine result (not serialised).
     #[serde(skip)]
     pub raw: RadiativeResult,
+    /// Whether each facet belongs to a DEM ground (not serialised).
+    #[serde(skip)]
+    pub ground_facet: Vec<bool>,
+}
+
+/// The `A ∫_{ΔΩ_j} μ dΩ` (m² sr) that turns the power escaping into sector j into a radiance:
+/// on a continuous-topography scene the mean terrain plane of normal n̄ (the scene's
+/// horizontal area A is A/n̄_z of it) replaces the horizontal plane, `(A/n̄_z)(n̄·Ω_j)
+/// ∫_{ΔΩ_j}|μ|dΩ/μ_j`, so that an isothermal black slope has radiance B(T) in every
+/// direction (the power is carried along Ω_j); `NaN` behind the mean plane.
+pub fn radiance_area(area: f64, n: glam::DVec3, d: &crate::direction::Direction) -> f64 {
+    if n == glam::DVec3::Z {
+        return area * d.projected_sr;
+    }
+    let c = n.dot(d.omega);
+    if c > 1e-9 && d.omega.z > 0.0 {
+        area / n.z * c * d.projected_sr / d.omega.z
+    } else {
+        f64::NAN
+    }
+}
+
+/// Whether a mode name is the solar-only `R`.
+fn is_solar_only(mode: &&'static str) -> bool {
+    *mode == "R"
 }
 
 /// Description of a Monte Carlo run (in summary.json).
@@ -156,11 +238,13 @@ impl RadiativeProducts {
         let nb = raw.n_bands;
         let w = raw.n_channels;
         let tiling = dirs.tiling();
+        // The solar channels (sun, sky); the thermal ones, after them, are in `thermal`.
+        let solar_w = if raw.has_thermal { w - nb } else { w };
         let sum_ch = |v: &[f64], b: usize| -> f64 {
             let mut s = 0.0;
             for (i, x) in v.iter().enumerate() {
                 let ch = i % w;
-                if ch % nb == b {
+                if ch % nb == b && ch < solar_w {
                     s += x;
                 }
             }
@@ -239,6 +323,8 @@ impl RadiativeProducts {
                 fabs_ground_se: None,
                 ftran_se: None,
                 brf,
+                radiance: Vec::new(),
+                thermal: None,
             });
         }
         Self {
@@ -251,10 +337,95 @@ impl RadiativeProducts {
             skipped: raw.skipped,
             tracking_seconds: seconds,
             solver: "flux-tracking",
+            mode: "R",
             launch: Some(raw.launch),
             monte_carlo: None,
             raw,
+            ground_facet: ground_facet.to_vec(),
         }
+    }
+
+    /// Adds the thermal products of a `T` or `R+T` run (issue #34): per band the radiance and
+    /// brightness temperature of every upward direction (`responses`: the bands' spectral
+    /// responses) and the thermal budget; a `T` run has no reflectance factors (its solar
+    /// fractions are `NaN`, null in JSON).
+    pub fn with_thermal(
+        mut self,
+        mode: crate::scene::desc::RunMode,
+        dirs: &DirectionSet,
+        responses: &[crate::physics::spectral::SpectralBand],
+        area: f64,
+        mean_normal: glam::DVec3,
+    ) -> Self {
+        self.mode = mode.name();
+        let raw = &self.raw;
+        if !raw.has_thermal {
+            return self;
+        }
+        let (nb, w) = (raw.n_bands, raw.n_channels);
+        let tb = w - nb;
+        let tiling = dirs.tiling();
+        for b in 0..nb {
+            let sum = |v: &[f64]| -> f64 { v.iter().skip(tb + b).step_by(w).sum() };
+            let src = raw.source[tb + b];
+            let sky = raw.thermal_sky_source.get(b).copied().unwrap_or(0.0);
+            let esc = sum(&raw.escaped);
+            let ground: f64 = sum(&raw.absorbed_ground);
+            let ground_facets: f64 = (0..raw.absorbed_facet.len() / w)
+                .filter(|&f| self.ground_facet.get(f).copied().unwrap_or(false))
+                .map(|f| raw.absorbed_facet[f * w + tb + b])
+                .sum();
+            let abs_all = sum(&raw.absorbed_turbid) + sum(&raw.absorbed_facet);
+            let lost = raw.lost[tb + b];
+            let rem = raw.remaining[tb + b];
+            let closure = if src > 0.0 {
+                (1.0 - (abs_all + ground + esc + lost + rem) / src).abs()
+            } else {
+                0.0
+            };
+            let mut radiance = Vec::new();
+            for (j, d) in tiling.iter().enumerate() {
+                if d.omega.z <= 0.0 {
+                    continue;
+                }
+                let denom = radiance_area(area, mean_normal, d);
+                let thermal = raw.escaped[j * w + tb + b] / denom;
+                let solar: f64 = (0..tb)
+                    .filter(|ch| ch % nb == b)
+                    .map(|ch| raw.escaped[j * w + ch])
+                    .sum::<f64>()
+                    / denom;
+                let total = thermal + solar;
+                let bt = responses.get(b).map_or(0.0, |r| {
+                    crate::physics::thermal::band_brightness_temperature(r, total).unwrap_or(0.0)
+                });
+                radiance.push(RadianceEntry {
+                    zenith_deg: d.zenith_deg(),
+                    azimuth_deg: d.azimuth_deg(),
+                    solid_angle_sr: d.solid_angle_sr,
+                    kind: d.kind.name(),
+                    radiance_w_m2_sr_um: total,
+                    brightness_temperature_k: bt,
+                    thermal_radiance_w_m2_sr_um: (mode.solar()).then_some(thermal),
+                    solar_radiance_w_m2_sr_um: (mode.solar()).then_some(solar),
+                });
+            }
+            let band = &mut self.bands[b];
+            band.radiance = radiance;
+            band.thermal = Some(ThermalBudget {
+                emitted_w_m2_um: (src - sky) / area,
+                sky_w_m2_um: sky / area,
+                exitance_w_m2_um: esc / area,
+                absorbed_w_m2_um: (abs_all - ground_facets) / area,
+                absorbed_ground_w_m2_um: (ground + ground_facets) / area,
+                lost_w_m2_um: lost / area,
+                energy_closure: closure,
+            });
+            if !mode.solar() {
+                band.brf.clear();
+            }
+        }
+        self
     }
 
     /// The BRF entry of band `b` closest to a view direction (zenith, azimuth in degrees).

@@ -54,6 +54,17 @@ pub use crate::scene::resolve::Illumination;
 #[derive(Debug, Clone, Resource)]
 pub struct TerrainRes(pub Terrain);
 
+/// The thermal part of a run (issue #34): the scene's `thermal` section in a `T` or `R+T`
+/// run. Absent: a solar-only run (no emission work).
+#[derive(Debug, Clone, Resource)]
+pub struct ThermalRun {
+    /// `T` or `RT`.
+    pub mode: crate::scene::desc::RunMode,
+    /// Temperatures (validated: every emitting optics key has one, or the leaf key of a turbid
+    /// key takes the turbid key's).
+    pub desc: crate::scene::desc::ThermalDesc,
+}
+
 /// Run settings that are not part of the scene.
 #[derive(Debug, Clone, Resource)]
 pub struct RunSettings {

@@ -10,7 +10,9 @@ use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
 
 mod lidar;
+mod thermal;
 pub use lidar::*;
+pub use thermal::*;
 
 /// The current scene-format version. Files must state it in `version`.
 pub const SCENE_FORMAT_VERSION: u32 = 1;
@@ -69,6 +71,10 @@ pub struct SceneDesc {
     /// +x). Absent: no geospatial work (no GeoTIFF/ENVI products, no GeoTIFF DEM).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub georeference: Option<GeoreferenceDesc>,
+    /// Thermal infrared: the run mode (`R`, `T`, `RT`) and temperatures. Absent: a solar-only
+    /// run (no emission work).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub thermal: Option<ThermalDesc>,
 }
 
 /// The scene's place on a map: a projected CRS in metres, the map coordinates (easting,

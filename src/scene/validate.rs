@@ -11,6 +11,7 @@ use std::path::{Path, PathBuf};
 
 mod lidar;
 mod objects;
+mod thermal;
 
 /// The text a scene came from, to turn field paths into line numbers.
 #[derive(Debug, Clone)]
@@ -393,7 +394,7 @@ fn footprint_bounds(fp: &FootprintDesc) -> (f64, f64, f64, f64) {
 
 /// Checks a scene; returns the first error found (the sections in this order: format,
 /// directions, radiative settings, LiDARs, grid, images, bands, optics, georeference,
-/// illumination, objects).
+/// illumination, thermal, objects).
 pub fn validate(desc: &SceneDesc, src: &SceneSource) -> Result<(), SceneError> {
     let v = V {
         src,
@@ -410,6 +411,7 @@ pub fn validate(desc: &SceneDesc, src: &SceneSource) -> Result<(), SceneError> {
     v.optics()?;
     v.georeference()?;
     v.illumination()?;
+    v.thermal()?;
     v.objects()
 }
 

@@ -113,6 +113,7 @@ pub fn base_scene(size: (f64, f64), cell: (f64, f64, f64), boundary: BoundaryMod
         radiative: None,
         passive: None,
         georeference: None,
+        thermal: None,
     }
 }
 

@@ -28,6 +28,8 @@ pub(in crate::radiative) struct Ctx<'a> {
     pub(in crate::radiative) inp: &'a RadiativeInput<'a>,
     pub(in crate::radiative) w: usize,
     pub(in crate::radiative) nb: usize,
+    /// First thermal channel (`nb · (1 + sky)`; equal to `w` in a run without them).
+    pub(in crate::radiative) thermal_base: usize,
     pub(in crate::radiative) n_dirs: usize,
     pub(in crate::radiative) n_slots: usize,
     /// Direction vectors (tiling) + sun last.

@@ -187,16 +187,16 @@ pub(in crate::radiative) fn emit(
 /// facet the rays ignore, the facet's normal, the scattering points per sub-cell (barycentre,
 /// share; facets and ground) and whether it is a ground column.
 pub(in crate::radiative) struct Emitter<'s> {
-    origin_up: DVec3,
-    origin_dn: DVec3,
-    skip: Option<u32>,
-    normal: Option<DVec3>,
-    points: &'s [(DVec3, f64)],
-    ground: bool,
+    pub(in crate::radiative) origin_up: DVec3,
+    pub(in crate::radiative) origin_dn: DVec3,
+    pub(in crate::radiative) skip: Option<u32>,
+    pub(in crate::radiative) normal: Option<DVec3>,
+    pub(in crate::radiative) points: &'s [(DVec3, f64)],
+    pub(in crate::radiative) ground: bool,
     /// Turbid: the two emission points' offsets from the barycentre (m; the horizontal
     /// signs alternate over directions), the first point's weight, and the cell's bounds
     /// (see [`turbid_emitter`]); `None` for other emitters.
-    pair: Option<TurbidPair>,
+    pub(in crate::radiative) pair: Option<TurbidPair>,
 }
 
 /// The two emission points of a turbid cell (physics.md §3.6): per direction, the height z*
@@ -205,7 +205,7 @@ pub(in crate::radiative) struct Emitter<'s> {
 /// barycentre ± the spread per axis (the horizontal signs alternate over directions), half
 /// the power each.
 #[derive(Clone, Copy)]
-struct TurbidPair {
+pub(in crate::radiative) struct TurbidPair {
     /// Cell index.
     cell: usize,
     /// The vertical maximum-entropy density.
@@ -220,7 +220,7 @@ struct TurbidPair {
 impl TurbidPair {
     /// The pair of cell `cell` (`centre`, size `size`, m) whose intercepted energy has its
     /// barycentre at `mean`: per axis the maximum-entropy density with that mean.
-    fn new(cell: usize, mean: DVec3, centre: DVec3, size: DVec3) -> Self {
+    pub(in crate::radiative) fn new(cell: usize, mean: DVec3, centre: DVec3, size: DVec3) -> Self {
         let lo = centre - 0.5 * size;
         let rel = ((mean - lo) / size).clamp(DVec3::ZERO, DVec3::ONE);
         TurbidPair {
@@ -496,7 +496,7 @@ fn ground_emitter<'s>(
 /// emission points per direction (turbid, `split`: [`TurbidPair`]) or from each scattering
 /// point; first-order sun
 /// rays (`first`) with the hotspot correlation.
-fn send_emitter(
+pub(in crate::radiative) fn send_emitter(
     ctx: &Ctx,
     src: &Emitter,
     split: bool,

@@ -8,22 +8,9 @@ use crate::radiative::walk;
 
 /// Runs the flux tracking.
 pub fn run(inp: &RadiativeInput) -> RadiativeResult {
-    let (ctx, plan, source) = context(inp);
+    let (mut ctx, plan, mut source) = context(inp);
     let (w, n_dirs) = (ctx.w, ctx.n_dirs);
     let tiling = inp.dirs.tiling();
-    let mut res = new_result(&ctx, plan, &source);
-    let mut stores = new_stores(&ctx);
-    let mut last = vec![0.0; w]; // escaped in the last iteration
-    let mut pools = Pools::default();
-    // One bar per pass (the launch, then each iteration): chunks merged, with an ETA.
-    let bar = crate::io::progress::progress_bar(inp.params.progress, 0, "flux tracking");
-    bar.set_message("flux tracking: sun and sky");
-    launch(&ctx, &plan, &mut pools, &bar, |o| {
-        merge_one(&ctx, o, &mut stores, &mut res, &mut last)
-    });
-    finish_merge(&ctx, &mut stores);
-    res.escaped_per_iteration.push(last.clone());
-    res.iterations = 1;
     // Facet fractions fallback (renormalised cosine) computed once if not provided.
     let approx_fractions: Vec<(Vec<f32>, Vec<f32>)> =
         if inp.facet_fractions.len() == inp.facets.len() {
@@ -39,6 +26,34 @@ pub fn run(inp: &RadiativeInput) -> RadiativeResult {
     } else {
         &approx_fractions
     };
+    // Thermal emission (issue #34): its elements and source, in the source before the ray
+    // threshold is set from it.
+    let thermal = thermal_elements(&ctx);
+    let mut thermal_sky = Vec::new();
+    if inp.thermal.is_some() {
+        let (t, sky) = thermal_source(&ctx, &thermal, fractions, |d| thermal_sky_area(&ctx, d));
+        for b in 0..ctx.nb {
+            source[ctx.thermal_base + b] += t[b] + sky[b];
+        }
+        thermal_sky = sky;
+        let rays = thermal_rays(&ctx, &plan, thermal.len());
+        ctx.min_ray = inp.params.ray_threshold * source.iter().sum::<f64>() / rays;
+    }
+    let ctx = ctx;
+    let mut res = new_result(&ctx, plan, &source);
+    res.thermal_sky_source = thermal_sky;
+    let mut stores = new_stores(&ctx);
+    let mut last = vec![0.0; w]; // escaped in the last iteration
+    let mut pools = Pools::default();
+    // One bar per pass (the launch, then each iteration): chunks merged, with an ETA.
+    let bar = crate::io::progress::progress_bar(inp.params.progress, 0, "flux tracking");
+    bar.set_message("flux tracking: sun and sky");
+    launch(&ctx, &plan, &thermal, fractions, &mut pools, &bar, |o| {
+        merge_one(&ctx, o, &mut stores, &mut res, &mut last)
+    });
+    finish_merge(&ctx, &mut stores);
+    res.escaped_per_iteration.push(last.clone());
+    res.iterations = 1;
     let ground_fr: Vec<f64> = (0..n_dirs)
         .map(|j| {
             if ctx.omega[j].z > 0.0 {
@@ -126,7 +141,9 @@ fn context<'a>(inp: &'a RadiativeInput<'a>) -> (Ctx<'a>, LaunchPlan, Vec<f64>) {
     let spec = inp.spec;
     let nb = inp.e_dir.len();
     let has_sky = inp.e_diff.iter().any(|&e| e > 0.0);
-    let w = nb * if has_sky { 2 } else { 1 };
+    let has_thermal = inp.thermal.is_some();
+    let w = nb * (1 + usize::from(has_sky) + usize::from(has_thermal));
+    let thermal_base = nb * (1 + usize::from(has_sky));
     let tiling = inp.dirs.tiling();
     let n_dirs = tiling.len();
     let n_sectors = inp.n_sectors;
@@ -142,7 +159,7 @@ fn context<'a>(inp: &'a RadiativeInput<'a>) -> (Ctx<'a>, LaunchPlan, Vec<f64>) {
         spec.n[1] as f64 * spec.cell.y,
     );
     // Launch grids on the top plane.
-    let n_sky_dirs = if has_sky {
+    let n_sky_dirs = if has_sky || inp.thermal.is_some_and(|t| t.has_sky()) {
         tiling.iter().filter(|d| d.omega.z < 0.0).count()
     } else {
         0
@@ -199,6 +216,7 @@ fn context<'a>(inp: &'a RadiativeInput<'a>) -> (Ctx<'a>, LaunchPlan, Vec<f64>) {
         inp,
         w,
         nb,
+        thermal_base,
         n_dirs,
         n_slots,
         omega,
@@ -316,6 +334,28 @@ fn source_powers(inp: &RadiativeInput, size: (f64, f64), has_sky: bool, w: usize
         }
     }
     source
+}
+
+/// Step of [`run`]: the launch area of the sky rays along `d` (the scene's top area, or the
+/// launch region on continuous topography), m².
+fn thermal_sky_area(ctx: &Ctx, d: DVec3) -> f64 {
+    let spec = ctx.inp.spec;
+    if spec.topography_offset != (0.0, 0.0) {
+        spec.topo_launch_area(ctx.size, d)
+    } else {
+        ctx.size.0 * ctx.size.1
+    }
+}
+
+/// Step of [`run`]: the nominal source rays of a thermal run (the launch grids' rays, the
+/// emitters, two rays per direction and emitting element), for the ray threshold.
+fn thermal_rays(ctx: &Ctx, plan: &LaunchPlan, elements: usize) -> f64 {
+    let n_down = ctx.omega[..ctx.n_dirs].iter().filter(|d| d.z < 0.0).count();
+    ((plan.sun_n.0 * plan.sun_n.1) as f64
+        + (plan.sky_n.0 * plan.sky_n.1 * n_down) as f64
+        + ctx.inp.emitters.len() as f64
+        + (2 * elements * ctx.n_dirs) as f64)
+        .max(1.0)
 }
 
 /// Step of [`context`]: the turbid-store layout of the subface setting — stores per turbid
@@ -591,6 +631,7 @@ fn new_result(ctx: &Ctx, plan: LaunchPlan, source: &[f64]) -> RadiativeResult {
         n_channels: w,
         n_bands: nb,
         has_sky,
+        has_thermal: inp.thermal.is_some(),
         source: source.to_vec(),
         escaped: vec![0.0; n_dirs * w],
         images: vec![
@@ -639,9 +680,12 @@ fn walk_info(ctx: &Ctx) -> WalkInfo {
 /// Iteration 1: the sun and sky launch points on the top plane in fixed chunks of rows, then
 /// the other sources (emitters) in fixed chunks after them (physics.md §6.1, §6.2); the
 /// chunks' outputs go to `merge_one` in that order ([`stream_chunks`]).
+#[allow(clippy::too_many_arguments)]
 fn launch(
     ctx: &Ctx,
     plan: &LaunchPlan,
+    thermal: &[ThermalElement],
+    fractions: &[(Vec<f32>, Vec<f32>)],
     pools: &mut Pools,
     progress: &indicatif::ProgressBar,
     merge_one: impl FnMut(&ChunkOut) + Send,
@@ -651,11 +695,15 @@ fn launch(
     let (w, nb, n_dirs, size) = (ctx.w, ctx.nb, ctx.n_dirs, ctx.size);
     let tiling = inp.dirs.tiling();
     let has_sky = inp.e_diff.iter().any(|&e| e > 0.0);
+    // The thermal sky (issue #34): launched with the solar sky, on the thermal channels.
+    let th_sky: &[f64] = inp.thermal.map_or(&[], |t| &t.sky);
+    let thermal_sky = th_sky.iter().any(|&v| v > 0.0);
+    let tb = ctx.thermal_base;
     let area = size.0 * size.1;
     // --- Iteration 1: sources. Launch points in fixed chunks of rows.
     let top = spec.top();
     let topo = spec.topography_offset != (0.0, 0.0);
-    let sky_dirs: Vec<usize> = if has_sky {
+    let sky_dirs: Vec<usize> = if has_sky || thermal_sky {
         (0..n_dirs).filter(|&j| ctx.omega[j].z < 0.0).collect()
     } else {
         Vec::new()
@@ -676,7 +724,9 @@ fn launch(
     let n_rows = rows.len().div_ceil(rl);
     let el = chunk_len(inp.emitters.len(), 1, inp.params.chunk_rays);
     let n_em = inp.emitters.len().div_ceil(el);
-    progress.set_length((n_rows + n_em) as u64);
+    let tl = chunk_len(thermal.len(), 2 * n_dirs, inp.params.chunk_rays);
+    let n_th = thermal.len().div_ceil(tl);
+    progress.set_length((n_rows + n_em + n_th) as u64);
     let run_rows = |chunk: &[(bool, usize)], out: &mut ChunkOut| {
         let mut pw = vec![0.0; w];
         let t_kernel = std::time::Instant::now();
@@ -719,8 +769,14 @@ fn launch(
                     let (p, da) = topo_launch(ctx.omega[j]);
                     // L_sky = E_diff/π; power = L ΔA ∫_{ΔΩ}|μ|dΩ (physics.md §6.1).
                     for b in 0..nb {
-                        pw[nb + b] =
-                            inp.e_diff[b] / std::f64::consts::PI * da * tiling[j].projected_sr;
+                        if has_sky {
+                            pw[nb + b] =
+                                inp.e_diff[b] / std::f64::consts::PI * da * tiling[j].projected_sr;
+                        }
+                        if thermal_sky {
+                            pw[tb + b] =
+                                th_sky.get(b).copied().unwrap_or(0.0) * da * tiling[j].projected_sr;
+                        }
                     }
                     match p {
                         Some(p) => ctx.trace(p, j, None, &mut pw, out),
@@ -748,18 +804,35 @@ fn launch(
         }
         ctx.flush(out);
     };
+    // Thermal emission (issue #34), in fixed chunks after the other sources.
+    let run_thermal = |chunk: &[ThermalElement], out: &mut ChunkOut| {
+        let mut outgoing = vec![0.0; n_dirs * w];
+        let mut pw = vec![0.0; w];
+        let mut scratch = ThermalScratch::default();
+        for &e in chunk {
+            let src = thermal_emitter(ctx, e, fractions, &mut outgoing, &mut scratch);
+            let split = matches!(e, ThermalElement::Turbid(_));
+            send_emitter(ctx, &src, split, false, &outgoing, &mut pw, out);
+        }
+        let t_kernel = std::time::Instant::now();
+        ctx.flush(out);
+        out.kernel_seconds += t_kernel.elapsed().as_secs_f64();
+    };
     stream_chunks(
         ctx,
-        n_rows + n_em,
+        n_rows + n_em + n_th,
         pools,
         progress,
         |i, out| {
             if i < n_rows {
                 run_rows(&rows[i * rl..((i + 1) * rl).min(rows.len())], out);
-            } else {
+            } else if i < n_rows + n_em {
                 let i = i - n_rows;
                 let n = inp.emitters.len();
                 run_emitters(&inp.emitters[i * el..((i + 1) * el).min(n)], out);
+            } else {
+                let i = i - n_rows - n_em;
+                run_thermal(&thermal[i * tl..((i + 1) * tl).min(thermal.len())], out);
             }
         },
         merge_one,

@@ -252,6 +252,7 @@ pub fn disk_canopy(p: &DiskCanopyParams) -> Result<SceneDesc, String> {
         radiative: None,
         passive: None,
         georeference: None,
+        thermal: None,
     })
 }
 

@@ -220,5 +220,6 @@ pub fn forest(p: &ForestParams) -> SceneDesc {
         radiative: None,
         passive: None,
         georeference: None,
+        thermal: None,
     }
 }

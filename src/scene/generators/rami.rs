@@ -543,6 +543,7 @@ pub fn rami_het01(case: &RamiCase, opts: &RamiOptions) -> Result<SceneDesc, Stri
         radiative: None,
         passive: None,
         georeference: None,
+        thermal: None,
     })
 }
 

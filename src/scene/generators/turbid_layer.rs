@@ -67,5 +67,6 @@ pub fn turbid_layer(p: &TurbidLayerParams) -> SceneDesc {
         radiative: None,
         passive: None,
         georeference: None,
+        thermal: None,
     }
 }

@@ -127,5 +127,6 @@ pub fn urban(p: &UrbanParams) -> SceneDesc {
         radiative: None,
         passive: None,
         georeference: None,
+        thermal: None,
     }
 }

@@ -1,0 +1,85 @@
+//! Validation of the `thermal` section (part of [`super::validate`]; issue #34): the
+//! temperatures (finite, in (0, 1e5] K), their keys (optics keys), and in the `T` and `RT`
+//! modes a temperature for every optics key an emitting element can be made of.
+
+use super::*;
+
+/// The thermal section of [`validate`].
+impl V<'_> {
+    /// Temperatures, keys and the surfaces thermal emission does not model yet.
+    pub(super) fn thermal(&self) -> R {
+        let Some(th) = &self.desc.thermal else {
+            return Ok(());
+        };
+        let check_t = |field: String, t: f64| -> R {
+            if t.is_finite() && t > 0.0 && t <= MAX_TEMPERATURE_K {
+                Ok(())
+            } else {
+                Err(self.src.invalid(
+                    field,
+                    format!(
+                        "temperature {} K must be in (0, {MAX_TEMPERATURE_K}] K",
+                        num(t)
+                    ),
+                ))
+            }
+        };
+        for (key, &t) in &th.temperatures_k {
+            let f = format!("thermal.temperatures_k.{key}");
+            if !self.desc.optics.contains_key(key) {
+                return Err(self
+                    .src
+                    .invalid(f, format!("`{key}` is not a key of `optics`")));
+            }
+            check_t(f, t)?;
+        }
+        if let Some(t) = th.default_temperature_k {
+            check_t("thermal.default_temperature_k".into(), t)?;
+        }
+        if let Some(t) = th.sky_temperature_k {
+            check_t("thermal.sky_temperature_k".into(), t)?;
+        }
+        if !th.mode.thermal() {
+            return Ok(());
+        }
+        // Leaf keys only referenced by turbid keys take the turbid key's temperature.
+        let turbid_leaves: Vec<&str> = self
+            .desc
+            .optics
+            .values()
+            .filter_map(|o| match o {
+                OpticsDesc::Turbid { leaf, .. } => Some(leaf.as_str()),
+                _ => None,
+            })
+            .collect();
+        for (key, o) in &self.desc.optics {
+            let f = format!("optics.{key}");
+            match o {
+                OpticsDesc::Rpv { .. } | OpticsDesc::Hapke { .. } => {
+                    return Err(SceneError::NotSupported {
+                        at: self.src.at(&f),
+                        field: f,
+                        message: format!(
+                            "thermal emission (mode {}) of RPV and Hapke surfaces is not modelled yet: use a Lambertian key, or mode R",
+                            th.mode.name()
+                        ),
+                    });
+                }
+                OpticsDesc::BiLambertian { .. } | OpticsDesc::ProspectLeaf { .. }
+                    if turbid_leaves.contains(&key.as_str()) => {}
+                _ => {
+                    if th.temperature_of(key).is_none() {
+                        return Err(self.src.invalid(
+                            "thermal.temperatures_k",
+                            format!(
+                                "no temperature for optics `{key}` (mode {}): give `temperatures_k: {{\"{key}\": …}}` or `default_temperature_k`",
+                                th.mode.name()
+                            ),
+                        ));
+                    }
+                }
+            }
+        }
+        Ok(())
+    }
+}
