@@ -342,3 +342,56 @@ fn thermal_refuses_what_it_does_not_model() {
         "{e}"
     );
 }
+
+/// `generate turbid-layer --mode t --leaf-temperature-k … --soil-temperature-k …` writes a
+/// thermal scene that runs; temperatures without `--mode`, or a thermal mode without a
+/// temperature, are refused (exit 1, the flag named).
+#[test]
+fn generators_write_thermal_scenes() {
+    let bin = env!("CARGO_BIN_EXE_lumenscape");
+    let generate = |extra: &[&str]| {
+        std::process::Command::new(bin)
+            .args([
+                "generate",
+                "turbid-layer",
+                "--band",
+                "tir@10000:0.03,0.02,0.05",
+            ])
+            .args(extra)
+            .output()
+            .unwrap()
+    };
+    let o = generate(&[
+        "--mode",
+        "t",
+        "--leaf-temperature-k",
+        "300",
+        "--soil-temperature-k",
+        "310",
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let text = String::from_utf8(o.stdout).unwrap();
+    let dir = std::env::temp_dir().join(format!("lumenscape-thermal-gen-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let path = dir.join("t.ron");
+    std::fs::write(&path, &text).unwrap();
+    let (d, _) = lumenscape::scene::load_scene(&path).unwrap();
+    let th = d.thermal.as_ref().expect("thermal section");
+    assert_eq!(th.mode, RunMode::T);
+    assert_eq!(th.temperature_of("vegetation"), Some(300.0));
+    assert_eq!(th.temperature_of("soil"), Some(310.0));
+    let p = run(&d, None);
+    assert!(!p.bands[0].radiance.is_empty());
+    std::fs::remove_dir_all(&dir).ok();
+    for (args, needle) in [
+        (&["--leaf-temperature-k", "300"][..], "--mode"),
+        (
+            &["--mode", "rt", "--leaf-temperature-k", "300"][..],
+            "--soil-temperature-k",
+        ),
+    ] {
+        let o = generate(args);
+        assert_eq!(o.status.code(), Some(1));
+        assert!(String::from_utf8_lossy(&o.stderr).contains(needle));
+    }
+}

@@ -60,9 +60,68 @@ pub struct OpticsFlags {
     /// Sun azimuth (ground→sun, anticlockwise from +x), degrees.
     #[arg(long, default_value_t = 0.0)]
     pub sun_azimuth: f64,
+    /// Run mode written into the scene's `thermal` section: `r`, `t` (emission only) or `rt`
+    /// (both); with `t`/`rt` the temperatures below are required.
+    #[arg(long, value_enum)]
+    pub mode: Option<super::scene_cmds::ModeArg>,
+    /// Leaf (turbid and leaf optics) temperature, K.
+    #[arg(long)]
+    pub leaf_temperature_k: Option<f64>,
+    /// Soil (and every other Lambertian surface) temperature, K.
+    #[arg(long)]
+    pub soil_temperature_k: Option<f64>,
+    /// Brightness temperature of an isotropic sky, K (absent: a cold sky).
+    #[arg(long)]
+    pub sky_temperature_k: Option<f64>,
 }
 
 impl OpticsFlags {
+    /// The `thermal` section of `--mode` and the temperatures (scene keys: turbid and leaf
+    /// optics take the leaf temperature, Lambertian ones the soil's); `None` without
+    /// `--mode`. Temperatures without `--mode` are refused (they would be silently unused).
+    fn thermal(
+        &self,
+        optics: &std::collections::BTreeMap<String, crate::scene::desc::OpticsDesc>,
+    ) -> Result<Option<crate::scene::desc::ThermalDesc>, String> {
+        use crate::scene::desc::{OpticsDesc, RunMode, ThermalDesc};
+        let Some(m) = self.mode else {
+            if self.leaf_temperature_k.is_some()
+                || self.soil_temperature_k.is_some()
+                || self.sky_temperature_k.is_some()
+            {
+                return Err("temperatures need --mode t or rt".into());
+            }
+            return Ok(None);
+        };
+        let mode = match m {
+            super::scene_cmds::ModeArg::R => RunMode::R,
+            super::scene_cmds::ModeArg::T => RunMode::T,
+            super::scene_cmds::ModeArg::Rt => RunMode::RT,
+        };
+        let mut temperatures_k = std::collections::BTreeMap::new();
+        for (k, o) in optics {
+            let (t, flag) = match o {
+                OpticsDesc::Lambertian { .. } => (self.soil_temperature_k, "--soil-temperature-k"),
+                _ => (self.leaf_temperature_k, "--leaf-temperature-k"),
+            };
+            match t {
+                Some(t) => {
+                    temperatures_k.insert(k.clone(), t);
+                }
+                None if mode.thermal() => {
+                    return Err(format!("--mode {}: {flag} is required", mode.name()));
+                }
+                None => {}
+            }
+        }
+        Ok(Some(ThermalDesc {
+            mode,
+            temperatures_k,
+            default_temperature_k: None,
+            sky_temperature_k: self.sky_temperature_k,
+        }))
+    }
+
     fn bands(&self) -> Result<Vec<BandOptics>, String> {
         if self.bands.is_empty() {
             Ok(vec![BandOptics {
@@ -249,6 +308,9 @@ pub fn run(args: &Args, out: &mut dyn Write) -> Result<(), CliError> {
                 *leaf_size_m = x;
             }
         }
+    }
+    if let Kind::TurbidLayer { optics, .. } | Kind::DiskCanopy { optics, .. } = &args.kind {
+        desc.thermal = optics.thermal(&desc.optics)?;
     }
     // Refuse to print a scene that would not load.
     crate::scene::validate::validate(&desc, &crate::scene::SceneSource::generated())?;
