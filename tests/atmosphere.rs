@@ -12,6 +12,9 @@
 //! them: the only tolerance is statistical (DISORT's own error, ≤ 2e-6 relative, is far
 //! below the standard errors).
 //!
+//! The diffuse sky at the BOA (`toa[].brf[].boa_sky`) is checked against DISORT's BOA diffuse
+//! transmittance factor in the same runs.
+//!
 //! Heavier runs (10⁶ photons per case, every tabulated view zenith up to 80°) are in the
 //! `#[ignore]`d `atmosphere_matches_disort_at_every_view` (`cargo test --release --test
 //! atmosphere -- --ignored`).
@@ -21,6 +24,7 @@ use common::*;
 use lumenscape::direction::{DirectionParams, ExactDirection};
 use lumenscape::physics::phase::FluidPhase;
 use lumenscape::radiative::products::RadiativeProducts;
+use lumenscape::radiative::toa::ToaBrf;
 use lumenscape::resources::scene::{RunSettings, SamplerKind, Solver};
 use lumenscape::scene::SceneSource;
 use lumenscape::scene::desc::*;
@@ -108,12 +112,24 @@ fn isotropic(tau: Vec<f64>, ssa: Vec<f64>) -> AerosolsDesc {
 /// DISORT TOA BRF of `case` at sun zenith `sza`, view zenith `vza` and relative azimuth
 /// `relaz` (0 = viewer on the sun side).
 fn disort(case: &str, sza: f64, vza: f64, relaz: f64) -> f64 {
+    disort_col(case, sza, vza, relaz, 10)
+}
+
+/// DISORT BOA diffuse transmittance factor π L↓/(μ₀ E₀) of `case` looking up toward zenith
+/// `vza` and azimuth `look` relative to the sun's (0 = toward the sun): DISORT's azimuth of the
+/// downward propagation relative to the beam's is `look` itself, i.e. `relaz_backscatter0` =
+/// 180 − `look`.
+fn disort_sky(case: &str, sza: f64, vza: f64, look: f64) -> f64 {
+    disort_col(case, sza, vza, (180.0 - look).rem_euclid(360.0), 11)
+}
+
+fn disort_col(case: &str, sza: f64, vza: f64, relaz: f64, col: usize) -> f64 {
     let text = std::fs::read_to_string(asset("assets/reference/disort_slabs.csv")).unwrap();
     for l in text.lines().skip(1) {
         let r: Vec<&str> = l.split(',').collect();
         let f = |i: usize| r[i].parse::<f64>().unwrap();
         if r[0] == case && f(6) == sza && f(7) == vza && f(9) == relaz {
-            return f(10);
+            return f(col);
         }
     }
     panic!("no DISORT row {case} {sza} {vza} {relaz}");
@@ -132,6 +148,17 @@ fn views() -> Vec<(f64, f64)> {
 
 /// The TOA BRF entry (brf, se) of band `b` toward (zenith, azimuth).
 fn toa_brf(p: &RadiativeProducts, b: usize, z: f64, a: f64) -> (f64, f64) {
+    let e = toa_entry(p, b, z, a);
+    (e.brf, e.brf_se)
+}
+
+/// The BOA sky factor (value, se) of band `b` looking toward (zenith, azimuth).
+fn boa_sky(p: &RadiativeProducts, b: usize, z: f64, a: f64) -> (f64, f64) {
+    let e = toa_entry(p, b, z, a);
+    (e.boa_sky, e.boa_sky_se)
+}
+
+fn toa_entry(p: &RadiativeProducts, b: usize, z: f64, a: f64) -> ToaBrf {
     let t = &p.toa.as_ref().expect("toa products")[b];
     let e = t
         .brf
@@ -144,7 +171,7 @@ fn toa_brf(p: &RadiativeProducts, b: usize, z: f64, a: f64) -> (f64, f64) {
                         < 1e-6)
         })
         .unwrap_or_else(|| panic!("view {z} {a} missing in {:?}", t.brf));
-    (e.brf, e.brf_se)
+    e.clone()
 }
 
 /// Closure of atmosphere + scene (TOA) and of the scene alone (BOA) in every band.
@@ -169,9 +196,17 @@ fn assert_closes(p: &RadiativeProducts, what: &str) {
     }
 }
 
-/// Compares band `b` of `p` with DISORT `case`; returns (max |z|, max relative error).
-fn compare(p: &RadiativeProducts, b: usize, case: &str, sza: f64, se_max: f64) -> (f64, f64) {
+/// Compares band `b` of `p` with DISORT `case`: the TOA BRF and the BOA diffuse sky (both
+/// factors per unit horizontal irradiance μ₀E₀); returns (max |z|, max relative error) of each.
+fn compare(
+    p: &RadiativeProducts,
+    b: usize,
+    case: &str,
+    sza: f64,
+    se_max: f64,
+) -> ((f64, f64), (f64, f64)) {
     let (mut wz, mut wr): (f64, f64) = (0.0, 0.0);
+    let (mut sz, mut sr): (f64, f64) = (0.0, 0.0);
     for (z, a) in views() {
         let want = disort(case, sza, z, a);
         let (got, se) = toa_brf(p, b, z, a);
@@ -183,8 +218,18 @@ fn compare(p: &RadiativeProducts, b: usize, case: &str, sza: f64, se_max: f64) -
         assert!(se < se_max * want, "{case}: SE {se} vs {want}");
         wz = wz.max(zz);
         wr = wr.max((got / want - 1.0).abs());
+        let want = disort_sky(case, sza, z, a);
+        let (got, se) = boa_sky(p, b, z, a);
+        let zz = (got - want).abs() / se;
+        assert!(
+            zz <= Z,
+            "{case} sza {sza} looking at ({z}, {a}): BOA sky {got} ± {se} vs DISORT {want} (z {zz:.2})"
+        );
+        assert!(se < 2.0 * se_max * want, "{case}: sky SE {se} vs {want}");
+        sz = sz.max(zz);
+        sr = sr.max((got / want - 1.0).abs());
     }
-    (wz, wr)
+    ((wz, wr), (sz, sr))
 }
 
 /// Rayleigh τ 0.1 (band 0) and τ 0.3 (band 1) over a Lambertian 0.2 ground in one two-band run
@@ -205,13 +250,14 @@ fn rayleigh_over_lambertian_ground_matches_disort() {
             .into_iter()
             .enumerate()
         {
-            let (z, r) = compare(&p, b, case, sza, 0.01);
+            let ((z, r), (z2, r2)) = compare(&p, b, case, sza, 0.01);
             eprintln!(
-                "{case} sza {sza}: max |z| {z:.2}, max relative error {:.3} %",
-                100.0 * r
+                "{case} sza {sza}: TOA BRF max |z| {z:.2}, max relative error {:.3} %; BOA sky max |z| {z2:.2}, {:.3} %",
+                100.0 * r,
+                100.0 * r2
             );
-            wz = wz.max(z);
-            wr = wr.max(r);
+            wz = wz.max(z).max(z2);
+            wr = wr.max(r).max(r2);
         }
         // Direct sun at the BOA: e^{−τ/μ₀} of the (horizontal) TOA irradiance in
         // expectation; a binomial fraction of 100 000 photons, SE ≤ 0.2 % here: 1 % is > 5 SE.
@@ -248,10 +294,11 @@ fn isotropic_slabs_over_black_ground_match_disort() {
             );
             let p = run_mc(&d, 30_000);
             assert_closes(&p, case);
-            let (z, r) = compare(&p, 0, case, sza, 0.02);
+            let ((z, r), (z2, r2)) = compare(&p, 0, case, sza, 0.02);
             eprintln!(
-                "{case} sza {sza}: max |z| {z:.2}, max relative error {:.3} %",
-                100.0 * r
+                "{case} sza {sza}: TOA BRF max |z| {z:.2}, max relative error {:.3} %; BOA sky max |z| {z2:.2}, {:.3} %",
+                100.0 * r,
+                100.0 * r2
             );
             // Black ground: all the scene absorbs is what reaches it; the atmosphere absorbs
             // the rest of what does not leave through the TOA.
@@ -490,7 +537,8 @@ fn bad_atmospheres_are_refused() {
 }
 
 /// Every tabulated view zenith up to 80° in the principal and perpendicular planes, sun zenith
-/// 0, 30, 60 and 80°, Rayleigh τ 0.1 / 0.3 and the isotropic τ 1 slabs, 10⁶ photons each.
+/// 0, 30, 60 and 80°, Rayleigh τ 0.1 / 0.3 and the isotropic τ 1 slabs, 10⁶ photons each:
+/// TOA BRF and BOA diffuse sky.
 #[test]
 #[ignore]
 fn atmosphere_matches_disort_at_every_view() {
@@ -529,15 +577,18 @@ fn atmosphere_matches_disort_at_every_view() {
             for (b, case) in cases.into_iter().enumerate() {
                 let (mut cz, mut cr): (f64, f64) = (0.0, 0.0);
                 for &(z, a) in &views {
-                    let want = disort(case, sza, z, a);
-                    let (got, se) = toa_brf(&p, b, z, a);
-                    let zz = (got - want).abs() / se;
-                    cz = cz.max(zz);
-                    cr = cr.max((got / want - 1.0).abs());
-                    if zz > Z {
-                        failures.push(format!(
-                            "{case} sza {sza} ({z}, {a}): {got} ± {se} vs {want}"
-                        ));
+                    for (what, want, (got, se)) in [
+                        ("TOA BRF", disort(case, sza, z, a), toa_brf(&p, b, z, a)),
+                        ("BOA sky", disort_sky(case, sza, z, a), boa_sky(&p, b, z, a)),
+                    ] {
+                        let zz = (got - want).abs() / se;
+                        cz = cz.max(zz);
+                        cr = cr.max((got / want - 1.0).abs());
+                        if zz > Z {
+                            failures.push(format!(
+                                "{case} sza {sza} ({z}, {a}) {what}: {got} ± {se} vs {want}"
+                            ));
+                        }
                     }
                 }
                 eprintln!(

@@ -250,6 +250,8 @@ fn toa_products(
                         brf,
                         brf_se: se_of(batches, |s| s[sm.toa_view(v, b)]) * f,
                         radiance_w_m2_sr_um: brf * e_toa[b] / PI,
+                        boa_sky: tot(sm.boa_sky(v, b)) * f,
+                        boa_sky_se: se_of(batches, |s| s[sm.boa_sky(v, b)]) * f,
                     }
                 })
                 .collect();

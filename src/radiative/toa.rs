@@ -20,6 +20,12 @@ pub struct ToaBrf {
     /// TOA radiance `brf · E⊥_TOA / π`, W m⁻² sr⁻¹ µm⁻¹ (relative when the scene's irradiance
     /// is the default 1).
     pub radiance_w_m2_sr_um: f64,
+    /// Diffuse sky at the bottom of the atmosphere seen looking toward this direction (the
+    /// downward radiance travelling along the opposite direction, direct sun excluded, with the
+    /// scene–atmosphere multiple reflections), as a factor `π L↓_BOA / E⊥_TOA`.
+    pub boa_sky: f64,
+    /// Standard error of `boa_sky`.
+    pub boa_sky_se: f64,
 }
 
 /// TOA products of one band; fractions are of the power entering through the TOA.

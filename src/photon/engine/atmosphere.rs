@@ -20,7 +20,10 @@
 //! * **Peel-off to the TOA** (local estimate, Ray-Carlo eqs. 1–2): at every collision the
 //!   intensity `w_b Σ_k σ_{s,k,b} P_k(Θ) / (4π σ_b) · e^{−τ_b(z→TOA)/μ_v}` toward each view; a
 //!   peel-off from the scene reaches the TOA with the column's transmittance `e^{−τ_b/μ_v}`
-//!   ([`PhotonAtmosphere::view_transmittance`]).
+//!   ([`PhotonAtmosphere::view_transmittance`]). The same collisions peel off down to the BOA
+//!   along `−Ω_v` with `e^{−τ_b(BOA→z)/μ_v}`: the diffuse sky radiance the scene receives from
+//!   the direction Ω_v (DART's `L_BOA(Ω↓)`, physics.md §10.1 stage 1, here with the scene's
+//!   coupling included).
 
 use super::context::{Bands, Ctx, Photon};
 use super::tally::BatchOut;
@@ -308,12 +311,19 @@ fn collide(
         }
     });
     for (v, &ov) in ctx.inp.views.iter().enumerate() {
+        // Up to the TOA along Ω_v, and down to the BOA along −Ω_v (the diffuse sky).
+        let mu = ov.z.max(1e-12);
         let c = ph.d.dot(ov);
         let (pr, pa) = (atm.rayleigh.eval(c), atm.aerosol.eval(c));
+        let (qr, qa) = (atm.rayleigh.eval(-c), atm.aerosol.eval(-c));
         for b in 0..nb {
-            let t = (-atm.tau_to_top(l, z, b) / ov.z.max(1e-12)).exp();
+            let up = atm.tau_to_top(l, z, b);
+            let t = (-up / mu).exp();
             out.summary[ctx.sum.toa_view(v, off + b)] +=
                 ph.w[b] * (fr[b] * pr + fa[b] * pa) / (4.0 * PI) * t;
+            let t = (-(atm.tau_top[b] - up).max(0.0) / mu).exp();
+            out.summary[ctx.sum.boa_sky(v, off + b)] +=
+                ph.w[b] * (fr[b] * qr + fa[b] * qa) / (4.0 * PI) * t;
         }
     }
     let (mut qr, mut qa) = (0.0, 0.0);

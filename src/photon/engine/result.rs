@@ -72,7 +72,7 @@ impl Summary {
     /// Length of a summary vector.
     pub fn len(&self) -> usize {
         let atm = if self.atm_layers > 0 {
-            (self.n_views + 5 + self.atm_layers) * self.w
+            (2 * self.n_views + 5 + self.atm_layers) * self.w
         } else {
             0
         };
@@ -87,31 +87,36 @@ impl Summary {
     pub fn toa_view(&self, v: usize, ch: usize) -> usize {
         self.atm_base() + v * self.w + ch
     }
+    /// Atmosphere: index of the peel-off intensity at the bottom of the atmosphere travelling
+    /// down along `−Ω_v` (the diffuse sky seen looking toward view `v`), W sr⁻¹.
+    pub fn boa_sky(&self, v: usize, ch: usize) -> usize {
+        self.atm_base() + (self.n_views + v) * self.w + ch
+    }
     /// Atmosphere: index of the power escaped through the top of the atmosphere.
     pub fn toa_escaped(&self, ch: usize) -> usize {
-        self.atm_base() + self.n_views * self.w + ch
+        self.atm_base() + 2 * self.n_views * self.w + ch
     }
     /// Atmosphere: index of the power entering the scene through its top (bottom of the
     /// atmosphere, every downward crossing).
     pub fn boa_down(&self, ch: usize) -> usize {
-        self.atm_base() + (self.n_views + 1) * self.w + ch
+        self.atm_base() + (2 * self.n_views + 1) * self.w + ch
     }
     /// Atmosphere: index of the unscattered (direct sun) part of [`Summary::boa_down`].
     pub fn boa_direct(&self, ch: usize) -> usize {
-        self.atm_base() + (self.n_views + 2) * self.w + ch
+        self.atm_base() + (2 * self.n_views + 2) * self.w + ch
     }
     /// Atmosphere: index of the weight balance of the atmosphere (Russian roulette and the
     /// band reweighting of free paths; expectation 0).
     pub fn atm_balance(&self, ch: usize) -> usize {
-        self.atm_base() + (self.n_views + 3) * self.w + ch
+        self.atm_base() + (2 * self.n_views + 3) * self.w + ch
     }
     /// Atmosphere: index of the power lost in the atmosphere (order cap, horizontal flights).
     pub fn atm_lost(&self, ch: usize) -> usize {
-        self.atm_base() + (self.n_views + 4) * self.w + ch
+        self.atm_base() + (2 * self.n_views + 4) * self.w + ch
     }
     /// Atmosphere: index of the power absorbed in layer `l` (0 = lowest).
     pub fn atm_absorbed(&self, l: usize, ch: usize) -> usize {
-        self.atm_base() + (self.n_views + 5 + l) * self.w + ch
+        self.atm_base() + (2 * self.n_views + 5 + l) * self.w + ch
     }
     /// True when empty.
     pub fn is_empty(&self) -> bool {
