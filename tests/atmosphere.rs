@@ -490,6 +490,54 @@ fn atmosphere_runs_are_bit_identical_on_any_thread_count() {
     }
 }
 
+/// `generate turbid-layer --lai 0 --rayleigh-tau 0.1 …` gives bare Lambertian ground under a
+/// Rayleigh atmosphere, whose TOA BRF is DISORT's.
+#[test]
+fn generated_ground_under_rayleigh_matches_disort() {
+    let out = std::process::Command::new(env!("CARGO_BIN_EXE_lumenscape"))
+        .args([
+            "generate",
+            "turbid-layer",
+            "--lai",
+            "0",
+            "--soil-r",
+            "0.2",
+            "--rayleigh-tau",
+            "0.1",
+            "--sun-zenith",
+            "30",
+        ])
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let text = String::from_utf8(out.stdout).unwrap();
+    let mut d = lumenscape::scene::parse_scene(&text, std::path::Path::new("g.ron"))
+        .unwrap_or_else(|e| panic!("{e}"));
+    let m = d.atmosphere.as_ref().and_then(|a| a.molecules.as_ref());
+    assert_eq!(m.and_then(|m| m.tau.clone()), Some(vec![0.1]));
+    d.directions = Some(DirectionParams {
+        exact: vec![
+            ExactDirection::new(0.0, 0.0),
+            ExactDirection::new(60.0, 0.0),
+        ],
+        ..DirectionParams::default()
+    });
+    let p = run_mc(&d, 40_000);
+    assert_closes(&p, "generated");
+    for (z, a) in [(0.0, 0.0), (60.0, 0.0)] {
+        let want = disort("rayleigh_tau0.1_lamb0.2", 30.0, z, a);
+        let (got, se) = toa_brf(&p, 0, z, a);
+        assert!(
+            (got - want).abs() <= Z * se && se < 0.01 * want,
+            "({z}, {a}): {got} ± {se} vs {want}"
+        );
+    }
+}
+
 /// Invalid atmospheres are refused with the field named.
 #[test]
 fn bad_atmospheres_are_refused() {
