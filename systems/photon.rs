@@ -4,8 +4,9 @@
 //! errors.
 //!
 //! Reads GridSpec, CellGrid, FacetStore, Directions, OpticsTables (discrete samplers only),
-//! RunSettings, SceneInfo, Materials, TerrainRes, Ground, TurbidCrown, TurbidPlot, ImportedMesh;
-//! writes RadiativeProducts.
+//! RunSettings, SceneInfo, Materials, TerrainRes, Ground, TurbidCrown, TurbidPlot, ImportedMesh
+//! and the Atmosphere when the scene has one (sun photons then start at its top and the products
+//! gain the TOA block); writes RadiativeProducts.
 
 use crate::components::{Ground, ImportedMesh, TurbidCrown, TurbidPlot};
 use crate::photon::engine::{PhotonAtmosphere, PhotonInput, PhotonOptics, PhotonParams, run};
@@ -81,11 +82,11 @@ pub fn track_photons(
     let atm = match atmosphere.as_deref() {
         Some(a) => {
             let wl: Vec<f64> = info.bands.iter().map(|b| b.wavelength_nm).collect();
-            let model = a.0.model(&wl, spec.top());
+            let model = a.desc.model(&wl, spec.top());
             if model.levels_m[model.n_layers()] <= spec.top() {
                 errors.0.push(format!(
                     "{}: field `atmosphere.toa_altitude_km`: must lie above the scene top ({} m)",
-                    info.source.display(),
+                    a.toa_at,
                     spec.top()
                 ));
                 return;

@@ -417,7 +417,10 @@ pub fn spawn_scene(
                 message: "flux tracking through the atmosphere is planned (issue #33); run with `--solver monte-carlo`".into(),
             });
         }
-        world.insert_resource(crate::resources::atmosphere::Atmosphere(a.clone()));
+        world.insert_resource(crate::resources::atmosphere::Atmosphere {
+            desc: a.clone(),
+            toa_at: src.at("atmosphere.toa_altitude_km"),
+        });
     }
     world.insert_resource(Warnings(warnings));
     Ok(())
