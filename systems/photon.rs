@@ -4,11 +4,12 @@
 //! errors.
 //!
 //! Reads GridSpec, CellGrid, FacetStore, Directions, OpticsTables (discrete samplers only),
-//! RunSettings, SceneInfo, Materials, TerrainRes, Ground, TurbidCrown, TurbidPlot, ImportedMesh;
-//! writes RadiativeProducts.
+//! RunSettings, SceneInfo, Materials, TerrainRes, Ground, TurbidCrown, TurbidPlot, ImportedMesh
+//! and the Atmosphere when the scene has one (sun photons then start at its top and the products
+//! gain the TOA block); writes RadiativeProducts.
 
 use crate::components::{Ground, ImportedMesh, TurbidCrown, TurbidPlot};
-use crate::photon::engine::{PhotonInput, PhotonOptics, PhotonParams, run};
+use crate::photon::engine::{PhotonAtmosphere, PhotonInput, PhotonOptics, PhotonParams, run};
 use crate::photon::material_optics::{LadCache, build_photon_optics};
 use crate::photon::products::photon_products;
 use crate::resources::facets::FacetStore;
@@ -43,7 +44,10 @@ pub fn track_photons(
     plots: Query<&TurbidPlot>,
     meshes: Query<&ImportedMesh>,
     mut errors: ResMut<StageErrors>,
-    mut cache: ResMut<LadOpticsCache>,
+    (mut cache, atmosphere): (
+        ResMut<LadOpticsCache>,
+        Option<Res<crate::resources::atmosphere::Atmosphere>>,
+    ),
     mut commands: Commands,
 ) {
     let Solver::MonteCarlo { photons, sampler } = settings.solver else {
@@ -73,8 +77,28 @@ pub fn track_photons(
         skip_empty: settings.skip_empty,
         ..PhotonParams::new(photons, info.seed, sampler)
     };
+    let views: Vec<_> = view_dir.iter().map(|&j| tiling[j].omega).collect();
+    // The atmosphere over the scene top, per band (absent: no atmosphere work).
+    let atm = match atmosphere.as_deref() {
+        Some(a) => {
+            let wl: Vec<f64> = info.bands.iter().map(|b| b.wavelength_nm).collect();
+            let model = a.desc.model(&wl, spec.top());
+            if model.levels_m[model.n_layers()] <= spec.top() {
+                errors.0.push(format!(
+                    "{}: field `atmosphere.toa_altitude_km`: must lie above the scene top ({} m)",
+                    a.toa_at,
+                    spec.top()
+                ));
+                return;
+            }
+            let tau: Vec<f64> = (0..nb).map(|b| model.tau_total(b)).collect();
+            Some((PhotonAtmosphere::new(&model, &views), tau))
+        }
+        None => None,
+    };
     let input = PhotonInput {
-        views: view_dir.iter().map(|&j| tiling[j].omega).collect(),
+        views,
+        atmosphere: atm.as_ref().map(|a| &a.0),
         e_dir: scene.e_dir.clone(),
         e_diff: scene.e_diff.clone(),
         ..photon_input(
@@ -101,6 +125,7 @@ pub fn track_photons(
         &scene.e_diff,
         &scene.ground_facet,
         secs,
+        atm.as_ref().map(|a| &a.1[..]),
     ));
 }
 
@@ -124,6 +149,7 @@ pub fn photon_input<'a>(
         dirs: &dirs.set,
         optics,
         fluid: None,
+        atmosphere: None,
         flat_ground: scene.flat_ground,
         views: Vec::new(),
         sun: dirs.sun,

@@ -423,6 +423,24 @@ pub fn spawn_scene(
     if let Some(l) = desc.lidars.as_ref().filter(|l| !l.is_empty()) {
         world.insert_resource(crate::resources::lidar::LidarInstruments(l.clone()));
     }
+    // Atmosphere work exists only with an `atmosphere` section; only the Monte Carlo solver
+    // tracks through it so far.
+    if let Some(a) = &desc.atmosphere {
+        let mc = world
+            .get_resource::<crate::resources::scene::RunSettings>()
+            .is_some_and(|s| s.solver.is_monte_carlo());
+        if !mc && desc.runs_passive() {
+            return Err(SceneError::NotSupported {
+                at: src.at("atmosphere"),
+                field: "atmosphere".into(),
+                message: "flux tracking through the atmosphere is planned (issue #33); run with `--solver monte-carlo`".into(),
+            });
+        }
+        world.insert_resource(crate::resources::atmosphere::Atmosphere {
+            desc: a.clone(),
+            toa_at: src.at("atmosphere.toa_altitude_km"),
+        });
+    }
     world.insert_resource(Warnings(warnings));
     Ok(())
 }

@@ -1618,9 +1618,15 @@ const SECTIONS_AND_SYNTAX: &[Case] = &[
         "sensors",
     ),
     c(
-        "atmosphere_reserved",
+        "atmosphere_isolated",
         "version: 1,",
-        "version: 1, atmosphere: (),",
+        "version: 1, atmosphere: (molecules: ()),",
+        "grid.boundary",
+    ),
+    c(
+        "atmosphere_no_constituent",
+        "version: 1,",
+        "version: 1, atmosphere: (toa_altitude_km: 50.0),",
         "atmosphere",
     ),
     c("version_two", "version: 1,", "version: 2,", "version"),

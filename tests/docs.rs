@@ -108,9 +108,11 @@ fn every_scene_format_field_is_in_the_reference() {
     let doc = read("docs/guide/scene-format.md");
     // The scene-format types: all of desc.rs and desc/lidar.rs plus the types they take from
     // other modules.
-    let sources: [(&str, &[&str]); 6] = [
+    let sources: [(&str, &[&str]); 8] = [
         ("src/scene/desc.rs", &[]),
         ("src/scene/desc/lidar.rs", &[]),
+        ("src/scene/desc/atmosphere.rs", &[]),
+        ("src/physics/phase.rs", &["FluidPhase"]),
         ("src/geometry/crown.rs", &["CrownShape"]),
         ("src/physics/lad.rs", &["Lad", "LeafSpecular"]),
         ("src/physics/prospect.rs", &["ProspectModel"]),
@@ -204,14 +206,27 @@ fn json_paths(v: &serde_json::Value, prefix: &str, out: &mut BTreeSet<String>) {
     }
 }
 
-/// Runs a tiny turbid layer (sun + sky, 20 directions and an exact nadir view) to `dir`.
-fn tiny_run(dir: &Path, solver: Solver) {
+/// Runs a tiny turbid layer (sun + sky, 20 directions and an exact nadir view) to `dir`; with
+/// `atmosphere` (RON of the scene's `atmosphere` section) under that atmosphere instead of a
+/// sky.
+fn tiny_run(dir: &Path, solver: Solver, atmosphere: Option<&str>) {
     let mut desc = turbid_layer(&TurbidLayerParams {
         size_m: 1.0,
         cell_m: 0.5,
         ..Default::default()
     });
-    desc.illumination.skyl = vec![0.2];
+    match atmosphere {
+        // (As scene files are read: optional fields take a bare value.)
+        Some(a) => {
+            desc.atmosphere = Some(
+                ron::Options::default()
+                    .with_default_extension(ron::extensions::Extensions::IMPLICIT_SOME)
+                    .from_str(a)
+                    .unwrap_or_else(|e| panic!("{e}")),
+            )
+        }
+        None => desc.illumination.skyl = vec![0.2],
+    }
     desc.directions = Some(DirectionParams {
         count: 20,
         exact: vec![ExactDirection::new(0.0, 0.0)],
@@ -233,20 +248,22 @@ fn tiny_run(dir: &Path, solver: Solver) {
 fn every_product_key_and_column_is_in_the_reference() {
     let doc = read("docs/guide/products.md");
     let root = std::env::temp_dir().join(format!("lumenscape-docs-{}", std::process::id()));
+    let mc = Solver::MonteCarlo {
+        photons: 4000,
+        sampler: lumenscape::photon::engine::SamplerKind::Continuous,
+    };
+    // (The atmosphere of the scene-format reference's example.)
+    let atm = "(molecules: (), aerosols: (tau_reference: 0.2, angstrom_exponent: 1.3, \
+               ssa: [0.9], phase: HenyeyGreenstein(g: 0.7)))";
     let runs = [
-        ("flux", Solver::FluxTracking),
-        (
-            "mc",
-            Solver::MonteCarlo {
-                photons: 4000,
-                sampler: lumenscape::photon::engine::SamplerKind::Continuous,
-            },
-        ),
+        ("flux", Solver::FluxTracking, None),
+        ("mc", mc, None),
+        ("atm", mc, Some(atm)),
     ];
     let mut missing = Vec::new();
-    for (name, solver) in runs {
+    for (name, solver, atmosphere) in runs {
         let dir = root.join(name);
-        tiny_run(&dir, solver);
+        tiny_run(&dir, solver, atmosphere);
         // summary.json: every key path.
         let summary: serde_json::Value =
             serde_json::from_str(&std::fs::read_to_string(dir.join("summary.json")).unwrap())

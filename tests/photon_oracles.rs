@@ -245,6 +245,7 @@ fn slab(
         dirs: &dirs,
         optics: &optics,
         fluid: Some(&fluid),
+        atmosphere: None,
         flat_ground: Some(0),
         views: views
             .iter()

@@ -3,7 +3,7 @@
 
 Usage (from the repository root):  python3 docs/tools/scene_format.py > docs/guide/scene-format.md
 
-The types are the serde types a scene file is read into (`src/scene/desc.rs`, `desc/lidar.rs`, `desc/thermal.rs` and the types it
+The types are the serde types a scene file is read into (`src/scene/desc.rs`, `desc/lidar.rs`, `desc/thermal.rs`, `desc/atmosphere.rs` and the types it
 uses from other modules). `tests/docs.rs` parses the same sources independently and fails when a
 field or variant is missing from the generated file, so re-run this script after changing them.
 """
@@ -24,6 +24,8 @@ SOURCES = [
         "LidarDesc", "LidarPlatform", "PulsePattern", "PhotonCountingDesc", "LidarSampler",
         "LidarEstimator",
     ]),
+    ("src/scene/desc/atmosphere.rs", ["AtmosphereDesc", "MoleculesDesc", "AerosolsDesc", "GasDesc"]),
+    ("src/physics/phase.rs", ["FluidPhase"]),
     ("src/scene/desc/thermal.rs", ["ThermalDesc", "RunMode"]),
     ("src/geometry/crown.rs", ["CrownShape"]),
     ("src/physics/lad.rs", ["Lad", "LeafSpecular"]),
@@ -36,6 +38,7 @@ SOURCES = [
 CONST_DEFAULTS = {
     "default_scene_x_bearing": "90 (x points east)",
     "default_beam_edge_intensity": "0.368",
+    "default_depolarization": "0.0279",
     "yes": "true",
     "one": "1.0",
 }
@@ -51,7 +54,7 @@ STRUCT_DEFAULTS = {  # fields of structs with `#[serde(default)]` on the struct
 }
 UNITS = [  # field-name suffix → unit
     ("_ug_cm2", "µg cm⁻²"), ("_g_cm2", "g cm⁻²"), ("_w_m2_um", "W m⁻² µm⁻¹"), ("_m2", "m²"),
-    ("_mrad", "mrad"), ("_deg", "°"), ("_nm", "nm"), ("_ns", "ns"), ("_sr", "sr"), ("_hz", "Hz"),
+    ("_mrad", "mrad"), ("_km", "km"), ("_deg", "°"), ("_nm", "nm"), ("_ns", "ns"), ("_sr", "sr"), ("_hz", "Hz"),
     ("_hpa", "hPa"), ("_k", "K"), ("_j", "J"), ("_cm", "cm"), ("temperature_c", "°C"), ("_s", "s"), ("_m", "m"),
 ]
 
@@ -228,7 +231,10 @@ A scene is one [RON](https://github.com/ron-rs/ron) file read into `SceneDesc`
   [0, 60]); simple (non-self-crossing) polygons; objects inside the scene for `Isolated`
   boundaries; sun given either by both
   angles or by `sun_position`; `image_oversampling` in 1..=64 with at most 2²⁶ pixels per image;
-  the reserved sections `atmosphere` and `sensors` are refused (not implemented yet). Limits
+  the reserved section `sensors` is refused (not implemented yet); an `atmosphere` needs a
+  `Repetitive` grid, `skyl` 0 or absent, no `lidars`, `--solver monte-carlo` (flux tracking
+  through it is not implemented yet), per-band lists of one value per band, optical depths in
+  [0, 100], strictly increasing layer altitudes below the TOA and at least one constituent. Limits
   that refuse absurd values before any allocation: at most 2³² − 1 grid cells; `Lai` and
   `LeafAreaDensity` at most 100 (and the density a `LeafArea` implies); trunk and disk polygons
   of 3 to 1000 sides; at most 10⁶ trees per random stand; ground rasters of at most 2²⁸ nodes;
@@ -251,6 +257,11 @@ FOOTER = """
 * `directions` absent: 100 regular directions, 10 angular sectors, no exact view direction, so
   no `images/`. Add `exact: [(zenith_deg: 0.0, azimuth_deg: 0.0, label: Some("nadir"))]` for a
   nadir BRF in `brf.csv` (kind `exact`) and a nadir image.
+* `atmosphere` absent: no atmosphere work at all; the illumination is at the bottom of the
+  atmosphere. Present, e.g. `atmosphere: (molecules: (), aerosols: (tau_reference: 0.2,
+  angstrom_exponent: 1.3, ssa: [0.9], phase: HenyeyGreenstein(g: 0.7)))`: the irradiance is at
+  the top of the atmosphere, Rayleigh optical depths follow Bodhaine et al. (1999) at each band's
+  wavelength, and `summary.json` gains a `toa` block (docs/guide/products.md).
 * `LidarDesc::photons_per_pulse` absent: 48 beam rays for a pulse whose first order the column
   quadrature scores, 72 otherwise (`DEFAULT_LIDAR_PHOTONS`, `DEFAULT_LIDAR_PHOTONS_PER_RAY`).
 """

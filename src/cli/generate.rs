@@ -73,6 +73,71 @@ pub struct OpticsFlags {
     /// Brightness temperature of an isotropic sky, K (absent: a cold sky).
     #[arg(long)]
     pub sky_temperature_k: Option<f64>,
+    #[command(flatten)]
+    /// An atmosphere over the scene.
+    pub atmosphere: AtmosphereFlags,
+}
+
+/// Atmosphere flags of the vegetation generators: any of them puts an `atmosphere` over the
+/// scene (then run it with `--solver monte-carlo`; the irradiance is at the TOA).
+#[derive(clap::Args, Debug, Clone, Default)]
+pub struct AtmosphereFlags {
+    /// Rayleigh optical depth of the column, the same in every band (pure Rayleigh phase,
+    /// depolarisation 0, as DISORT-type oracles use).
+    #[arg(long, conflicts_with = "rayleigh")]
+    pub rayleigh_tau: Option<f64>,
+    /// Rayleigh optical depth of Bodhaine et al. (1999) at each band's wavelength, air's
+    /// depolarisation 0.0279.
+    #[arg(long)]
+    pub rayleigh: bool,
+    /// Aerosol extinction optical depth of the column, the same in every band.
+    #[arg(long)]
+    pub aerosol_tau: Option<f64>,
+    /// Aerosol single-scattering albedo (with --aerosol-tau).
+    #[arg(long, default_value_t = 0.9, requires = "aerosol_tau")]
+    pub aerosol_ssa: f64,
+    /// Aerosol Henyey–Greenstein asymmetry g (with --aerosol-tau).
+    #[arg(long, default_value_t = 0.7, requires = "aerosol_tau")]
+    pub aerosol_g: f64,
+}
+
+impl AtmosphereFlags {
+    /// The `atmosphere` section these flags describe for `nb` bands (`None`: no flag given).
+    fn desc(&self, nb: usize) -> Option<crate::scene::desc::AtmosphereDesc> {
+        use crate::physics::phase::{AIR_DEPOLARIZATION, FluidPhase};
+        use crate::scene::desc::{AerosolsDesc, AtmosphereDesc, MoleculesDesc};
+        let molecules = match (self.rayleigh_tau, self.rayleigh) {
+            (Some(t), _) => Some(MoleculesDesc {
+                tau: Some(vec![t; nb]),
+                pressure_hpa: 1013.25,
+                depolarization: 0.0,
+                scale_height_km: 8.4,
+            }),
+            (None, true) => Some(MoleculesDesc {
+                tau: None,
+                pressure_hpa: 1013.25,
+                depolarization: AIR_DEPOLARIZATION,
+                scale_height_km: 8.4,
+            }),
+            (None, false) => None,
+        };
+        let aerosols = self.aerosol_tau.map(|t| AerosolsDesc {
+            tau: Some(vec![t; nb]),
+            tau_reference: None,
+            reference_wavelength_nm: 550.0,
+            angstrom_exponent: 0.0,
+            ssa: vec![self.aerosol_ssa; nb],
+            phase: FluidPhase::HenyeyGreenstein { g: self.aerosol_g },
+            scale_height_km: 1.0,
+        });
+        (molecules.is_some() || aerosols.is_some()).then_some(AtmosphereDesc {
+            toa_altitude_km: 100.0,
+            layer_altitudes_km: None,
+            molecules,
+            aerosols,
+            gas: None,
+        })
+    }
 }
 
 impl OpticsFlags {
@@ -302,6 +367,9 @@ pub fn run(args: &Args, out: &mut dyn Write) -> Result<(), CliError> {
         return Err(format!("--leaf-size: {x} is not a length ≥ 0 m").into());
     }
     let mut desc = generate_scene(&args.kind)?;
+    if let Kind::TurbidLayer { optics, .. } | Kind::DiskCanopy { optics, .. } = &args.kind {
+        desc.atmosphere = optics.atmosphere.desc(desc.bands.len());
+    }
     if let Some(x) = leaf_size {
         for o in desc.optics.values_mut() {
             if let crate::scene::desc::OpticsDesc::Turbid { leaf_size_m, .. } = o {

@@ -104,6 +104,9 @@ fn write_summary(
     if let Some(m) = memory {
         summary["memory"] = m.record();
     }
+    if let Some(t) = &p.toa {
+        summary["toa"] = serde_json::to_value(t).map_err(|e| e.to_string())?;
+    }
     write_atomic(
         &dir.join("summary.json"),
         serde_json::to_string_pretty(&summary)

@@ -22,10 +22,13 @@ fn se_of(batches: &[Vec<f64>], f: impl Fn(&[f64]) -> f64) -> f64 {
 }
 
 /// Builds the products. `view_dir[v]` is the tiling index of view `v` (the engine's peel-off
-/// views, in order); `ground_facet[f]` marks DEM facets.
+/// views, in order); `ground_facet[f]` marks DEM facets. Under an atmosphere (`column_tau`: its
+/// optical depth per band) `e_dir` is the irradiance at the top of the atmosphere: the per-band
+/// products are then those of the bottom of the atmosphere (normalised by the downward
+/// irradiance the Monte Carlo found there) and [`RadiativeProducts::toa`] holds the TOA ones.
 #[allow(clippy::too_many_arguments)]
 pub fn photon_products(
-    res: PhotonResult,
+    mut res: PhotonResult,
     params: &PhotonParams,
     dirs: &DirectionSet,
     view_dir: &[usize],
@@ -35,12 +38,26 @@ pub fn photon_products(
     e_diff: &[f64],
     ground_facet: &[bool],
     seconds: f64,
+    column_tau: Option<&[f64]>,
 ) -> RadiativeProducts {
     let nb = res.n_bands;
     let w = res.n_channels;
     let has_sky = res.has_sky;
     let sm = res.summary.clone();
     let batches = res.batch_summaries.clone();
+    // Under an atmosphere the scene's source is what came down through its top.
+    let toa_source = res.source.clone();
+    let e_toa = e_dir.to_vec();
+    let e_boa: Vec<f64>;
+    let e_dir = if column_tau.is_some() {
+        for ch in 0..w {
+            res.source[ch] = batches.iter().map(|s| s[sm.boa_down(ch)]).sum();
+        }
+        e_boa = (0..nb).map(|b| res.source[b] / area).collect();
+        &e_boa[..]
+    } else {
+        e_dir
+    };
     let raw = RadiativeResult {
         n_channels: w,
         n_bands: nb,
@@ -154,6 +171,24 @@ pub fn photon_products(
             }
         }
     }
+    if let Some(tau) = column_tau {
+        let views: Vec<(f64, f64, f64)> = view_dir
+            .iter()
+            .map(|&j| {
+                let d = &tiling[j];
+                (d.zenith_deg(), d.azimuth_deg(), d.omega.z)
+            })
+            .collect();
+        p.toa = Some(toa_products(
+            &res,
+            &toa_source,
+            &e_toa,
+            area,
+            tau,
+            &views,
+            band_names,
+        ));
+    }
     let threads = rayon::current_num_threads().max(1) as f64;
     p.solver = "monte-carlo";
     p.launch = None;
@@ -173,4 +208,69 @@ pub fn photon_products(
             .collect(),
     });
     p
+}
+
+/// The TOA products per band of a run under an atmosphere (radiative::toa): TOA albedo and
+/// reflectance factors `π I_v / (A μ_v E⊥_TOA)` (I_v the peel-off intensity reaching the TOA,
+/// W sr⁻¹; A the scene area) with standard errors, absorption per layer and in the scene, BOA
+/// irradiance and the energy closure. `source` is the TOA input per channel, `e_toa` the TOA
+/// irradiance per band, `views` (zenith °, azimuth °, μ) the peel-off views in order.
+fn toa_products(
+    res: &PhotonResult,
+    source: &[f64],
+    e_toa: &[f64],
+    area: f64,
+    tau: &[f64],
+    views: &[(f64, f64, f64)],
+    band_names: &[String],
+) -> Vec<crate::radiative::toa::ToaBand> {
+    use crate::radiative::toa::{ToaBand, ToaBrf};
+    let sm = &res.summary;
+    let batches = &res.batch_summaries;
+    let tot = |i: usize| batches.iter().map(|s| s[i]).sum::<f64>();
+    (0..res.n_bands)
+        .map(|b| {
+            let input = source[b];
+            let esc = tot(sm.toa_escaped(b));
+            let layers: Vec<f64> = (0..sm.atm_layers)
+                .map(|l| tot(sm.atm_absorbed(l, b)))
+                .collect();
+            let atm_abs: f64 = layers.iter().sum();
+            let scene_abs = tot(sm.absorbed(b)) + tot(sm.absorbed_ground(b));
+            let lost = tot(sm.atm_lost(b)) + res.lost[b];
+            let balance = tot(sm.atm_balance(b)) + res.roulette[b];
+            let closure = (1.0 - (esc + atm_abs + scene_abs + lost + balance) / input).abs();
+            let brf = views
+                .iter()
+                .enumerate()
+                .map(|(v, &(zen, az, mu))| {
+                    let f = PI / (area * mu * e_toa[b]);
+                    let brf = tot(sm.toa_view(v, b)) * f;
+                    ToaBrf {
+                        zenith_deg: zen,
+                        azimuth_deg: az,
+                        brf,
+                        brf_se: se_of(batches, |s| s[sm.toa_view(v, b)]) * f,
+                        radiance_w_m2_sr_um: brf * e_toa[b] / PI,
+                        boa_sky: tot(sm.boa_sky(v, b)) * f,
+                        boa_sky_se: se_of(batches, |s| s[sm.boa_sky(v, b)]) * f,
+                    }
+                })
+                .collect();
+            ToaBand {
+                band: band_names.get(b).cloned().unwrap_or_default(),
+                albedo: esc / input,
+                albedo_se: se_of(batches, |s| s[sm.toa_escaped(b)]) / input,
+                fabs_atmosphere: atm_abs / input,
+                fabs_layers: layers.iter().map(|x| x / input).collect(),
+                fabs_scene: scene_abs / input,
+                flost: lost / input,
+                energy_closure: closure,
+                boa_irradiance_w_m2_um: tot(sm.boa_down(b)) / area,
+                boa_direct_irradiance_w_m2_um: tot(sm.boa_direct(b)) / area,
+                optical_depth: tau[b],
+                brf,
+            }
+        })
+        .collect()
 }

@@ -1,4 +1,5 @@
 //! Pure physics: formulas with their sources and units, no ECS.
+pub mod atmosphere;
 pub mod brdf;
 pub mod geodesy;
 pub mod lad;

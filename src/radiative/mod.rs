@@ -10,6 +10,7 @@ pub mod images;
 #[cfg(target_arch = "x86_64")]
 pub mod lanes;
 pub mod products;
+pub mod toa;
 mod walk;
 
 /// Above this many (facet × direction) pairs, facets use the renormalised cosine fractions

@@ -168,6 +168,10 @@ pub struct RadiativeProducts {
     /// Monte Carlo run description (Photon stage only).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub monte_carlo: Option<MonteCarloInfo>,
+    /// Top-of-atmosphere products per band (scenes with an atmosphere only; the per-band
+    /// products above are then those of the bottom of the atmosphere).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub toa: Option<Vec<crate::radiative::toa::ToaBand>>,
     /// Raw engine result (not serialised).
     #[serde(skip)]
     pub raw: RadiativeResult,
@@ -340,6 +344,7 @@ impl RadiativeProducts {
             mode: "R",
             launch: Some(raw.launch),
             monte_carlo: None,
+            toa: None,
             raw,
             ground_facet: ground_facet.to_vec(),
         }

@@ -1,5 +1,6 @@
 //! Resources: world data shared between stages.
 
+pub mod atmosphere;
 pub mod facets;
 pub mod grid;
 pub mod lidar;

@@ -9,8 +9,10 @@ use crate::physics::prospect::{ProspectModel, ProspectParams};
 use serde::{Deserialize, Serialize};
 use std::collections::BTreeMap;
 
+mod atmosphere;
 mod lidar;
 mod thermal;
+pub use atmosphere::*;
 pub use lidar::*;
 pub use thermal::*;
 
@@ -40,9 +42,10 @@ pub struct SceneDesc {
     /// Scene objects; each becomes one or more entities.
     #[serde(default)]
     pub objects: Vec<ObjectDesc>,
-    /// Reserved for the atmosphere module (not supported yet: rejected when present).
-    #[serde(default, skip_serializing)]
-    pub atmosphere: Option<serde::de::IgnoredAny>,
+    /// Plane-parallel layered atmosphere over the scene (molecules, aerosols, absorbing gas);
+    /// absent: none (the illumination is then at the bottom of the atmosphere).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub atmosphere: Option<AtmosphereDesc>,
     /// Reserved for sensors (not supported yet: rejected when present).
     #[serde(default, skip_serializing)]
     pub sensors: Option<serde::de::IgnoredAny>,
@@ -442,6 +445,7 @@ pub struct IlluminationDesc {
     #[serde(default)]
     pub skyl: Vec<f64>,
     /// Total bottom-of-atmosphere irradiance on a horizontal plane per band, W m⁻² µm⁻¹
+    /// (top of the atmosphere when the scene has an `atmosphere`)
     /// (default 1: products are then relative), for a mean Earth–Sun distance of 1 AU when
     /// `sun_position` applies the distance correction.
     #[serde(default)]

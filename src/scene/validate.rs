@@ -9,6 +9,7 @@ use crate::geometry::polygon;
 use crate::physics::prospect::ProspectError;
 use std::path::{Path, PathBuf};
 
+mod atmosphere;
 mod lidar;
 mod objects;
 mod thermal;
@@ -411,6 +412,7 @@ pub fn validate(desc: &SceneDesc, src: &SceneSource) -> Result<(), SceneError> {
     v.optics()?;
     v.georeference()?;
     v.illumination()?;
+    v.atmosphere()?;
     v.thermal()?;
     v.objects()
 }
@@ -440,18 +442,11 @@ impl V<'_> {
                 ),
             ));
         }
-        for (field, present, issue) in [
-            (
-                "atmosphere",
-                desc.atmosphere.is_some(),
-                "the atmosphere module is planned",
-            ),
-            (
-                "sensors",
-                desc.sensors.is_some(),
-                "sensors arrive with the Radiative/Sensor stages",
-            ),
-        ] {
+        for (field, present, issue) in [(
+            "sensors",
+            desc.sensors.is_some(),
+            "sensors arrive with the Radiative/Sensor stages",
+        )] {
             if present {
                 return Err(SceneError::NotSupported {
                     at: src.at(field),

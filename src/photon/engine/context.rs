@@ -332,6 +332,7 @@ impl<'a> Ctx<'a> {
                 w,
                 n_dirs: tiling.len(),
                 n_views: inp.views.len(),
+                atm_layers: inp.atmosphere.map_or(0, |a| a.n_layers()),
             },
             size: (
                 spec.n[0] as f64 * spec.cell.x,

@@ -260,6 +260,8 @@ pub struct PhotonInput<'a> {
     pub optics: &'a [PhotonOptics],
     /// Fluids, if any.
     pub fluid: Option<&'a FluidField>,
+    /// The atmosphere over the scene, if any: sun photons then start at its top.
+    pub atmosphere: Option<&'a super::atmosphere::PhotonAtmosphere>,
     /// Flat ground optics (material id into `optics`) if the ground is the plane z0.
     pub flat_ground: Option<u32>,
     /// View directions (upward unit vectors) that get peel-off estimates.

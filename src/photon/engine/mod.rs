@@ -37,6 +37,8 @@
 //!
 //! Modules, in the order a photon meets them:
 //!
+//! * [`atmosphere`]: the plane-parallel atmosphere over the scene (TOA launch, flights,
+//!   collisions, peel-off to the TOA).
 //! * [`input`]: what the engine takes (optics, fluids, parameters, discrete-direction rows);
 //!   [`result`]: what it returns (tallies per batch, standard errors).
 //! * `context`: the shared tracking context (`Ctx`), the photon state and the
@@ -52,6 +54,7 @@
 //!   that the LiDAR pulse tracking (`lidar::tracking`, which depends on this engine, never the
 //!   reverse) books its waveforms through.
 
+pub mod atmosphere;
 pub(crate) mod context;
 pub(crate) mod events;
 pub(crate) mod flight;
@@ -66,6 +69,7 @@ mod tests;
 pub(crate) mod trace;
 pub(crate) mod walk;
 
+pub use atmosphere::PhotonAtmosphere;
 #[cfg(debug_assertions)]
 pub use context::COLUMN_RETURNS;
 pub use context::Receiver;

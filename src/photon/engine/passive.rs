@@ -147,6 +147,20 @@ pub(crate) fn run_batch(ctx: &Ctx, batch: u64, n: u64, source: &[f64]) -> BatchO
         }
         ph.order = 0;
         ph.skip_facet = None;
+        // Under an atmosphere, sun photons start at its top and reach the scene (if at all)
+        // through it (`atmosphere::atmosphere_walk`).
+        if let Some(atm) = inp.atmosphere
+            && !super::atmosphere::atmosphere_walk(
+                ctx,
+                atm,
+                &mut ph,
+                atm.height_m(),
+                &mut rng,
+                &mut out,
+            )
+        {
+            continue;
+        }
         trace_photon(
             ctx,
             &mut ph,

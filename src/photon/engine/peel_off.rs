@@ -600,6 +600,13 @@ impl Ctx<'_> {
                 out.summary[base + b] += x;
                 out.summary[cbase + b] += x;
             }
+            // Under an atmosphere: on to the TOA through the column.
+            if let Some(atm) = self.inp.atmosphere {
+                for b in 0..self.nb {
+                    out.summary[self.sum.toa_view(v, ph.off + b)] +=
+                        ph.w[b] * scratch[b] * tr[b] * atm.view_transmittance(v, b);
+                }
+            }
         }
     }
 }

@@ -54,7 +54,8 @@ pub struct PhotonResult {
 
 /// Layout of a batch summary vector: per channel escaped, absorbed (vegetation, facets,
 /// fluids), absorbed by the ground, intercepted by the ground; then escaped per tiling
-/// direction and channel; then peel-off per view and channel.
+/// direction and channel; then peel-off per view and channel. With an atmosphere
+/// ([`Summary::atm_layers`] > 0) the atmosphere's tallies follow ([`Summary::toa_view`]).
 #[derive(Debug, Clone, Default)]
 pub struct Summary {
     /// Channels.
@@ -63,12 +64,59 @@ pub struct Summary {
     pub n_dirs: usize,
     /// Views.
     pub n_views: usize,
+    /// Atmosphere layers (0: no atmosphere, no atmosphere tallies).
+    pub atm_layers: usize,
 }
 
 impl Summary {
     /// Length of a summary vector.
     pub fn len(&self) -> usize {
+        let atm = if self.atm_layers > 0 {
+            (2 * self.n_views + 5 + self.atm_layers) * self.w
+        } else {
+            0
+        };
+        4 * self.w + self.n_dirs * self.w + 4 * self.n_views * self.w + atm
+    }
+    /// Start of the atmosphere tallies.
+    fn atm_base(&self) -> usize {
         4 * self.w + self.n_dirs * self.w + 4 * self.n_views * self.w
+    }
+    /// Atmosphere: index of the peel-off intensity toward view `v` at the top of the
+    /// atmosphere (W sr⁻¹).
+    pub fn toa_view(&self, v: usize, ch: usize) -> usize {
+        self.atm_base() + v * self.w + ch
+    }
+    /// Atmosphere: index of the peel-off intensity at the bottom of the atmosphere travelling
+    /// down along `−Ω_v` (the diffuse sky seen looking toward view `v`), W sr⁻¹.
+    pub fn boa_sky(&self, v: usize, ch: usize) -> usize {
+        self.atm_base() + (self.n_views + v) * self.w + ch
+    }
+    /// Atmosphere: index of the power escaped through the top of the atmosphere.
+    pub fn toa_escaped(&self, ch: usize) -> usize {
+        self.atm_base() + 2 * self.n_views * self.w + ch
+    }
+    /// Atmosphere: index of the power entering the scene through its top (bottom of the
+    /// atmosphere, every downward crossing).
+    pub fn boa_down(&self, ch: usize) -> usize {
+        self.atm_base() + (2 * self.n_views + 1) * self.w + ch
+    }
+    /// Atmosphere: index of the unscattered (direct sun) part of [`Summary::boa_down`].
+    pub fn boa_direct(&self, ch: usize) -> usize {
+        self.atm_base() + (2 * self.n_views + 2) * self.w + ch
+    }
+    /// Atmosphere: index of the weight balance of the atmosphere (Russian roulette and the
+    /// band reweighting of free paths; expectation 0).
+    pub fn atm_balance(&self, ch: usize) -> usize {
+        self.atm_base() + (2 * self.n_views + 3) * self.w + ch
+    }
+    /// Atmosphere: index of the power lost in the atmosphere (order cap, horizontal flights).
+    pub fn atm_lost(&self, ch: usize) -> usize {
+        self.atm_base() + (2 * self.n_views + 4) * self.w + ch
+    }
+    /// Atmosphere: index of the power absorbed in layer `l` (0 = lowest).
+    pub fn atm_absorbed(&self, l: usize, ch: usize) -> usize {
+        self.atm_base() + (2 * self.n_views + 5 + l) * self.w + ch
     }
     /// True when empty.
     pub fn is_empty(&self) -> bool {

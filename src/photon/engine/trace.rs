@@ -34,6 +34,13 @@ pub(crate) fn trace_photon(
         match hit {
             Hit::Escape => {
                 escape(ctx, ph, out);
+                // Under an atmosphere the photon goes on up through it, and may come back.
+                if let Some(atm) = ctx.inp.atmosphere
+                    && super::atmosphere::atmosphere_walk(ctx, atm, ph, 0.0, rng, out)
+                {
+                    ph.scatter_path = ph.path;
+                    continue;
+                }
                 return;
             }
             Hit::Lost => {
@@ -392,7 +399,7 @@ fn discrete_turbid_scatter(
 /// (receiver mode: into multiple scattering with survival `continue_prob`, and the far-photon
 /// roulette of the expected-value estimator), is past `max_order` (lost), or loses the weight
 /// window's roulette (its balance kept in `out.roulette`). Returns whether it goes on.
-fn next_order(
+pub(crate) fn next_order(
     ctx: &Ctx,
     ph: &mut Photon,
     rng: &mut Xoshiro256PlusPlus,
