@@ -404,6 +404,19 @@ pub fn spawn_scene(
     if let Some(l) = desc.lidars.as_ref().filter(|l| !l.is_empty()) {
         world.insert_resource(crate::resources::lidar::LidarInstruments(l.clone()));
     }
+    if let Some(s) = desc.sensors.as_ref().filter(|s| !s.is_empty()) {
+        let mc = world
+            .get_resource::<crate::resources::scene::RunSettings>()
+            .is_some_and(|r| r.solver.is_monte_carlo());
+        if !mc {
+            warnings.push(format!(
+                "{}: sensors: frame cameras are imaged by the Monte Carlo solver only \
+                 (`--solver monte-carlo`); this run writes no sensor products",
+                src.path.display()
+            ));
+        }
+        world.insert_resource(crate::resources::sensors::SensorInstruments(s.clone()));
+    }
     world.insert_resource(Warnings(warnings));
     Ok(())
 }

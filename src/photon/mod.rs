@@ -7,12 +7,14 @@
 //! * [`engine`]: the photon tracker (free paths, events, peel-off, roulette, seeded batches).
 //! * [`material_optics`]: the Monte Carlo optics of every material (LAD samplers shared per LAD).
 //! * [`products`]: the Radiative stage's products with standard errors.
+//! * [`sensors`]: the frame-camera images (sensor stage) with per-pixel standard errors.
 //! * [`small`]: inline short arrays (no allocation per scattering event).
 
 pub mod engine;
 pub mod material_optics;
 pub mod products;
 pub mod sampling;
+pub mod sensors;
 pub mod small;
 
 /// What the Photon stage's memory depends on, counted before anything is allocated.

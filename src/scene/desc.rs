@@ -11,6 +11,8 @@ use std::collections::BTreeMap;
 
 mod lidar;
 pub use lidar::*;
+mod sensor;
+pub use sensor::*;
 
 /// The current scene-format version. Files must state it in `version`.
 pub const SCENE_FORMAT_VERSION: u32 = 1;
@@ -41,9 +43,10 @@ pub struct SceneDesc {
     /// Reserved for the atmosphere module (not supported yet: rejected when present).
     #[serde(default, skip_serializing)]
     pub atmosphere: Option<serde::de::IgnoredAny>,
-    /// Reserved for sensors (not supported yet: rejected when present).
-    #[serde(default, skip_serializing)]
-    pub sensors: Option<serde::de::IgnoredAny>,
+    /// Sensors at a finite distance (DART 5 paper §5): frame cameras imaged by the Monte
+    /// Carlo solver (`--solver monte-carlo`). Absent: no sensor work.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub sensors: Option<Vec<SensorDesc>>,
     /// LiDAR instruments (Photon stage, DART 5 paper §4): waveforms, returns as LAS point
     /// clouds, photon counting.
     #[serde(default, skip_serializing_if = "Option::is_none")]

@@ -11,6 +11,8 @@ use std::path::{Path, PathBuf};
 
 mod lidar;
 mod objects;
+mod sensor;
+pub use sensor::MAX_SENSOR_PIXELS;
 
 /// The text a scene came from, to turn field paths into line numbers.
 #[derive(Debug, Clone)]
@@ -392,7 +394,7 @@ fn footprint_bounds(fp: &FootprintDesc) -> (f64, f64, f64, f64) {
 }
 
 /// Checks a scene; returns the first error found (the sections in this order: format,
-/// directions, radiative settings, LiDARs, grid, images, bands, optics, georeference,
+/// directions, radiative settings, LiDARs, sensors, grid, images, bands, optics, georeference,
 /// illumination, objects).
 pub fn validate(desc: &SceneDesc, src: &SceneSource) -> Result<(), SceneError> {
     let v = V {
@@ -404,6 +406,7 @@ pub fn validate(desc: &SceneDesc, src: &SceneSource) -> Result<(), SceneError> {
     v.directions()?;
     v.radiative()?;
     v.lidars()?;
+    v.sensors()?;
     v.grid()?;
     v.images()?;
     v.spectral_bands()?;
@@ -438,25 +441,12 @@ impl V<'_> {
                 ),
             ));
         }
-        for (field, present, issue) in [
-            (
-                "atmosphere",
-                desc.atmosphere.is_some(),
-                "the atmosphere module is planned",
-            ),
-            (
-                "sensors",
-                desc.sensors.is_some(),
-                "sensors arrive with the Radiative/Sensor stages",
-            ),
-        ] {
-            if present {
-                return Err(SceneError::NotSupported {
-                    at: src.at(field),
-                    field: field.into(),
-                    message: issue.into(),
-                });
-            }
+        if desc.atmosphere.is_some() {
+            return Err(SceneError::NotSupported {
+                at: src.at("atmosphere"),
+                field: "atmosphere".into(),
+                message: "the atmosphere module is planned".into(),
+            });
         }
         Ok(())
     }

@@ -601,6 +601,9 @@ impl Ctx<'_> {
                 out.summary[cbase + b] += x;
             }
         }
+        if !self.cameras.is_empty() {
+            self.peel_cameras(ph, p, skip, out, scratch, tr, &mut f);
+        }
     }
 }
 

@@ -1,0 +1,212 @@
+//! Sensor stage (issue #35): frame cameras imaged by the Monte Carlo solver's peel-off
+//! (next-event estimation to the pinhole, DART 5 paper §5 eq. 5; physics.md §8.1).
+//!
+//! References we did not write: a Lambertian ground of reflectance ρ has the reflectance factor
+//! ρ in every direction, so every pixel of any camera looking at it reads ρ; a camera far away
+//! with a narrow field of view sees the scene along one direction, so its image mean is the
+//! orthographic BRF of that direction (here the peel-off BRF of the same run).
+
+mod common;
+
+use common::asset;
+use lumenscape::photon::sensors::{SensorImage, SensorProducts};
+use lumenscape::radiative::products::RadiativeProducts;
+use lumenscape::resources::scene::{RunSettings, SamplerKind, Solver};
+use lumenscape::scene::desc::*;
+use lumenscape::scene::load_scene;
+use lumenscape::simulation::Simulation;
+
+fn mc(photons: u64) -> RunSettings {
+    RunSettings {
+        solver: Solver::MonteCarlo {
+            photons,
+            sampler: SamplerKind::Continuous,
+        },
+        ..Default::default()
+    }
+}
+
+/// Runs `desc` with `settings`; the passive products and the camera images.
+fn run(desc: &SceneDesc, settings: RunSettings) -> (RadiativeProducts, Vec<SensorImage>) {
+    let mut sim =
+        Simulation::from_desc(desc, &lumenscape::scene::SceneSource::generated(), settings)
+            .unwrap_or_else(|e| panic!("{e}"));
+    sim.run(None).unwrap_or_else(|e| panic!("{e}"));
+    let cams = sim
+        .get_resource::<SensorProducts>()
+        .map(|s| s.0.clone())
+        .unwrap_or_default();
+    (sim.resource::<RadiativeProducts>().clone(), cams)
+}
+
+fn camera_flat() -> SceneDesc {
+    load_scene(&asset("assets/scenes/camera_flat.ron"))
+        .unwrap()
+        .0
+}
+
+fn frame(c: &mut SceneDesc) -> &mut FrameCameraDesc {
+    let InstrumentDesc::FrameCamera(f) = &mut c.sensors.as_mut().unwrap()[0].instrument;
+    f
+}
+
+/// Largest |z| = |RF − ρ|/SE over the pixels, and the image mean's error and SE.
+fn lambert_check(img: &SensorImage, rho: f64) -> (f64, f64, f64) {
+    let rf = img.reflectance(0);
+    let se = img.reflectance_se(0);
+    let mut zmax = 0.0f64;
+    for (r, s) in rf.iter().zip(&se) {
+        assert!(*s > 0.0 && s.is_finite(), "pixel SE {s}");
+        zmax = zmax.max((r - rho).abs() / s);
+    }
+    let (m, mse) = img.mean_reflectance(0);
+    (zmax, m - rho, mse)
+}
+
+#[test]
+fn nadir_camera_over_a_lambertian_ground_reads_its_reflectance_in_every_pixel() {
+    // 64 × 64 pixels, 30° FOV, 100 m up (assets/scenes/camera_flat.ron); ρ = 0.3.
+    // Per pixel ~1.6 % SE at 300 000 photons: with 4096 pixels and 64 batches (a t
+    // distribution with 63 degrees of freedom), |z| ≤ 5 holds for all of them with
+    // probability > 99 %; measured max |z| = 4.56 with this seed. The image mean to 4 SE and
+    // 0.5 % of ρ.
+    let (_, cams) = run(&camera_flat(), mc(300_000));
+    let img = &cams[0];
+    assert_eq!((img.camera.nx, img.camera.ny), (64, 64));
+    let (zmax, err, mse) = lambert_check(img, 0.3);
+    eprintln!("nadir: max |z| {zmax:.2}, mean error {err:.2e} ± {mse:.1e}");
+    assert!(zmax <= 5.0, "max |z| {zmax}");
+    assert!(
+        err.abs() <= 4.0 * mse && err.abs() < 1.5e-3,
+        "{err} ± {mse}"
+    );
+}
+
+#[test]
+fn oblique_camera_over_a_lambertian_ground_sees_its_periodic_copies() {
+    // 45° view zenith, rolled 20°, 150 m from its target: the 30° × 30° view spans ~150 m of
+    // ground across its far side, several 60 m tiles of the repetitive scene (each event is
+    // peeled off from every periodic copy in view). Every pixel still reads ρ.
+    let mut d = camera_flat();
+    let f = frame(&mut d);
+    f.position_m = (30.0 - 150.0 * 0.5f64.sqrt(), 30.0, 150.0 * 0.5f64.sqrt());
+    f.attitude = AttitudeDesc::Angles {
+        zenith_deg: 45.0,
+        azimuth_deg: 180.0,
+        roll_deg: 20.0,
+    };
+    f.pixels = (32, 24);
+    let (_, cams) = run(&d, mc(150_000));
+    let (zmax, err, mse) = lambert_check(&cams[0], 0.3);
+    eprintln!("oblique: max |z| {zmax:.2}, mean error {err:.2e} ± {mse:.1e}");
+    assert!(zmax <= 5.0, "max |z| {zmax}");
+    assert!(err.abs() <= 4.0 * mse && err.abs() < 3e-3, "{err} ± {mse}");
+}
+
+#[test]
+fn isolated_scene_camera_sees_the_ground_inside_and_nothing_outside() {
+    // The same ground as an isolated 60 m scene seen from 100 m with a 60° FOV (115 m across):
+    // pixels over the scene read ρ, pixels beyond its edges see nothing (radiance 0).
+    let mut d = camera_flat();
+    d.grid.boundary = BoundaryMode::Isolated;
+    let f = frame(&mut d);
+    f.fov_deg = Some(60.0);
+    f.pixels = (16, 16);
+    let (_, cams) = run(&d, mc(100_000));
+    let img = &cams[0];
+    let (rf, se) = (img.reflectance(0), img.reflectance_se(0));
+    let mut zmax = 0.0f64;
+    for j in 0..16 {
+        for i in 0..16 {
+            // Pixel footprint on the ground: inside [0, 60]² or outside entirely.
+            let cam = &img.camera;
+            let (x0, x1, y0, y1) = cam.pixel_rect(i, j);
+            let corners = [(x0, y0), (x1, y0), (x0, y1), (x1, y1)].map(|(x, y)| {
+                let d = cam.direction_of(x, y);
+                cam.position + d * (-cam.position.z / d.z)
+            });
+            let inside =
+                |p: &glam::DVec3| (0.0..=60.0).contains(&p.x) && (0.0..=60.0).contains(&p.y);
+            let px = i + 16 * j;
+            if corners.iter().all(inside) {
+                zmax = zmax.max((rf[px] - 0.3).abs() / se[px]);
+            } else if !corners.iter().any(inside) {
+                assert_eq!(rf[px], 0.0, "pixel ({i}, {j}) outside the scene");
+            }
+        }
+    }
+    eprintln!("isolated: max |z| {zmax:.2}");
+    assert!(zmax > 0.0 && zmax <= 5.0, "max |z| {zmax}");
+}
+
+#[test]
+fn far_narrow_camera_reproduces_the_orthographic_brf_of_a_turbid_layer() {
+    // The turbid layer (LAI 3, spherical LAD, hotspot leaf size 0.01 m, 2 m repetitive tile)
+    // seen from 10 km along its exact view direction (30°, 0°) with a 0.02° FOV (~3.5 m of
+    // canopy, 4 × 4 pixels): the image mean is the BRF of that direction. Both come from the
+    // same photons, so they differ by much less than their SEs; asserted to 3 combined SE and
+    // 2 % relative.
+    let mut d = load_scene(&asset("assets/scenes/turbid_layer.ron"))
+        .unwrap()
+        .0;
+    let (zen, dist) = (30f64.to_radians(), 1e4);
+    d.sensors = Some(vec![SensorDesc {
+        name: "far".into(),
+        bands: vec![],
+        instrument: InstrumentDesc::FrameCamera(FrameCameraDesc {
+            position_m: (1.0 + dist * zen.sin(), 1.0, 1.0 + dist * zen.cos()),
+            attitude: AttitudeDesc::LookAt {
+                target_m: (1.0, 1.0, 1.0),
+                roll_deg: 0.0,
+            },
+            pixels: (4, 4),
+            fov_deg: Some(0.02),
+            focal_length_mm: None,
+            pixel_pitch_um: None,
+        }),
+    }]);
+    let (p, cams) = run(&d, mc(40_000));
+    let e = p.bands[0]
+        .brf
+        .iter()
+        .find(|e| (e.zenith_deg - 30.0).abs() < 1e-9 && e.azimuth_deg.abs() < 1e-9)
+        .expect("the exact direction (30°, 0°)");
+    let (brf, brf_se) = (e.brf, e.brf_se.unwrap());
+    let (m, mse) = cams[0].mean_reflectance(0);
+    let rel = (m - brf) / brf;
+    eprintln!("far camera {m:.5} ± {mse:.1e} against BRF {brf:.5} ± {brf_se:.1e} ({rel:+.2e})");
+    assert!(
+        (m - brf).abs() <= 3.0 * (mse * mse + brf_se * brf_se).sqrt(),
+        "{m} vs {brf}"
+    );
+    assert!(rel.abs() < 0.02, "{rel}");
+}
+
+#[test]
+fn a_camera_changes_no_other_product_and_is_the_same_on_any_thread_count() {
+    // The peel-off to the camera draws no random number and books nothing else: albedo, fabs,
+    // ftran and every BRF are the same bits with and without it (energy bookkeeping
+    // unchanged); batches are merged in order, so the image is the same on 1 or 2 threads.
+    let d = camera_flat();
+    let mut bare = d.clone();
+    bare.sensors = None;
+    let (p0, none) = run(&bare, mc(20_000));
+    assert!(none.is_empty());
+    let one = rayon::ThreadPoolBuilder::new()
+        .num_threads(1)
+        .build()
+        .unwrap()
+        .install(|| run(&d, mc(20_000)));
+    let two = rayon::ThreadPoolBuilder::new()
+        .num_threads(2)
+        .build()
+        .unwrap()
+        .install(|| run(&d, mc(20_000)));
+    common::assert_same_products(&p0, &one.0, 0.0, "with a camera");
+    for (b0, b1) in p0.bands.iter().zip(&one.0.bands) {
+        assert_eq!(b0.albedo_se, b1.albedo_se);
+        assert_eq!(b0.fabs, b1.fabs);
+    }
+    assert_eq!(one.1[0].radiance, two.1[0].radiance);
+    assert_eq!(one.1[0].radiance_se, two.1[0].radiance_se);
+}
