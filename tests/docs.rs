@@ -106,11 +106,12 @@ fn section<'a>(doc: &'a str, name: &str) -> Option<&'a str> {
 #[test]
 fn every_scene_format_field_is_in_the_reference() {
     let doc = read("docs/guide/scene-format.md");
-    // The scene-format types: all of desc.rs and desc/lidar.rs plus the types they take from
-    // other modules.
-    let sources: [(&str, &[&str]); 6] = [
+    // The scene-format types: all of desc.rs, desc/lidar.rs and desc/sensor.rs plus the types
+    // they take from other modules.
+    let sources: [(&str, &[&str]); 7] = [
         ("src/scene/desc.rs", &[]),
         ("src/scene/desc/lidar.rs", &[]),
+        ("src/scene/desc/sensor.rs", &[]),
         ("src/geometry/crown.rs", &["CrownShape"]),
         ("src/physics/lad.rs", &["Lad", "LeafSpecular"]),
         ("src/physics/prospect.rs", &["ProspectModel"]),

@@ -65,7 +65,7 @@ pub enum AttitudeDesc {
         roll_deg: f64,
     },
     /// Three rotation angles: the camera sits in the view direction (zenith, azimuth) from
-    /// what it looks at (optical axis `−Ω(θ, φ)`, θ in [0, 90) from the zenith, φ
+    /// what it looks at (optical axis `−Ω(θ, φ)`, θ in [0, 180] from the zenith, φ
     /// anticlockwise from +x as every azimuth of the scene), image up the far side (at θ = 0,
     /// toward azimuth φ + 180°), then turned about its axis by `roll_deg`.
     Angles {
