@@ -86,7 +86,7 @@ fn nadir_camera_over_a_lambertian_ground_reads_its_reflectance_in_every_pixel() 
 fn oblique_camera_over_a_lambertian_ground_sees_its_periodic_copies() {
     // 45° view zenith, rolled 20°, 150 m from its target: the 30° × 30° view spans ~150 m of
     // ground across its far side, several 60 m tiles of the repetitive scene (each event is
-    // peeled off from every periodic copy in view). Every pixel still reads ρ.
+    // peeled off from its periodic copies in view). Every pixel still reads ρ.
     let mut d = camera_flat();
     let f = frame(&mut d);
     f.position_m = (30.0 - 150.0 * 0.5f64.sqrt(), 30.0, 150.0 * 0.5f64.sqrt());
@@ -99,6 +99,22 @@ fn oblique_camera_over_a_lambertian_ground_sees_its_periodic_copies() {
     let (_, cams) = run(&d, mc(150_000));
     let (zmax, err, mse) = lambert_check(&cams[0], 0.3);
     eprintln!("oblique: max |z| {zmax:.2}, mean error {err:.2e} ± {mse:.1e}");
+    assert!(zmax <= 5.0, "max |z| {zmax}");
+    assert!(err.abs() <= 4.0 * mse && err.abs() < 3e-3, "{err} ± {mse}");
+}
+
+#[test]
+fn small_tiles_seen_many_times_are_sampled_without_bias() {
+    // A 4 m repetitive tile under the nadir camera's 54 m footprint: ~200 periodic copies of
+    // every event in view, of which a systematic sample of 16 is peeled off (weighted
+    // n/16). Every pixel still reads ρ (16 × 16 pixels, 5 SE as above).
+    let mut d = camera_flat();
+    d.grid.size_m = (4.0, 4.0);
+    d.grid.cell_m = (4.0, 4.0, 1.0);
+    frame(&mut d).pixels = (16, 16);
+    let (_, cams) = run(&d, mc(100_000));
+    let (zmax, err, mse) = lambert_check(&cams[0], 0.3);
+    eprintln!("small tile: max |z| {zmax:.2}, mean error {err:.2e} ± {mse:.1e}");
     assert!(zmax <= 5.0, "max |z| {zmax}");
     assert!(err.abs() <= 4.0 * mse && err.abs() < 3e-3, "{err} ± {mse}");
 }
@@ -144,8 +160,8 @@ fn far_narrow_camera_reproduces_the_orthographic_brf_of_a_turbid_layer() {
     // The turbid layer (LAI 3, spherical LAD, hotspot leaf size 0.01 m, 2 m repetitive tile)
     // seen from 10 km along its exact view direction (30°, 0°) with a 0.02° FOV (~3.5 m of
     // canopy, 4 × 4 pixels): the image mean is the BRF of that direction. Both come from the
-    // same photons, so they differ by much less than their SEs; asserted to 3 combined SE and
-    // 2 % relative.
+    // same photons, so they differ by much less than their SEs (measured −6.2e-4 relative, SE
+    // 2.6e-3); asserted to 3 combined SE and 1 % relative.
     let mut d = load_scene(&asset("assets/scenes/turbid_layer.ron"))
         .unwrap()
         .0;
@@ -179,7 +195,7 @@ fn far_narrow_camera_reproduces_the_orthographic_brf_of_a_turbid_layer() {
         (m - brf).abs() <= 3.0 * (mse * mse + brf_se * brf_se).sqrt(),
         "{m} vs {brf}"
     );
-    assert!(rel.abs() < 0.02, "{rel}");
+    assert!(rel.abs() < 0.01, "{rel}");
 }
 
 #[test]

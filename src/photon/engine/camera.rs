@@ -12,7 +12,9 @@
 //!
 //! Repetitive scenes are infinite: the event stands for all its periodic copies, and every copy
 //! inside the camera's view (within the scene's height range) is peeled off, each with its
-//! own ray (traced from the wrapped event, which the periodic walk makes the same).
+//! own ray (traced from the wrapped event, which the periodic walk makes the same). When the
+//! view holds more than [`MAX_COPIES`] candidate copies, a systematic sample of that many is
+//! peeled off with weight n/[`MAX_COPIES`] (unbiased; the cost per event stays bounded).
 
 use super::context::{Ctx, PerMaterial, Photon};
 use super::tally::BatchOut;
@@ -37,6 +39,24 @@ pub(crate) struct CameraPeel {
     pub(crate) footprint: Option<[f64; 4]>,
 }
 
+/// Most periodic copies of one event peeled off toward one camera: beyond, a systematic sample
+/// of this many (weighted by the ratio) keeps the cost per event bounded.
+pub(crate) const MAX_COPIES: u64 = 16;
+
+/// A uniform number in [0, 1) from the event's position and order (SplitMix64 of their bits):
+/// the start of the systematic copy sample, reproducible whatever the thread count and drawn
+/// from no photon stream (so the other products do not change with a camera).
+fn event_uniform(p: DVec3, order: u32) -> f64 {
+    let mut z = p.x.to_bits()
+        ^ p.y.to_bits().rotate_left(21)
+        ^ p.z.to_bits().rotate_left(42)
+        ^ (order as u64).wrapping_mul(0x9e37_79b9_7f4a_7c15);
+    z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
+    z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
+    z ^= z >> 31;
+    (z >> 11) as f64 * (1.0 / (1u64 << 53) as f64)
+}
+
 /// Horizontal reach (m) of a view that meets the horizon: at least 1 km, or ten times the
 /// camera's height above the bottom of the scene.
 fn horizon_reach(height: f64) -> f64 {
@@ -53,7 +73,17 @@ impl CameraPeel {
             .collect();
         let footprint = rep.then(|| {
             let c = cam.position;
-            let (mut x0, mut y0, mut x1, mut y1) = (c.x, c.y, c.x, c.y);
+            // The apex counts when the camera is inside the height range.
+            let (mut x0, mut y0, mut x1, mut y1) = if (z_range.0..=z_range.1).contains(&c.z) {
+                (c.x, c.y, c.x, c.y)
+            } else {
+                (
+                    f64::INFINITY,
+                    f64::INFINITY,
+                    f64::NEG_INFINITY,
+                    f64::NEG_INFINITY,
+                )
+            };
             let mut bounded = true;
             for d in cam.corner_directions() {
                 for z in [z_range.0, z_range.1] {
@@ -130,60 +160,76 @@ impl Ctx<'_> {
         let isolated = spec.boundary == BoundaryMode::Isolated;
         let first_sun = ph.order == 0 && ph.off == 0 && self.hs_leaf.iter().any(|&l| l > 0.0);
         for cp in self.cameras.iter() {
-            let (kx, ky) = match cp.footprint {
-                Some([x0, y0, x1, y1]) => (
-                    ((x0 - p.x) / lx).ceil() as i64..=((x1 - p.x) / lx).floor() as i64,
-                    ((y0 - p.y) / ly).ceil() as i64..=((y1 - p.y) / ly).floor() as i64,
-                ),
-                None => (0..=0, 0..=0),
+            let ((x0, nx), (y0, ny)) = match cp.footprint {
+                Some([x0, y0, x1, y1]) => {
+                    let range = |lo: f64, hi: f64, at: f64, len: f64| {
+                        let a = ((lo - at) / len).ceil() as i64;
+                        let b = ((hi - at) / len).floor() as i64;
+                        (a, (b - a + 1).max(0) as u64)
+                    };
+                    (range(x0, x1, p.x, lx), range(y0, y1, p.y, ly))
+                }
+                None => ((0, 1), (0, 1)),
             };
-            for ky in ky {
-                for kx in kx.clone() {
-                    let (sx, sy) = (kx as f64, ky as f64);
-                    let q = p + DVec3::new(sx * lx, sy * ly, sx * ox + sy * oy);
-                    let Some((i, j)) = cp.cam.pixel_of(q) else {
-                        continue;
-                    };
-                    let v = cp.cam.position - q;
-                    let r = v.length();
-                    if !(r > 0.0) {
-                        continue;
-                    }
-                    let u = v / r;
-                    if !f(usize::MAX, u, scratch) {
-                        continue;
-                    }
-                    let g: PerMaterial<f64> =
-                        Small::from_fn(self.tur_ids.len(), |tm| self.g_of(tm, u.z));
-                    let hs: PerMaterial<[f64; 2]> = if first_sun {
-                        Small::from_fn(self.tur_ids.len(), |tm| {
-                            crate::radiative::engine::hotspot_terms(
-                                self.inp.sun,
-                                u,
-                                self.g_sun[tm],
-                                g[tm],
-                                self.hs_leaf[tm],
-                            )
-                        })
-                    } else {
-                        Small::from_elem([0.0; 2], 0)
-                    };
-                    // Isolated scenes: nothing outside the box, so the ray is done when it
-                    // leaves through a side (the walk would count that as blocked).
-                    let reach = if isolated {
-                        r.min(self.side_exit(p, u) * (1.0 - 1e-12))
-                    } else {
-                        r
-                    };
-                    self.transmittance(p, u, reach, &g, &hs, skip, tr);
-                    if tr.iter().all(|&t| t < 1e-30) {
-                        continue;
-                    }
-                    let k = 1.0 / (r * r * cp.solid[i + cp.cam.nx * j]);
-                    let at = cp.base + (i + cp.cam.nx * j) * self.w + ph.off;
-                    for b in 0..self.nb {
-                        out.cams[at + b] += ph.w[b] * scratch[b] * tr[b] * k;
-                    }
+            // Every copy, or a systematic sample of MAX_COPIES of them (each kept with
+            // probability MAX_COPIES/n, weighted n/MAX_COPIES: unbiased), its start from a
+            // hash of the event (no draw from the photon's stream).
+            let n = nx * ny;
+            let (count, step, start) = if n <= MAX_COPIES {
+                (n, 1.0, 0.0)
+            } else {
+                let s = n as f64 / MAX_COPIES as f64;
+                (MAX_COPIES, s, event_uniform(p, ph.order) * s)
+            };
+            for c in 0..count {
+                let idx = ((start + c as f64 * step) as u64).min(n - 1);
+                let (sx, sy) = (
+                    (x0 + (idx % nx) as i64) as f64,
+                    (y0 + (idx / nx) as i64) as f64,
+                );
+                let q = p + DVec3::new(sx * lx, sy * ly, sx * ox + sy * oy);
+                let Some((i, j)) = cp.cam.pixel_of(q) else {
+                    continue;
+                };
+                let v = cp.cam.position - q;
+                let r = v.length();
+                if !(r > 0.0) {
+                    continue;
+                }
+                let u = v / r;
+                if !f(usize::MAX, u, scratch) {
+                    continue;
+                }
+                let g: PerMaterial<f64> =
+                    Small::from_fn(self.tur_ids.len(), |tm| self.g_of(tm, u.z));
+                let hs: PerMaterial<[f64; 2]> = if first_sun {
+                    Small::from_fn(self.tur_ids.len(), |tm| {
+                        crate::radiative::engine::hotspot_terms(
+                            self.inp.sun,
+                            u,
+                            self.g_sun[tm],
+                            g[tm],
+                            self.hs_leaf[tm],
+                        )
+                    })
+                } else {
+                    Small::from_elem([0.0; 2], 0)
+                };
+                // Isolated scenes: nothing outside the box, so the ray is done when it
+                // leaves through a side (the walk would count that as blocked).
+                let reach = if isolated {
+                    r.min(self.side_exit(p, u) * (1.0 - 1e-12))
+                } else {
+                    r
+                };
+                self.transmittance(p, u, reach, &g, &hs, skip, tr);
+                if tr.iter().all(|&t| t < 1e-30) {
+                    continue;
+                }
+                let k = step / (r * r * cp.solid[i + cp.cam.nx * j]);
+                let at = cp.base + (i + cp.cam.nx * j) * self.w + ph.off;
+                for b in 0..self.nb {
+                    out.cams[at + b] += ph.w[b] * scratch[b] * tr[b] * k;
                 }
             }
         }
