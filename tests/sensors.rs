@@ -226,3 +226,121 @@ fn a_camera_changes_no_other_product_and_is_the_same_on_any_thread_count() {
     assert_eq!(one.1[0].radiance, two.1[0].radiance);
     assert_eq!(one.1[0].radiance_se, two.1[0].radiance_se);
 }
+
+#[test]
+fn a_roof_appears_where_the_pinhole_projection_puts_it() {
+    // An isolated 20 m scene, black ground and walls, a white (ρ = 1) flat roof 8 m × 4 m at
+    // 5 m, seen from 40 m straight above with a 40° FOV (40 × 40 pixels, ~1.3 m at the roof):
+    // only the roof scatters, so a pixel whose footprint on the roof plane lies outside the
+    // roof reads exactly 0, and one wholly inside it reads 1 (the roof's reflectance factor;
+    // 5 SE). Both sets border the roof's edges, so its corners are placed to within a pixel
+    // by the pinhole projection.
+    let mut d = camera_flat();
+    d.grid = GridDesc {
+        size_m: (20.0, 20.0),
+        cell_m: (1.0, 1.0, 1.0),
+        height_m: Some(8.0),
+        subcells: 2,
+        boundary: BoundaryMode::Isolated,
+    };
+    d.optics.insert("soil".into(), common::lambertian(0.0));
+    d.optics.insert("black".into(), common::lambertian(0.0));
+    d.optics.insert("white".into(), common::lambertian(1.0));
+    d.objects.push(ObjectDesc::Building(BuildingDesc {
+        footprint: FootprintDesc::Box((6.0, 8.0, 14.0, 12.0)),
+        wall_height_m: 5.0,
+        roof: RoofDesc::Flat,
+        wall_optics: "black".into(),
+        roof_optics: "white".into(),
+    }));
+    let f = frame(&mut d);
+    f.position_m = (10.0, 10.0, 40.0);
+    f.attitude = AttitudeDesc::LookAt {
+        target_m: (10.0, 10.0, 0.0),
+        roll_deg: 0.0,
+    };
+    f.fov_deg = Some(40.0);
+    f.pixels = (40, 40);
+    let (_, cams) = run(&d, mc(100_000));
+    let img = &cams[0];
+    let cam = &img.camera;
+    let (rf, se) = (img.reflectance(0), img.reflectance_se(0));
+    let (mut inside, mut outside, mut zmax) = (0, 0, 0.0f64);
+    for j in 0..40 {
+        for i in 0..40 {
+            let (x0, x1, y0, y1) = cam.pixel_rect(i, j);
+            let on_roof = |x: f64, y: f64| {
+                let d = cam.direction_of(x, y);
+                cam.position + d * ((5.0 - cam.position.z) / d.z)
+            };
+            let (a, b) = (on_roof(x0, y0), on_roof(x1, y1));
+            let (lo, hi) = (a.min(b), a.max(b));
+            let px = i + 40 * j;
+            if lo.x >= 6.0 && hi.x <= 14.0 && lo.y >= 8.0 && hi.y <= 12.0 {
+                inside += 1;
+                zmax = zmax.max((rf[px] - 1.0).abs() / se[px]);
+            } else if hi.x <= 6.0 || lo.x >= 14.0 || hi.y <= 8.0 || lo.y >= 12.0 {
+                outside += 1;
+                assert_eq!(rf[px], 0.0, "pixel ({i}, {j}) off the roof");
+            }
+        }
+    }
+    eprintln!("roof: {inside} pixels inside (max |z| {zmax:.2}), {outside} outside");
+    assert!(inside >= 50 && outside >= 1400, "{inside} {outside}");
+    assert!(zmax <= 5.0, "max |z| {zmax}");
+}
+
+#[test]
+fn hard_cases_a_camera_on_a_cell_corner_inside_a_canopy_and_pixels_above_the_horizon() {
+    // Inside the turbid layer, on a cell corner (1, 1, 1): finite, non-negative pixels, some
+    // light. Over the flat ground, 10 m up at an 80° view zenith with a 30° FOV: the rows above
+    // the horizon see nothing (0), rows whose ground lies within 300 m read ρ (5 SE).
+    let mut d = load_scene(&asset("assets/scenes/turbid_layer.ron"))
+        .unwrap()
+        .0;
+    d.sensors = camera_flat().sensors;
+    let f = frame(&mut d);
+    f.position_m = (1.0, 1.0, 1.0);
+    f.attitude = AttitudeDesc::LookAt {
+        target_m: (1.0, 1.0, 0.0),
+        roll_deg: 0.0,
+    };
+    f.pixels = (8, 8);
+    f.fov_deg = Some(90.0);
+    let (_, cams) = run(&d, mc(5_000));
+    let rf = cams[0].reflectance(0);
+    assert!(rf.iter().all(|x| x.is_finite() && *x >= 0.0), "{rf:?}");
+    assert!(rf.iter().sum::<f64>() > 0.0);
+
+    let mut d = camera_flat();
+    let f = frame(&mut d);
+    f.position_m = (30.0, 30.0, 10.0);
+    f.attitude = AttitudeDesc::Angles {
+        zenith_deg: 80.0,
+        azimuth_deg: 270.0,
+        roll_deg: 0.0,
+    };
+    f.pixels = (16, 16);
+    let (_, cams) = run(&d, mc(100_000));
+    let img = &cams[0];
+    let (rf, se) = (img.reflectance(0), img.reflectance_se(0));
+    let (mut sky, mut near, mut zmax) = (0, 0, 0.0f64);
+    for j in 0..16 {
+        for i in 0..16 {
+            let cam = &img.camera;
+            let (x0, x1, y0, y1) = cam.pixel_rect(i, j);
+            let ds = [(x0, y0), (x1, y0), (x0, y1), (x1, y1)].map(|(x, y)| cam.direction_of(x, y));
+            let px = i + 16 * j;
+            if ds.iter().all(|d| d.z >= 0.0) {
+                sky += 1;
+                assert_eq!(rf[px], 0.0, "pixel ({i}, {j}) above the horizon");
+            } else if ds.iter().all(|d| d.z < 0.0 && 10.0 / -d.z < 300.0) {
+                near += 1;
+                zmax = zmax.max((rf[px] - 0.3).abs() / se[px]);
+            }
+        }
+    }
+    eprintln!("horizon: {sky} sky pixels, {near} near-ground pixels, max |z| {zmax:.2}");
+    assert!(sky >= 16 && near >= 16, "{sky} {near}");
+    assert!(zmax <= 5.0, "max |z| {zmax}");
+}

@@ -13,8 +13,9 @@
 //! Repetitive scenes are infinite: the event stands for all its periodic copies, and every copy
 //! inside the camera's view (within the scene's height range) is peeled off, each with its
 //! own ray (traced from the wrapped event, which the periodic walk makes the same). When the
-//! view holds more than [`MAX_COPIES`] candidate copies, a systematic sample of that many is
-//! peeled off with weight n/[`MAX_COPIES`] (unbiased; the cost per event stays bounded).
+//! view holds more than [`MAX_COPIES`] candidate copies, the nine nearest the camera are peeled
+//! off and a systematic sample of that many of the others with weight n/[`MAX_COPIES`]
+//! (unbiased; the cost per event stays bounded).
 
 use super::context::{Ctx, PerMaterial, Photon};
 use super::tally::BatchOut;
@@ -39,8 +40,9 @@ pub(crate) struct CameraPeel {
     pub(crate) footprint: Option<[f64; 4]>,
 }
 
-/// Most periodic copies of one event peeled off toward one camera: beyond, a systematic sample
-/// of this many (weighted by the ratio) keeps the cost per event bounded.
+/// Most periodic copies of one event peeled off toward one camera: beyond, the nine nearest
+/// the camera and a systematic sample of this many (weighted by the ratio) keep the cost per
+/// event bounded.
 pub(crate) const MAX_COPIES: u64 = 16;
 
 /// A uniform number in [0, 1) from the event's position and order (SplitMix64 of their bits):
@@ -73,7 +75,18 @@ impl CameraPeel {
             .collect();
         let footprint = rep.then(|| {
             let c = cam.position;
-            // The apex counts when the camera is inside the height range.
+            let corners = cam.corner_directions();
+            // A view holding both rising and falling directions holds horizontal ones, which
+            // meet the height range arbitrarily far away: clipped at the horizon reach.
+            let down = corners.iter().all(|d| d.z < 0.0);
+            let up = corners.iter().all(|d| d.z > 0.0);
+            if !(down || up) {
+                let r = horizon_reach(c.z - z_range.0);
+                return [c.x - r, c.y - r, c.x + r, c.y + r];
+            }
+            // Otherwise the view inside the height range is the convex hull of the corner
+            // rays' points on its two planes ahead of the camera, and of the camera itself
+            // when it is inside the range (empty: the camera looks away from the scene).
             let (mut x0, mut y0, mut x1, mut y1) = if (z_range.0..=z_range.1).contains(&c.z) {
                 (c.x, c.y, c.x, c.y)
             } else {
@@ -84,30 +97,17 @@ impl CameraPeel {
                     f64::NEG_INFINITY,
                 )
             };
-            let mut bounded = true;
-            for d in cam.corner_directions() {
+            for d in corners {
                 for z in [z_range.0, z_range.1] {
                     let t = (z - c.z) / d.z;
-                    if d.z == 0.0 || !t.is_finite() {
-                        bounded &= (z_range.0..=z_range.1).contains(&c.z) && d.z == 0.0;
-                        continue;
+                    if t >= 0.0 {
+                        let q = c + d * t;
+                        x0 = x0.min(q.x);
+                        x1 = x1.max(q.x);
+                        y0 = y0.min(q.y);
+                        y1 = y1.max(q.y);
                     }
-                    if t < 0.0 {
-                        // This corner never reaches the plane: the view is unbounded there
-                        // unless the camera is beyond the slab on that side.
-                        bounded &= !((d.z > 0.0 && c.z < z) || (d.z < 0.0 && c.z > z));
-                        continue;
-                    }
-                    let q = c + d * t;
-                    x0 = x0.min(q.x);
-                    x1 = x1.max(q.x);
-                    y0 = y0.min(q.y);
-                    y1 = y1.max(q.y);
                 }
-            }
-            if !bounded {
-                let r = horizon_reach(c.z - z_range.0);
-                return [c.x - r, c.y - r, c.x + r, c.y + r];
             }
             [x0, y0, x1, y1]
         });
@@ -157,10 +157,9 @@ impl Ctx<'_> {
         let spec = self.inp.spec;
         let (lx, ly) = self.size;
         let (ox, oy) = spec.topography_offset;
-        let isolated = spec.boundary == BoundaryMode::Isolated;
-        let first_sun = ph.order == 0 && ph.off == 0 && self.hs_leaf.iter().any(|&l| l > 0.0);
         for cp in self.cameras.iter() {
             let ((x0, nx), (y0, ny)) = match cp.footprint {
+                Some([x0, _, x1, _]) if !(x0 <= x1) => continue,
                 Some([x0, y0, x1, y1]) => {
                     let range = |lo: f64, hi: f64, at: f64, len: f64| {
                         let a = ((lo - at) / len).ceil() as i64;
@@ -171,67 +170,104 @@ impl Ctx<'_> {
                 }
                 None => ((0, 1), (0, 1)),
             };
-            // Every copy, or a systematic sample of MAX_COPIES of them (each kept with
-            // probability MAX_COPIES/n, weighted n/MAX_COPIES: unbiased), its start from a
-            // hash of the event (no draw from the photon's stream).
             let n = nx * ny;
-            let (count, step, start) = if n <= MAX_COPIES {
-                (n, 1.0, 0.0)
-            } else {
-                let s = n as f64 / MAX_COPIES as f64;
-                (MAX_COPIES, s, event_uniform(p, ph.order) * s)
-            };
-            for c in 0..count {
-                let idx = ((start + c as f64 * step) as u64).min(n - 1);
-                let (sx, sy) = (
-                    (x0 + (idx % nx) as i64) as f64,
-                    (y0 + (idx / nx) as i64) as f64,
-                );
+            let mut peel = |kx: i64, ky: i64, weight: f64| {
+                let (sx, sy) = (kx as f64, ky as f64);
                 let q = p + DVec3::new(sx * lx, sy * ly, sx * ox + sy * oy);
-                let Some((i, j)) = cp.cam.pixel_of(q) else {
-                    continue;
-                };
-                let v = cp.cam.position - q;
-                let r = v.length();
-                if !(r > 0.0) {
-                    continue;
+                self.peel_copy(cp, ph, (p, q, weight), skip, out, scratch, tr, f);
+            };
+            if n <= MAX_COPIES {
+                for idx in 0..n {
+                    peel(x0 + (idx % nx) as i64, y0 + (idx / nx) as i64, 1.0);
                 }
-                let u = v / r;
-                if !f(usize::MAX, u, scratch) {
-                    continue;
-                }
-                let g: PerMaterial<f64> =
-                    Small::from_fn(self.tur_ids.len(), |tm| self.g_of(tm, u.z));
-                let hs: PerMaterial<[f64; 2]> = if first_sun {
-                    Small::from_fn(self.tur_ids.len(), |tm| {
-                        crate::radiative::engine::hotspot_terms(
-                            self.inp.sun,
-                            u,
-                            self.g_sun[tm],
-                            g[tm],
-                            self.hs_leaf[tm],
-                        )
-                    })
-                } else {
-                    Small::from_elem([0.0; 2], 0)
-                };
-                // Isolated scenes: nothing outside the box, so the ray is done when it
-                // leaves through a side (the walk would count that as blocked).
-                let reach = if isolated {
-                    r.min(self.side_exit(p, u) * (1.0 - 1e-12))
-                } else {
-                    r
-                };
-                self.transmittance(p, u, reach, &g, &hs, skip, tr);
-                if tr.iter().all(|&t| t < 1e-30) {
-                    continue;
-                }
-                let k = step / (r * r * cp.solid[i + cp.cam.nx * j]);
-                let at = cp.base + (i + cp.cam.nx * j) * self.w + ph.off;
-                for b in 0..self.nb {
-                    out.cams[at + b] += ph.w[b] * scratch[b] * tr[b] * k;
+                continue;
+            }
+            // Too many: every copy within one tile of the one under the camera (the nearest,
+            // whose pixels have the smallest footprints), then a systematic sample of
+            // MAX_COPIES over all of them, the near ones skipped (each far copy kept with
+            // probability MAX_COPIES/n and weighted n/MAX_COPIES: unbiased), its start from a
+            // hash of the event (no draw from the photon's stream).
+            let cx = ((cp.cam.position.x - p.x) / lx).round() as i64;
+            let cy = ((cp.cam.position.y - p.y) / ly).round() as i64;
+            let near = |kx: i64, ky: i64| (kx - cx).abs() <= 1 && (ky - cy).abs() <= 1;
+            let inside = |kx: i64, ky: i64| {
+                (x0..x0 + nx as i64).contains(&kx) && (y0..y0 + ny as i64).contains(&ky)
+            };
+            for ky in cy - 1..=cy + 1 {
+                for kx in cx - 1..=cx + 1 {
+                    if inside(kx, ky) {
+                        peel(kx, ky, 1.0);
+                    }
                 }
             }
+            let step = n as f64 / MAX_COPIES as f64;
+            let start = event_uniform(p, ph.order) * step;
+            for c in 0..MAX_COPIES {
+                let idx = ((start + c as f64 * step) as u64).min(n - 1);
+                let (kx, ky) = (x0 + (idx % nx) as i64, y0 + (idx / nx) as i64);
+                if !near(kx, ky) {
+                    peel(kx, ky, step);
+                }
+            }
+        }
+    }
+
+    /// [`Ctx::peel_cameras`] for one copy `q` of the event at `p` (wrapped), its contribution
+    /// weighted by `weight` (the inverse of its sampling probability).
+    #[allow(clippy::too_many_arguments)]
+    fn peel_copy(
+        &self,
+        cp: &CameraPeel,
+        ph: &Photon,
+        (p, q, weight): (DVec3, DVec3, f64),
+        skip: Option<u32>,
+        out: &mut BatchOut,
+        scratch: &mut [f64],
+        tr: &mut [f64],
+        f: &mut dyn FnMut(usize, DVec3, &mut [f64]) -> bool,
+    ) {
+        let Some((i, j)) = cp.cam.pixel_of(q) else {
+            return;
+        };
+        let v = cp.cam.position - q;
+        let r = v.length();
+        if !(r > 0.0) {
+            return;
+        }
+        let u = v / r;
+        if !f(usize::MAX, u, scratch) {
+            return;
+        }
+        let g: PerMaterial<f64> = Small::from_fn(self.tur_ids.len(), |tm| self.g_of(tm, u.z));
+        let first_sun = ph.order == 0 && ph.off == 0 && self.hs_leaf.iter().any(|&l| l > 0.0);
+        let hs: PerMaterial<[f64; 2]> = if first_sun {
+            Small::from_fn(self.tur_ids.len(), |tm| {
+                crate::radiative::engine::hotspot_terms(
+                    self.inp.sun,
+                    u,
+                    self.g_sun[tm],
+                    g[tm],
+                    self.hs_leaf[tm],
+                )
+            })
+        } else {
+            Small::from_elem([0.0; 2], 0)
+        };
+        // Isolated scenes: nothing outside the box, so the ray is done when it leaves through
+        // a side (the walk would count that as blocked).
+        let reach = if self.inp.spec.boundary == BoundaryMode::Isolated {
+            r.min(self.side_exit(p, u) * (1.0 - 1e-12))
+        } else {
+            r
+        };
+        self.transmittance(p, u, reach, &g, &hs, skip, tr);
+        if tr.iter().all(|&t| t < 1e-30) {
+            return;
+        }
+        let k = weight / (r * r * cp.solid[i + cp.cam.nx * j]);
+        let at = cp.base + (i + cp.cam.nx * j) * self.w + ph.off;
+        for b in 0..self.nb {
+            out.cams[at + b] += ph.w[b] * scratch[b] * tr[b] * k;
         }
     }
 
