@@ -344,3 +344,82 @@ fn hard_cases_a_camera_on_a_cell_corner_inside_a_canopy_and_pixels_above_the_hor
     assert!(sky >= 16 && near >= 16, "{sky} {near}");
     assert!(zmax <= 5.0, "max |z| {zmax}");
 }
+
+#[test]
+fn camera_products_on_disk_match_the_image_and_keep_its_orientation() {
+    // `lumenscape run` of an isolated 60 m ground seen from (30, 45, 100) m with a 30° FOV:
+    // the image's top rows look past y = 60 m (nothing there), its bottom rows at the ground.
+    // The EXR (read back in map order: last row = top of the camera image) holds radiance,
+    // reflectance and their SEs; the sidecar and summary.json carry the same mean.
+    let text = std::fs::read_to_string(asset("assets/scenes/camera_flat.ron"))
+        .unwrap()
+        .replace("boundary: Repetitive", "boundary: Isolated")
+        .replace("(30.0, 30.0, 100.0)", "(30.0, 45.0, 100.0)")
+        .replace("(30.0, 30.0, 0.0)", "(30.0, 45.0, 0.0)")
+        .replace("(64, 64)", "(16, 16)");
+    let dir = std::env::temp_dir().join(format!("lumenscape-sensors-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&dir);
+    std::fs::create_dir_all(&dir).unwrap();
+    let scene = dir.join("cam.ron");
+    std::fs::write(&scene, text).unwrap();
+    let out = dir.join("out");
+    let o = std::process::Command::new(env!("CARGO_BIN_EXE_lumenscape"))
+        .args([
+            "run",
+            scene.to_str().unwrap(),
+            "--out",
+            out.to_str().unwrap(),
+        ])
+        .args(["--quiet", "--solver", "monte-carlo", "--photons", "20000"])
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let (nx, ny, ch) =
+        lumenscape::io::exr_out::read_exr_channels(&out.join("sensors/drone.exr")).unwrap();
+    assert_eq!((nx, ny), (16, 16));
+    let names: Vec<&str> = ch.iter().map(|c| c.0.as_str()).collect();
+    for n in [
+        "radiance.00_red",
+        "radiance_se.00_red",
+        "reflectance.00_red",
+        "reflectance_se.00_red",
+    ] {
+        assert!(names.contains(&n), "{names:?}");
+    }
+    let rf = &ch.iter().find(|c| c.0 == "reflectance.00_red").unwrap().1;
+    let row = |j: usize| {
+        rf[nx * j..nx * (j + 1)]
+            .iter()
+            .map(|&x| x as f64)
+            .sum::<f64>()
+    };
+    assert_eq!(
+        row(ny - 1),
+        0.0,
+        "top of the camera image: beyond the scene"
+    );
+    assert!(row(0) > 0.0, "bottom of the camera image: the ground");
+    let mean = rf.iter().map(|&x| x as f64).sum::<f64>() / (nx * ny) as f64;
+    let read = |p: &str| -> serde_json::Value {
+        serde_json::from_str(&std::fs::read_to_string(out.join(p)).unwrap()).unwrap()
+    };
+    let side = read("sensors/drone.json");
+    let summary = read("summary.json");
+    let m_side = side["bands"][0]["mean_reflectance_factor"]
+        .as_f64()
+        .unwrap();
+    let m_sum = summary["sensors"][0]["bands"][0]["mean_reflectance_factor"]
+        .as_f64()
+        .unwrap();
+    assert_eq!(m_side, m_sum);
+    assert!((mean - m_side).abs() < 1e-6, "{mean} {m_side}");
+    assert_eq!(side["camera"]["pixels"], serde_json::json!([16, 16]));
+    assert!(
+        side["view_geometry"]["view_zenith_deg"]["max"]
+            .as_f64()
+            .unwrap()
+            > 15.0
+    );
+    assert!(out.join("sensors/drone.png").exists());
+    let _ = std::fs::remove_dir_all(&dir);
+}
