@@ -172,6 +172,17 @@ pub fn estimate(world: &World, report: &MaketReport, rss: Option<u64>) -> Memory
             n_dirs,
             channels: w,
             batches,
+            camera_pixels: world
+                .get_resource::<crate::resources::sensors::SensorInstruments>()
+                .map_or(0, |s| {
+                    s.0.iter()
+                        .map(|d| match &d.instrument {
+                            crate::scene::desc::InstrumentDesc::FrameCamera(c) => {
+                                c.pixels.0 as usize * c.pixels.1 as usize
+                            }
+                        })
+                        .sum()
+                }),
         });
         products_held =
             2.0 * 8.0 * (entries as f64 + n_facets as f64 + n_columns as f64) * w as f64;

@@ -26,7 +26,8 @@ pub enum Stage {
     Radiative,
     /// Monte Carlo photons (passive Monte Carlo solver).
     Photon,
-    /// Sensor images (not implemented yet).
+    /// Sensor images by flux tracking (not implemented yet; the Monte Carlo solver images
+    /// frame cameras in the Photon stage).
     Sensor,
     /// Products.
     Output,

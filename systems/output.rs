@@ -37,8 +37,9 @@ pub fn write_maket_products(
 }
 
 /// Output · reads RadiativeProducts, GridSpec, CellGrid, FacetStore, Materials, SceneInfo ·
-/// writes `summary.json`, `brf.csv` and the radiative budget (`budget/cells.csv`,
-/// `budget/layers.csv`, `budget/elements.csv`) into `OutputDir`.
+/// writes `summary.json`, `brf.csv`, the radiative budget (`budget/cells.csv`,
+/// `budget/layers.csv`, `budget/elements.csv`) and, with SensorProducts, the camera images
+/// (`sensors/`) into `OutputDir`.
 #[allow(clippy::too_many_arguments)]
 pub fn write_radiative_products(
     out: Res<OutputDir>,
@@ -52,6 +53,7 @@ pub fn write_radiative_products(
     mats: Res<Materials>,
     memory: Option<Res<crate::resources::memory::MemoryPlan>>,
     sel: Option<Res<ProductSelection>>,
+    sensors: Option<Res<crate::photon::sensors::SensorProducts>>,
     mut errors: ResMut<StageErrors>,
 ) {
     let wants = |p: &str| sel.as_deref().is_none_or(|s| s.wants(p));
@@ -66,6 +68,7 @@ pub fn write_radiative_products(
         &facets,
         &mats,
         memory.as_deref(),
+        sensors.as_deref(),
         &wants,
     ) {
         errors.0.push(e);

@@ -4,19 +4,23 @@
 //! errors.
 //!
 //! Reads GridSpec, CellGrid, FacetStore, Directions, OpticsTables (discrete samplers only),
-//! RunSettings, SceneInfo, Materials, TerrainRes, Ground, TurbidCrown, TurbidPlot, ImportedMesh
-//! and the Atmosphere when the scene has one (sun photons then start at its top and the products
-//! gain the TOA block); writes RadiativeProducts.
+//! RunSettings, SceneInfo, Materials, TerrainRes, Ground, TurbidCrown, TurbidPlot, ImportedMesh,
+//! the Atmosphere when the scene has one (sun photons then start at its top and the products
+//! gain the TOA block) and SensorInstruments (optional); writes RadiativeProducts and, with
+//! sensors, SensorProducts.
 
 use crate::components::{Ground, ImportedMesh, TurbidCrown, TurbidPlot};
 use crate::photon::engine::{PhotonAtmosphere, PhotonInput, PhotonOptics, PhotonParams, run};
 use crate::photon::material_optics::{LadCache, build_photon_optics};
 use crate::photon::products::photon_products;
+use crate::photon::sensors::{CameraSpec, sensor_products};
 use crate::resources::facets::FacetStore;
 use crate::resources::grid::{CellGrid, GridSpec};
 use crate::resources::materials::Materials;
 use crate::resources::scene::{RunSettings, SceneInfo, Solver, StageErrors, TerrainRes};
+use crate::resources::sensors::SensorInstruments;
 use crate::resources::tracking::{Directions, OpticsTables};
+use crate::scene::desc::InstrumentDesc;
 use crate::systems::{TrackingScene, tracking_scene, used_turbid};
 use bevy_ecs::prelude::*;
 
@@ -48,7 +52,7 @@ pub fn track_photons(
         ResMut<LadOpticsCache>,
         Option<Res<crate::resources::atmosphere::Atmosphere>>,
     ),
-    mut commands: Commands,
+    (sensors, mut commands): (Option<Res<SensorInstruments>>, Commands),
 ) {
     let Solver::MonteCarlo { photons, sampler } = settings.solver else {
         return;
@@ -96,8 +100,13 @@ pub fn track_photons(
         }
         None => None,
     };
+    let cams = sensors
+        .as_deref()
+        .map(|s| camera_specs(s, &scene.band_names))
+        .unwrap_or_default();
     let input = PhotonInput {
         views,
+        cameras: cams.iter().map(|c| c.camera.clone()).collect(),
         atmosphere: atm.as_ref().map(|a| &a.0),
         e_dir: scene.e_dir.clone(),
         e_diff: scene.e_diff.clone(),
@@ -114,6 +123,15 @@ pub fn track_photons(
     let t0 = std::time::Instant::now();
     let raw = run(&input);
     let secs = t0.elapsed().as_secs_f64();
+    if !cams.is_empty() {
+        commands.insert_resource(sensor_products(
+            &raw,
+            &cams,
+            &scene.band_names,
+            &scene.e_dir,
+            &scene.e_diff,
+        ));
+    }
     commands.insert_resource(photon_products(
         raw,
         &params,
@@ -127,6 +145,29 @@ pub fn track_photons(
         secs,
         atm.as_ref().map(|a| &a.1[..]),
     ));
+}
+
+/// The frame cameras of the scene's sensors, with the scene bands each records (all when its
+/// `bands` is empty).
+fn camera_specs(s: &SensorInstruments, band_names: &[String]) -> Vec<CameraSpec> {
+    s.0.iter()
+        .filter_map(|d| {
+            let InstrumentDesc::FrameCamera(c) = &d.instrument;
+            let bands = if d.bands.is_empty() {
+                (0..band_names.len()).collect()
+            } else {
+                d.bands
+                    .iter()
+                    .filter_map(|b| band_names.iter().position(|n| n == b))
+                    .collect()
+            };
+            Some(CameraSpec {
+                name: d.name.clone(),
+                bands,
+                camera: c.model()?,
+            })
+        })
+        .collect()
 }
 
 /// The photon engine's input over the scene's grid, facets, directions and ground, with
@@ -152,6 +193,7 @@ pub fn photon_input<'a>(
         atmosphere: None,
         flat_ground: scene.flat_ground,
         views: Vec::new(),
+        cameras: Vec::new(),
         sun: dirs.sun,
         e_dir: vec![0.0],
         e_diff: vec![0.0],

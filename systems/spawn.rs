@@ -441,6 +441,19 @@ pub fn spawn_scene(
             toa_at: src.at("atmosphere.toa_altitude_km"),
         });
     }
+    if let Some(s) = desc.sensors.as_ref().filter(|s| !s.is_empty()) {
+        let mc = world
+            .get_resource::<crate::resources::scene::RunSettings>()
+            .is_some_and(|r| r.solver.is_monte_carlo());
+        if !mc {
+            warnings.push(format!(
+                "{}: sensors: frame cameras are imaged by the Monte Carlo solver only \
+                 (`--solver monte-carlo`); this run writes no sensor products",
+                src.path.display()
+            ));
+        }
+        world.insert_resource(crate::resources::sensors::SensorInstruments(s.clone()));
+    }
     world.insert_resource(Warnings(warnings));
     Ok(())
 }

@@ -223,8 +223,8 @@ fn objects_outside_an_isolated_scene_are_rejected() {
 
 #[test]
 fn reserved_sections_are_not_supported_yet() {
-    let text = GOOD.replacen("    version: 1,", "    version: 1,\n    sensors: [],", 1);
-    let (e, msg) = error_of("sensors.ron", &text);
+    let text = GOOD.replacen("    version: 1,", "    version: 1,\n    atmosphere: (),", 1);
+    let (e, msg) = error_of("atmosphere.ron", &text);
     assert!(matches!(e, SceneError::NotSupported { .. }), "{msg}");
     assert!(msg.contains("not supported yet"));
     assert_eq!(line_of(&e), Some(3));

@@ -106,13 +106,15 @@ fn section<'a>(doc: &'a str, name: &str) -> Option<&'a str> {
 #[test]
 fn every_scene_format_field_is_in_the_reference() {
     let doc = read("docs/guide/scene-format.md");
-    // The scene-format types: all of desc.rs and desc/lidar.rs plus the types they take from
-    // other modules.
-    let sources: [(&str, &[&str]); 8] = [
+    // The scene-format types: all of desc.rs and desc/{lidar, atmosphere, sensor, thermal}.rs
+    // plus the types they take from other modules.
+    let sources: [(&str, &[&str]); 10] = [
         ("src/scene/desc.rs", &[]),
         ("src/scene/desc/lidar.rs", &[]),
         ("src/scene/desc/atmosphere.rs", &[]),
         ("src/physics/phase.rs", &["FluidPhase"]),
+        ("src/scene/desc/sensor.rs", &[]),
+        ("src/scene/desc/thermal.rs", &[]),
         ("src/geometry/crown.rs", &["CrownShape"]),
         ("src/physics/lad.rs", &["Lad", "LeafSpecular"]),
         ("src/physics/prospect.rs", &["ProspectModel"]),

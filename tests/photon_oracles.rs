@@ -251,6 +251,7 @@ fn slab(
             .iter()
             .map(|&(z, a)| lumenscape::direction::direction_from_deg(z, a))
             .collect(),
+        cameras: Vec::new(),
         sun: -sun_pos,
         e_dir: vec![1.0],
         e_diff: vec![0.0],

@@ -3,7 +3,7 @@
 
 Usage (from the repository root):  python3 docs/tools/scene_format.py > docs/guide/scene-format.md
 
-The types are the serde types a scene file is read into (`src/scene/desc.rs`, `desc/lidar.rs`, `desc/thermal.rs`, `desc/atmosphere.rs` and the types it
+The types are the serde types a scene file is read into (`src/scene/desc.rs`, `desc/lidar.rs`, `desc/thermal.rs`, `desc/atmosphere.rs`, `desc/sensor.rs` and the types it
 uses from other modules). `tests/docs.rs` parses the same sources independently and fails when a
 field or variant is missing from the generated file, so re-run this script after changing them.
 """
@@ -27,6 +27,9 @@ SOURCES = [
     ("src/scene/desc/atmosphere.rs", ["AtmosphereDesc", "MoleculesDesc", "AerosolsDesc", "GasDesc"]),
     ("src/physics/phase.rs", ["FluidPhase"]),
     ("src/scene/desc/thermal.rs", ["ThermalDesc", "RunMode"]),
+    ("src/scene/desc/sensor.rs", [
+        "SensorDesc", "InstrumentDesc", "FrameCameraDesc", "AttitudeDesc",
+    ]),
     ("src/geometry/crown.rs", ["CrownShape"]),
     ("src/physics/lad.rs", ["Lad", "LeafSpecular"]),
     ("src/physics/prospect.rs", ["ProspectModel"]),
@@ -55,7 +58,7 @@ STRUCT_DEFAULTS = {  # fields of structs with `#[serde(default)]` on the struct
 UNITS = [  # field-name suffix → unit
     ("_ug_cm2", "µg cm⁻²"), ("_g_cm2", "g cm⁻²"), ("_w_m2_um", "W m⁻² µm⁻¹"), ("_m2", "m²"),
     ("_mrad", "mrad"), ("_km", "km"), ("_deg", "°"), ("_nm", "nm"), ("_ns", "ns"), ("_sr", "sr"), ("_hz", "Hz"),
-    ("_hpa", "hPa"), ("_k", "K"), ("_j", "J"), ("_cm", "cm"), ("temperature_c", "°C"), ("_s", "s"), ("_m", "m"),
+    ("_hpa", "hPa"), ("_k", "K"), ("_j", "J"), ("_cm", "cm"), ("_mm", "mm"), ("_um", "µm"), ("temperature_c", "°C"), ("_s", "s"), ("_m", "m"),
 ]
 
 
@@ -231,10 +234,12 @@ A scene is one [RON](https://github.com/ron-rs/ron) file read into `SceneDesc`
   [0, 60]); simple (non-self-crossing) polygons; objects inside the scene for `Isolated`
   boundaries; sun given either by both
   angles or by `sun_position`; `image_oversampling` in 1..=64 with at most 2²⁶ pixels per image;
-  the reserved section `sensors` is refused (not implemented yet); an `atmosphere` needs a
+  an `atmosphere` needs a
   `Repetitive` grid, `skyl` 0 or absent, no `lidars`, `--solver monte-carlo` (flux tracking
   through it is not implemented yet), per-band lists of one value per band, optical depths in
-  [0, 100], strictly increasing layer altitudes below the TOA and at least one constituent. Limits
+  [0, 100], strictly increasing layer altitudes below the TOA and at least one constituent;
+  sensor cameras above the ground (z > 0) with a field of view of at most 170° and at most 2²⁴
+  pixels. Limits
   that refuse absurd values before any allocation: at most 2³² − 1 grid cells; `Lai` and
   `LeafAreaDensity` at most 100 (and the density a `LeafArea` implies); trunk and disk polygons
   of 3 to 1000 sides; at most 10⁶ trees per random stand; ground rasters of at most 2²⁸ nodes;

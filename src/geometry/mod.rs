@@ -1,5 +1,7 @@
-//! Geometry: polygons, triangles, crown shapes and their cell overlaps, terrain, facet shapes.
+//! Geometry: polygons, triangles, crown shapes and their cell overlaps, terrain, facet shapes,
+//! the pinhole camera model.
 
+pub mod camera;
 pub mod crown;
 pub mod facet_packs;
 pub mod polygon;

@@ -7,3 +7,4 @@
 pub mod geo;
 pub mod maket;
 pub mod radiative;
+pub mod sensors;

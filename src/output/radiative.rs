@@ -12,8 +12,9 @@ use crate::resources::materials::Materials;
 use std::fmt::Write as _;
 
 /// Writes `summary.json`, `brf.csv`, the radiative budget (`budget/`) and the orthographic
-/// images (`images/`) of a passive solver's products into `dir` (atomic writes); `wants` says
-/// which of `brf.csv`, `budget` and `images` to write (`summary.json` always).
+/// images (`images/`) of a passive solver's products, and the camera images of `sensors`
+/// (`sensors/`), into `dir` (atomic writes); `wants` says which of `brf.csv`, `budget`,
+/// `images` and `sensors` to write (`summary.json` always).
 #[allow(clippy::too_many_arguments)]
 pub fn write_radiative(
     dir: &std::path::Path,
@@ -26,6 +27,7 @@ pub fn write_radiative(
     facets: &FacetStore,
     mats: &Materials,
     memory: Option<&crate::resources::memory::MemoryPlan>,
+    sensors: Option<&crate::photon::sensors::SensorProducts>,
     wants: &dyn Fn(&str) -> bool,
 ) -> Result<(), String> {
     std::fs::create_dir_all(dir)
@@ -42,8 +44,13 @@ pub fn write_radiative(
     if wants("images") {
         write_images(dir, p, info, dirs, spec)?;
     }
+    if let Some(s) = sensors
+        && wants("sensors")
+    {
+        crate::output::sensors::write_sensors(dir, s)?;
+    }
     // Last, so that the measured peak it records covers the other products' writing.
-    write_summary(dir, p, info, settings, dirs, memory)?;
+    write_summary(dir, p, info, settings, dirs, memory, sensors)?;
     Ok(())
 }
 
@@ -58,6 +65,7 @@ fn write_summary(
     settings: &crate::resources::tracking::RadiativeSettings,
     dirs: &crate::resources::tracking::Directions,
     memory: Option<&crate::resources::memory::MemoryPlan>,
+    sensors: Option<&crate::photon::sensors::SensorProducts>,
 ) -> Result<(), String> {
     let mut summary = serde_json::json!({
         "schema_version": 1,
@@ -101,6 +109,12 @@ fn write_summary(
         "tracking_seconds": p.tracking_seconds,
         "bands": p.bands,
     });
+    if let Some(s) = sensors {
+        summary["sensors"] =
+            s.0.iter()
+                .map(crate::output::sensors::summary_entry)
+                .collect();
+    }
     if let Some(m) = memory {
         summary["memory"] = m.record();
     }
@@ -575,7 +589,12 @@ fn thermal_image_channels(
     Ok(())
 }
 
-fn write_png(path: &std::path::Path, nx: usize, ny: usize, v: &[f64]) -> Result<(), String> {
+pub(crate) fn write_png(
+    path: &std::path::Path,
+    nx: usize,
+    ny: usize,
+    v: &[f64],
+) -> Result<(), String> {
     let max = v.iter().cloned().fold(0.0, f64::max).max(1e-300);
     let mut data = vec![0u8; nx * ny];
     for j in 0..ny {

@@ -7,12 +7,14 @@
 //! * [`engine`]: the photon tracker (free paths, events, peel-off, roulette, seeded batches).
 //! * [`material_optics`]: the Monte Carlo optics of every material (LAD samplers shared per LAD).
 //! * [`products`]: the Radiative stage's products with standard errors.
+//! * [`sensors`]: the frame-camera images (sensor stage) with per-pixel standard errors.
 //! * [`small`]: inline short arrays (no allocation per scattering event).
 
 pub mod engine;
 pub mod material_optics;
 pub mod products;
 pub mod sampling;
+pub mod sensors;
 pub mod small;
 
 /// What the Photon stage's memory depends on, counted before anything is allocated.
@@ -36,6 +38,8 @@ pub struct PhotonCounts {
     pub channels: usize,
     /// Photon batches (the run's `PhotonParams::batches`).
     pub batches: usize,
+    /// Pixels of all frame cameras (sensor stage; 0: none).
+    pub camera_pixels: usize,
 }
 
 /// The photon engine's context (Monte Carlo and LiDAR), bytes: the facet packs of the scan
@@ -60,6 +64,8 @@ pub fn context_bytes(n_cells: usize, turbid_materials: usize, facet_refs: usize)
 ///   hashed records above) and its escape summary.
 /// * `products`: the merged absorbed and intercepted power per element and the per-batch
 ///   escape sums for the standard errors.
+/// * `camera images` (scenes with frame cameras): the per-batch pixel tallies of a wave, the
+///   merged sums and squares, the images and the writer's copies.
 pub fn memory_terms(c: &PhotonCounts) -> Vec<(&'static str, f64)> {
     let f = |x: usize| x as f64;
     let w = f(c.channels.max(1));
@@ -70,9 +76,20 @@ pub fn memory_terms(c: &PhotonCounts) -> Vec<(&'static str, f64)> {
     let batch = 2.0 * (tally(c.turbid_entries) + tally(c.n_facets) + tally(c.n_columns)) + summary;
     let elements = f(c.turbid_entries) + f(c.n_facets) + f(c.n_columns);
     let products = 2.0 * 8.0 * w * elements + f(c.batches) * summary;
-    vec![
+    let mut terms = vec![
         ("photon context", context),
         ("batch tallies", wave * batch),
         ("products", products),
-    ]
+    ];
+    if c.camera_pixels > 0 {
+        // Per batch of the wave a value per pixel and channel; merged: the sum per channel
+        // and the sum of squares per band; products: radiance and SE per band, and the
+        // writer's copies of one image (four layers).
+        let px = f(c.camera_pixels);
+        terms.push((
+            "camera images",
+            8.0 * px * (wave * w + w + w + 4.0 * w + 4.0),
+        ));
+    }
+    terms
 }

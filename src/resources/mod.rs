@@ -8,4 +8,5 @@ pub mod maket_report;
 pub mod materials;
 pub mod memory;
 pub mod scene;
+pub mod sensors;
 pub mod tracking;

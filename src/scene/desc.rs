@@ -15,6 +15,8 @@ mod thermal;
 pub use atmosphere::*;
 pub use lidar::*;
 pub use thermal::*;
+mod sensor;
+pub use sensor::*;
 
 /// The current scene-format version. Files must state it in `version`.
 pub const SCENE_FORMAT_VERSION: u32 = 1;
@@ -46,9 +48,10 @@ pub struct SceneDesc {
     /// absent: none (the illumination is then at the bottom of the atmosphere).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub atmosphere: Option<AtmosphereDesc>,
-    /// Reserved for sensors (not supported yet: rejected when present).
-    #[serde(default, skip_serializing)]
-    pub sensors: Option<serde::de::IgnoredAny>,
+    /// Sensors at a finite distance (DART 5 paper §5): frame cameras imaged by the Monte
+    /// Carlo solver (`--solver monte-carlo`). Absent: no sensor work.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub sensors: Option<Vec<SensorDesc>>,
     /// LiDAR instruments (Photon stage, DART 5 paper §4): waveforms, returns as LAS point
     /// clouds, photon counting.
     #[serde(default, skip_serializing_if = "Option::is_none")]

@@ -13,6 +13,8 @@ mod atmosphere;
 mod lidar;
 mod objects;
 mod thermal;
+mod sensor;
+pub use sensor::MAX_SENSOR_PIXELS;
 
 /// The text a scene came from, to turn field paths into line numbers.
 #[derive(Debug, Clone)]
@@ -394,7 +396,7 @@ fn footprint_bounds(fp: &FootprintDesc) -> (f64, f64, f64, f64) {
 }
 
 /// Checks a scene; returns the first error found (the sections in this order: format,
-/// directions, radiative settings, LiDARs, grid, images, bands, optics, georeference,
+/// directions, radiative settings, LiDARs, sensors, grid, images, bands, optics, georeference,
 /// illumination, thermal, objects).
 pub fn validate(desc: &SceneDesc, src: &SceneSource) -> Result<(), SceneError> {
     let v = V {
@@ -406,6 +408,7 @@ pub fn validate(desc: &SceneDesc, src: &SceneSource) -> Result<(), SceneError> {
     v.directions()?;
     v.radiative()?;
     v.lidars()?;
+    v.sensors()?;
     v.grid()?;
     v.images()?;
     v.spectral_bands()?;
@@ -430,7 +433,7 @@ impl V<'_> {
         }
     }
 
-    /// The format version and the sections not supported yet.
+    /// The format version.
     fn header(&self) -> R {
         let (desc, src) = (self.desc, self.src);
         if desc.version != SCENE_FORMAT_VERSION {
@@ -441,19 +444,6 @@ impl V<'_> {
                     desc.version
                 ),
             ));
-        }
-        for (field, present, issue) in [(
-            "sensors",
-            desc.sensors.is_some(),
-            "sensors arrive with the Radiative/Sensor stages",
-        )] {
-            if present {
-                return Err(SceneError::NotSupported {
-                    at: src.at(field),
-                    field: field.into(),
-                    message: issue.into(),
-                });
-            }
         }
         Ok(())
     }

@@ -222,6 +222,7 @@ impl<'a> PulseState<'a> {
             crossings: 0,
             skipped: 0,
             wave: Some(Box::new(binner)),
+            cams: Vec::new(),
         };
         let g_cur = vec![0.0; ctx.tur_ids.len()];
         Self {

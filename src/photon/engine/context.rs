@@ -105,6 +105,10 @@ pub(crate) struct Ctx<'a> {
     /// projected solid angles `∫ μ dΩ` (π in all), for the Lambertian flat ground's reflection
     /// ([`Ctx::ground_direction`]); `None` with the continuous sampler.
     pub(crate) ground_dirs: Option<(AliasTable, Vec<u32>)>,
+    /// Frame cameras of the sensor stage ([`Ctx::peel_cameras`]); empty: none.
+    pub(crate) cameras: std::sync::Arc<[super::camera::CameraPeel]>,
+    /// Length of a batch's camera tally ([`BatchOut::cams`](super::tally::BatchOut)).
+    pub(crate) cam_len: usize,
 }
 
 /// Per cell, the bounding box of the cell's facets (their vertices' box, widened by a margin
@@ -357,6 +361,8 @@ impl<'a> Ctx<'a> {
             facet_box: std::sync::Arc::from(facet_boxes(inp)),
             packs: std::sync::Arc::new(inp.grid.facet_packs(inp.spec, inp.facets)),
             ground_dirs: None,
+            cameras: std::sync::Arc::from(Vec::new()),
+            cam_len: 0,
         };
         if inp.params.sampler.is_discrete() {
             let (ids, weights): (Vec<u32>, Vec<f64>) = tiling
@@ -422,6 +428,9 @@ impl<'a> Ctx<'a> {
             ctx.g_sun = g_sun;
         }
         ctx.hs_leaf = leaf;
+        let (cams, len) = super::camera::camera_peels(&ctx, &inp.cameras, w);
+        ctx.cameras = cams.into();
+        ctx.cam_len = len;
         ctx
     }
 }

@@ -266,6 +266,8 @@ pub struct PhotonInput<'a> {
     pub flat_ground: Option<u32>,
     /// View directions (upward unit vectors) that get peel-off estimates.
     pub views: Vec<DVec3>,
+    /// Frame cameras that get peel-off images (sensor stage; empty: none).
+    pub cameras: Vec<crate::geometry::camera::FrameCamera>,
     /// Propagation vector of the direct sun beam (downward).
     pub sun: DVec3,
     /// Direct irradiance on a horizontal plane per band, W m⁻² (µm⁻¹).

@@ -44,7 +44,8 @@
 //! * `context`: the shared tracking context (`Ctx`), the photon state and the
 //!   per-cell facet boxes and column sums built once per run.
 //! * `walk`: free paths through the cell grid, facet hits, boundaries and transmittance rays.
-//! * `peel_off`: peel-off (local estimate) toward the views or a LiDAR receiver.
+//! * `peel_off`: peel-off (local estimate) toward the views or a LiDAR receiver; `camera`:
+//!   toward the pixels of frame cameras (sensor stage).
 //! * `flight` and `scores`: receiver-mode flights whose return is scored along the walk.
 //! * `events`: band-weighted event choice, Russian roulette, BRDF events, far-photon
 //!   roulette.
@@ -55,6 +56,7 @@
 //!   reverse) books its waveforms through.
 
 pub mod atmosphere;
+pub(crate) mod camera;
 pub(crate) mod context;
 pub(crate) mod events;
 pub(crate) mod flight;

@@ -56,6 +56,9 @@ pub fn run(inp: &PhotonInput) -> PhotonResult {
         roulette: vec![0.0; w],
         summary: ctx.sum.clone(),
         photons: per_batch * n_batches,
+        camera: vec![0.0; ctx.cam_len],
+        camera_sq: vec![0.0; ctx.cam_len / w * nb],
+        camera_mean_sq: vec![0.0; ctx.cameras.len() * nb],
         ..Default::default()
     };
     let mut fluid_abs: std::collections::BTreeMap<u32, Vec<f64>> = Default::default();
@@ -103,6 +106,28 @@ pub fn run(inp: &PhotonInput) -> PhotonResult {
             res.crossings += o.crossings;
             res.skipped += o.skipped;
             res.batch_summaries.push(o.summary);
+            // Camera pixels: the sum over batches, and per band the sum of squares of the
+            // batch's sun + sky value (standard errors, `sensor_products`).
+            for (px, v) in o.cams.chunks(w).enumerate() {
+                for (ch, x) in v.iter().enumerate() {
+                    res.camera[px * w + ch] += x;
+                }
+                for b in 0..nb {
+                    let t = v[b] + if has_sky { v[nb + b] } else { 0.0 };
+                    res.camera_sq[px * nb + b] += t * t;
+                }
+            }
+            for (k, cp) in ctx.cameras.iter().enumerate() {
+                let n = cp.cam.nx * cp.cam.ny;
+                for b in 0..nb {
+                    let m = o.cams[cp.base..cp.base + n * w]
+                        .chunks(w)
+                        .map(|v| v[b] + if has_sky { v[nb + b] } else { 0.0 })
+                        .sum::<f64>()
+                        / n as f64;
+                    res.camera_mean_sq[k * nb + b] += m * m;
+                }
+            }
         }
         b0 = b1;
     }
@@ -197,6 +222,7 @@ fn new_batch_out(ctx: &Ctx) -> BatchOut {
         crossings: 0,
         skipped: 0,
         wave: None,
+        cams: vec![0.0; ctx.cam_len],
     }
 }
 

@@ -608,6 +608,9 @@ impl Ctx<'_> {
                 }
             }
         }
+        if !self.cameras.is_empty() {
+            self.peel_cameras(ph, p, skip, out, scratch, tr, &mut f);
+        }
     }
 }
 

@@ -50,6 +50,16 @@ pub struct PhotonResult {
     pub crossings: u64,
     /// Empty cells the flights jumped over (empty-space skipping, not in `crossings`).
     pub skipped: u64,
+    /// Frame-camera pixel radiances summed over the batches, W m⁻² sr⁻¹ (per band unit of the
+    /// irradiances): the input's cameras one after the other, pixel `i + nx·j`, channel.
+    pub camera: Vec<f64>,
+    /// Per camera pixel and band (`[pixel][band]`, cameras one after the other): the sum over
+    /// batches of the square of the batch's radiance (sun + sky channels), for the standard
+    /// errors.
+    pub camera_sq: Vec<f64>,
+    /// Per camera and band (`[camera][band]`): the sum over batches of the square of the
+    /// batch's image-mean radiance (sun + sky channels), for the standard error of the mean.
+    pub camera_mean_sq: Vec<f64>,
 }
 
 /// Layout of a batch summary vector: per channel escaped, absorbed (vegetation, facets,

@@ -117,6 +117,9 @@ pub(crate) struct BatchOut {
     pub(crate) skipped: u64,
     /// LiDAR receiver tallies (receiver mode only).
     pub(crate) wave: Option<Box<dyn ReturnTally>>,
+    /// Camera pixel radiances, W m⁻² sr⁻¹: per camera, pixel `i + nx·j`, channel (empty
+    /// without cameras; see `camera::CameraPeel`).
+    pub(crate) cams: Vec<f64>,
 }
 
 /// What receiver-mode peel-offs are booked into: the LiDAR waveform binner of the pulse
