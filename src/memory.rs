@@ -273,7 +273,11 @@ fn radiative_counts(
             g.subcells,
         )
     });
-    let n_sky = if sky { n_down } else { 0 };
+    // The sky launch: the solar sky, or a thermal run's sky (issue #34).
+    let thermal_sky = world
+        .get_resource::<crate::resources::scene::ThermalRun>()
+        .is_some_and(|t| t.desc.sky_temperature_k.is_some());
+    let n_sky = if sky || thermal_sky { n_down } else { 0 };
     let plan = crate::radiative::engine::launch_plan(
         size,
         (cell.0, cell.1),
@@ -347,7 +351,7 @@ fn radiative_counts(
         } else {
             0
         },
-        sky_points: if sky {
+        sky_points: if sky || thermal_sky {
             plan.sky_n.0.saturating_mul(plan.sky_n.1)
         } else {
             0
@@ -355,5 +359,8 @@ fn radiative_counts(
         n_images,
         image_pixels,
         threads: rayon::current_num_threads(),
+        thermal: world
+            .get_resource::<crate::resources::scene::ThermalRun>()
+            .map(|t| t.mode.solar()),
     }
 }

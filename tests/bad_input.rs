@@ -222,11 +222,13 @@ fn objects_outside_an_isolated_scene_are_rejected() {
 }
 
 #[test]
-fn reserved_sections_are_not_supported_yet() {
+fn an_empty_atmosphere_is_refused_at_its_line() {
     let text = GOOD.replacen("    version: 1,", "    version: 1,\n    atmosphere: (),", 1);
     let (e, msg) = error_of("atmosphere.ron", &text);
-    assert!(matches!(e, SceneError::NotSupported { .. }), "{msg}");
-    assert!(msg.contains("not supported yet"));
+    assert!(
+        msg.contains("atmosphere") && msg.contains("at least one"),
+        "{msg}"
+    );
     assert_eq!(line_of(&e), Some(3));
 }
 

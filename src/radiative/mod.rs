@@ -66,6 +66,8 @@ pub struct RadiativeCounts {
     pub image_pixels: usize,
     /// Worker threads.
     pub threads: usize,
+    /// Thermal emission (issue #34): `Some(solar)` in a `T` (false) or `R+T` (true) run.
+    pub thermal: Option<bool>,
 }
 
 /// Memory the Direction/Phase/Radiative stages hold at their peak, bytes, as named terms
@@ -91,7 +93,7 @@ pub fn memory_terms(c: &RadiativeCounts) -> Vec<(&'static str, f64)> {
     let f = |x: usize| x as f64;
     let nd = f(c.n_dirs);
     let nb = f(c.n_bands);
-    let w = nb * if c.sky { 2.0 } else { 1.0 };
+    let w = channels(c);
     let tables = f(c.turbid_materials) * nb * ((nd + 1.0) * nd * 4.0 + 3.0 * (nd + 1.0) * 8.0);
     let fractions = if c.n_facets.saturating_mul(c.n_dirs) <= EXACT_FRACTIONS_LIMIT {
         f(c.n_facets) * (2.0 * nd * 4.0 + 48.0)
@@ -126,8 +128,18 @@ pub fn memory_terms(c: &RadiativeCounts) -> Vec<(&'static str, f64)> {
     } else {
         0.0
     };
-    let products = 8.0 * w * (3.0 * 2.0 * (entries + f(c.n_facets) + cols) + 2.0 * nd)
+    let mut products = 8.0 * w * (3.0 * 2.0 * (entries + f(c.n_facets) + cols) + 2.0 * nd)
         + 3.0 * 8.0 * w * f(c.image_pixels);
+    if let Some(solar) = c.thermal {
+        // ε B per element and band, the emitting elements (16 bytes each), and in `R+T` the
+        // solar run's result held while the thermal run goes, then both joined.
+        products +=
+            8.0 * nb * (entries + f(c.n_facets) + cols) + 16.0 * (entries + f(c.n_facets) + cols);
+        if solar {
+            products += 2.0 * 8.0 * w * (2.0 * (entries + f(c.n_facets) + cols) + nd)
+                + 2.0 * 8.0 * w * f(c.image_pixels);
+        }
+    }
     vec![
         ("phase tables", tables),
         ("facet fractions", fractions),
@@ -143,6 +155,18 @@ pub fn memory_terms(c: &RadiativeCounts) -> Vec<(&'static str, f64)> {
         ("chunk events", chunk_event_bytes(c)),
         ("products", products),
     ]
+}
+
+/// Channels per element of the largest run: bands × (1 + sky) for the solar run, bands × 2
+/// (the zero sun set and the thermal one) for a thermal run.
+fn channels(c: &RadiativeCounts) -> f64 {
+    let nb = c.n_bands as f64;
+    let solar = nb * if c.sky { 2.0 } else { 1.0 };
+    if c.thermal.is_some() {
+        solar.max(2.0 * nb)
+    } else {
+        solar
+    }
 }
 
 /// Share of the upward rays of a scattering iteration that meet a facet (an event) before
@@ -167,7 +191,7 @@ pub const UPWARD_HIT_SHARE: f64 = 0.25;
 /// each emitter adds one image event per image direction.
 pub fn chunk_event_bytes(c: &RadiativeCounts) -> f64 {
     let f = |x: usize| x as f64;
-    let w = f(c.n_bands) * if c.sky { 2.0 } else { 1.0 };
+    let w = channels(c);
     let nd = f(c.n_dirs);
     let n_down = f(c.n_down);
     let n_up = nd - n_down;
@@ -175,6 +199,13 @@ pub fn chunk_event_bytes(c: &RadiativeCounts) -> f64 {
         f(c.n_columns) * f(c.subcells.max(1)).powi(2)
     } else {
         0.0
+    };
+    // A thermal run's emission pass: the ground emits from up to (4 D)² points per column
+    // (at most 2²² in the scene; `engine::thermal`).
+    let ground_points = if c.thermal.is_some() && c.flat_ground {
+        (16.0 * ground_points).min(f(1 << 22)).max(ground_points)
+    } else {
+        ground_points
     };
     let hit = 16.0 + 8.0 * (w + 4.0);
     let image = 36.0 + 8.0 * w;

@@ -202,7 +202,7 @@ pub(in crate::radiative) fn thermal_emitter<'s>(
                 }
             }
             let o = cell_centre(spec, c);
-            let d = ctx.sub.max(1) as usize * 4;
+            let d = ground_points_per_side(ctx);
             let share = 1.0 / (d * d) as f64;
             for jy in 0..d {
                 for ix in 0..d {
@@ -240,6 +240,21 @@ fn effective_sr(d: &crate::direction::Direction) -> f64 {
     } else {
         d.solid_angle_sr
     }
+}
+
+/// Emission points per side of a flat-ground column: 4 D (D the sub-cell factor), so that the
+/// gap fraction each upward direction sees through a facet canopy is sampled finely (on a
+/// disc canopy the isothermal closure goes from ±1.1 K with D to ±0.29 K with 4 D; 16 D:
+/// ±0.25 K), halved while the scene would hold more than 2²² ground points (large scenes keep
+/// D per side, as their scattering does).
+fn ground_points_per_side(ctx: &Ctx) -> usize {
+    let cols = ctx.inp.spec.n[0] * ctx.inp.spec.n[1];
+    let sub = ctx.sub.max(1) as usize;
+    let mut d = 4 * sub;
+    while d > sub && cols.saturating_mul(d * d) > 1 << 22 {
+        d /= 2;
+    }
+    d.max(sub)
 }
 
 /// Emission points spread over a facet: the centroids of its m² congruent sub-triangles (m
