@@ -10,7 +10,7 @@ use crate::radiative::engine::{
     RadiativeInput, ThermalSources, TrackOptics, remap_wrong_side, run,
 };
 use crate::radiative::products::RadiativeProducts;
-use crate::resources::facets::FacetStore;
+use crate::resources::facets::{FacetKind, FacetStore};
 use crate::resources::grid::{CellGrid, GridSpec};
 use crate::resources::materials::{MaterialKind, Materials};
 use crate::resources::scene::{SceneInfo, StageErrors, TerrainRes, ThermalRun};
@@ -40,7 +40,7 @@ pub fn track_flux(
     mats: Res<Materials>,
     terrain: Res<TerrainRes>,
     grounds: Query<&Ground>,
-    thermal_run: Option<Res<ThermalRun>>,
+    (thermal_run, buildings): (Option<Res<ThermalRun>>, Query<&crate::components::Building>),
     mut errors: ResMut<StageErrors>,
     mut commands: Commands,
 ) {
@@ -74,8 +74,17 @@ pub fn track_flux(
     let optics: Vec<TrackOptics> = tables.optics.clone();
     // Thermal emission (issue #34): ε B(T) per element; a `T` run has no sun and solar sky.
     let thermal = match thermal_run.as_deref() {
-        Some(t) => match thermal_sources(t, &info, &mats, &grid, &facets, &spec, scene.flat_ground)
-        {
+        Some(t) => match thermal_sources(
+            t,
+            &info,
+            &mats,
+            (&grid, &facets, &spec),
+            scene.flat_ground,
+            &buildings
+                .iter()
+                .map(|b| b.footprint.clone())
+                .collect::<Vec<_>>(),
+        ) {
             Ok(s) => Some(s),
             Err(e) => {
                 errors.0.push(e);
@@ -156,15 +165,17 @@ pub fn track_flux(
 /// (physics.md §7.1–7.2): B the band-averaged Planck radiance at the temperature of the
 /// element's optics key (a material derived from a key, `key@objects[i]`, takes the key's),
 /// ε Kirchhoff's `1 − ρ_L − τ_L` (turbid leaves), `1 − R − T_d` (Lambertian facets) or
-/// `1 − ρ` (Lambertian ground); the thermal sky `B(T_sky)`.
+/// `1 − ρ` (Lambertian ground); the thermal sky `B(T_sky)`. What lies in contact inside a
+/// building does not emit (its rays would start in the ground or pass through the one-sided
+/// shell from inside): floors (one-sided wall facets facing down), DEM facets whose centroid is
+/// under a footprint, and a flat-ground column's share covered by footprints.
 fn thermal_sources(
     run: &ThermalRun,
     info: &SceneInfo,
     mats: &Materials,
-    grid: &CellGrid,
-    facets: &FacetStore,
-    spec: &GridSpec,
+    (grid, facets, spec): (&CellGrid, &FacetStore, &GridSpec),
     flat_ground: Option<crate::resources::materials::MaterialId>,
+    footprints: &[Vec<glam::DVec2>],
 ) -> Result<ThermalSources, String> {
     let nb = info.bands.len();
     let planck = |t: f64| -> Result<Vec<f64>, String> {
@@ -231,14 +242,41 @@ fn thermal_sources(
     for e in &grid.turbid {
         out.turbid.extend_from_slice(need(e.material)?);
     }
+    let under_building = |q: glam::DVec2| {
+        footprints
+            .iter()
+            .any(|p| crate::geometry::polygon::contains(p, q))
+    };
     out.facet.reserve(facets.facets.len() * nb);
     for f in &facets.facets {
-        out.facet.extend_from_slice(need(f.material)?);
+        let n = (f.v[1] - f.v[0])
+            .cross(f.v[2] - f.v[0])
+            .normalize_or(glam::DVec3::Z);
+        let c = (f.v[0] + f.v[1] + f.v[2]) / 3.0;
+        let buried = match f.kind {
+            FacetKind::Wall => !f.two_sided && n.z < -0.99,
+            FacetKind::Ground => under_building(c.truncate()),
+            _ => false,
+        };
+        if buried {
+            out.facet.extend(std::iter::repeat_n(0.0, nb));
+        } else {
+            out.facet.extend_from_slice(need(f.material)?);
+        }
     }
     if let Some(g) = flat_ground {
         let eb = need(g)?;
-        for _ in 0..spec.n[0] * spec.n[1] {
-            out.ground.extend_from_slice(eb);
+        let (dx, dy) = (spec.cell.x, spec.cell.y);
+        for c in 0..spec.n[0] * spec.n[1] {
+            let (i, j) = ((c % spec.n[0]) as f64, (c / spec.n[0]) as f64);
+            let (x0, y0) = (spec.origin.x + i * dx, spec.origin.y + j * dy);
+            let covered: f64 = footprints
+                .iter()
+                .map(|p| crate::geometry::polygon::rect_overlap_area(p, x0, y0, x0 + dx, y0 + dy))
+                .sum::<f64>()
+                / (dx * dy);
+            let open = (1.0 - covered).clamp(0.0, 1.0);
+            out.ground.extend(eb.iter().map(|v| v * open));
         }
     }
     if let Some(t) = run.desc.sky_temperature_k {

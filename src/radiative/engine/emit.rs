@@ -233,6 +233,13 @@ impl TurbidPair {
         }
     }
 
+    /// The pair with its points kept at or above height `z` (m; a thermal source in a cell
+    /// the terrain crosses starts above the ground, `engine::thermal`).
+    pub(in crate::radiative) fn above(mut self, z: f64) -> Self {
+        self.lo.z = z.clamp(self.lo.z, self.hi.z - 1e-3 * (self.hi.z - self.lo.z));
+        self
+    }
+
     /// The two points for direction `j` from barycentre `origin`, inside the cell by 1e-6 of
     /// its size, with their power shares.
     fn points(&self, ctx: &Ctx, origin: DVec3, j: usize) -> [(DVec3, f64); 2] {

@@ -133,6 +133,7 @@ pub(in crate::radiative) fn thermal_emitter<'s>(
             }
             let cell = ctx.entry_cell[k] as usize;
             let centre = cell_centre(spec, cell);
+            let pair = TurbidPair::new(cell, centre, centre, spec.cell);
             Emitter {
                 origin_up: centre,
                 origin_dn: centre,
@@ -140,7 +141,10 @@ pub(in crate::radiative) fn thermal_emitter<'s>(
                 normal: None,
                 points: &[],
                 ground: false,
-                pair: Some(TurbidPair::new(cell, centre, centre, spec.cell)),
+                pair: Some(match terrain_top(ctx, cell) {
+                    Some(z) => pair.above(z),
+                    None => pair,
+                }),
             }
         }
         ThermalElement::Facet(f) => {
@@ -240,6 +244,33 @@ fn effective_sr(d: &crate::direction::Direction) -> f64 {
     } else {
         d.solid_angle_sr
     }
+}
+
+/// The highest point of the DEM ground facets over cell `c`'s footprint (each facet's plane at
+/// the cell's four corners), m, when the terrain crosses the cell: a turbid cell that the
+/// ground cuts holds its leaves above it, so its emission starts there (from below, its rays
+/// would leave through the ground). `None` without ground facets in the cell.
+fn terrain_top(ctx: &Ctx, c: usize) -> Option<f64> {
+    let spec = ctx.inp.spec;
+    let [i, j, k] = spec.ijk(c);
+    let (lo, hi) = spec.cell_box(i as i64, j as i64, k as i64);
+    let mut top: Option<f64> = None;
+    for &f in ctx.inp.grid.facets_of(c) {
+        let fa = &ctx.inp.facets[f as usize];
+        if fa.kind != FacetKind::Ground {
+            continue;
+        }
+        let n = (fa.v[1] - fa.v[0]).cross(fa.v[2] - fa.v[0]);
+        if n.z.abs() < 1e-12 {
+            continue;
+        }
+        for (x, y) in [(lo.x, lo.y), (hi.x, lo.y), (lo.x, hi.y), (hi.x, hi.y)] {
+            // The plane n·(p − v0) = 0 at (x, y).
+            let z = fa.v[0].z - (n.x * (x - fa.v[0].x) + n.y * (y - fa.v[0].y)) / n.z;
+            top = Some(top.map_or(z, |t: f64| t.max(z)));
+        }
+    }
+    top.filter(|&z| z > lo.z).map(|z| z.min(hi.z))
 }
 
 /// Emission points per side of a flat-ground column: 4 D (D the sub-cell factor), so that the
