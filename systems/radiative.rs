@@ -216,7 +216,9 @@ fn thermal_sources(
                     })
                     .collect(),
             ),
-            MaterialKind::Rpv(_) | MaterialKind::Hapke(_) => None,
+            // A flat ground with a BRDF: B(T), the tracker applies 1 − ρ_dh(Ω) per direction
+            // (validation refuses BRDF facets in thermal runs).
+            MaterialKind::Rpv(_) | MaterialKind::Hapke(_) => Some(vec![1.0; nb]),
         };
         per_mat.push(match (eps, run.desc.temperature_of(key)) {
             (Some(eps), Some(t)) => {

@@ -35,7 +35,9 @@ pub struct ThermalSources {
     /// Per facet: `ε B(T)`, ε = 1 − R − T_d (the direct-transmittance factor is applied per
     /// direction by the tracker).
     pub facet: Vec<f64>,
-    /// Per flat-ground column `i + n_x j`: `ε B(T)`, ε = 1 − ρ.
+    /// Per flat-ground column `i + n_x j`: `ε B(T)`, ε = 1 − ρ, for a Lambertian ground; for
+    /// a ground with a BRDF (`RadiativeInput::ground_brdf`) `B(T)`, the tracker applying the
+    /// directional emissivity `1 − ρ_dh(Ω)` (Kirchhoff) from the BRDF tables.
     pub ground: Vec<f64>,
     /// Isotropic downwelling sky radiance per band (empty or zero: none).
     pub sky: Vec<f64>,
@@ -98,6 +100,9 @@ pub(in crate::radiative) fn thermal_elements(ctx: &Ctx) -> Vec<ThermalElement> {
 #[derive(Default)]
 pub(in crate::radiative) struct ThermalScratch {
     points: Vec<(DVec3, f64)>,
+    /// BRDF ground: `1 − ρ_dh` per (upward tiling direction j, band), the directional
+    /// emissivity (filled at first use).
+    ground_eps: Vec<f64>,
 }
 
 /// The power element `el` emits into every tiling direction, `outgoing[j · w + tb + b]` (W per
@@ -197,12 +202,16 @@ pub(in crate::radiative) fn thermal_emitter<'s>(
             let c = c as usize;
             let a = spec.cell.x * spec.cell.y;
             let eb = &th.ground[c * nb..(c + 1) * nb];
+            if scratch.ground_eps.is_empty() {
+                scratch.ground_eps = ground_emissivity(ctx);
+            }
             for j in 0..n_dirs {
                 if ctx.omega[j].z <= 0.0 {
                     continue;
                 }
                 for b in 0..nb {
-                    outgoing[j * w + tb + b] = eb[b] * a * tiling[j].projected_sr;
+                    outgoing[j * w + tb + b] =
+                        eb[b] * scratch.ground_eps[j * nb + b] * a * tiling[j].projected_sr;
                 }
             }
             let o = cell_centre(spec, c);
@@ -244,6 +253,41 @@ fn effective_sr(d: &crate::direction::Direction) -> f64 {
     } else {
         d.solid_angle_sr
     }
+}
+
+/// The flat ground's directional emissivity per (tiling direction j, band): 1 for a Lambertian
+/// ground (its ε is in `ThermalSources::ground`); with a BRDF, Kirchhoff's `1 − ρ_hd(Ω_j)`
+/// (physics.md §7.2; = 1 − ρ_dh(Ω_j) by reciprocity) with the hemispherical–directional
+/// reflectance the tracker itself applies: an isotropic sky of unit radiance brings
+/// `∫_{ΔΩ_i}|μ|dΩ` per unit area from each downward direction i, which the ground scatters into
+/// j with its slot row, so `ρ_hd(Ω_j) = Σ_i ∫_{ΔΩ_i}|μ|dΩ · row_{slot(i)}[j] / ∫_{ΔΩ_j}μ dΩ`.
+/// With it an isothermal BRDF ground under a sky at its temperature radiates exactly B(T)
+/// (the row sums of the incidence containing −Ω_j give ~1 % off with the default preset's
+/// slot-averaged rows).
+fn ground_emissivity(ctx: &Ctx) -> Vec<f64> {
+    let nb = ctx.nb;
+    let mut eps = vec![1.0; ctx.n_dirs * nb];
+    if ctx.inp.ground_brdf.is_some() {
+        let tiling = ctx.inp.dirs.tiling();
+        for b in 0..nb {
+            let mut r_hd = vec![0.0; ctx.n_dirs];
+            for (i, d) in tiling.iter().enumerate() {
+                if d.omega.z >= 0.0 {
+                    continue;
+                }
+                let row = ctx.ground_row(b, ctx.inp.sector_of[i] as usize);
+                for (r, &x) in r_hd.iter_mut().zip(row) {
+                    *r += d.projected_sr * x;
+                }
+            }
+            for (j, d) in tiling.iter().enumerate() {
+                if d.omega.z > 0.0 && d.projected_sr > 0.0 {
+                    eps[j * nb + b] = (1.0 - r_hd[j] / d.projected_sr).clamp(0.0, 1.0);
+                }
+            }
+        }
+    }
+    eps
 }
 
 /// The highest point of the DEM ground facets over cell `c`'s footprint (each facet's plane at

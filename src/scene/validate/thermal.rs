@@ -1,11 +1,35 @@
 //! Validation of the `thermal` section (part of [`super::validate`]; issue #34): the
 //! temperatures (finite, in (0, 1e5] K), their keys (optics keys), and in the `T` and `RT`
-//! modes a temperature for every optics key an emitting element can be made of.
+//! modes a temperature for every optics key an emitting element can be made of; RPV/Hapke keys
+//! only as a flat ground's.
 
 use super::*;
 
 /// The thermal section of [`validate`].
 impl V<'_> {
+    /// Whether optics `key` is used by a flat `Ground` and by no other object (the objects'
+    /// RON holds every optics reference as a quoted string).
+    fn flat_ground_only(&self, key: &str) -> bool {
+        let quoted = format!("\"{key}\"");
+        let mut ground = false;
+        for o in &self.desc.objects {
+            match o {
+                ObjectDesc::Ground(g) if g.optics == key => {
+                    if !matches!(g.topography, TopographyDesc::Flat) {
+                        return false;
+                    }
+                    ground = true;
+                }
+                other => {
+                    if ron::to_string(other).is_ok_and(|t| t.contains(&quoted)) {
+                        return false;
+                    }
+                }
+            }
+        }
+        ground
+    }
+
     /// Temperatures, keys and the surfaces thermal emission does not model yet.
     pub(super) fn thermal(&self) -> R {
         let Some(th) = &self.desc.thermal else {
@@ -55,12 +79,14 @@ impl V<'_> {
         for (key, o) in &self.desc.optics {
             let f = format!("optics.{key}");
             match o {
-                OpticsDesc::Rpv { .. } | OpticsDesc::Hapke { .. } => {
+                OpticsDesc::Rpv { .. } | OpticsDesc::Hapke { .. }
+                    if !self.flat_ground_only(key) =>
+                {
                     return Err(SceneError::NotSupported {
                         at: self.src.at(&f),
                         field: f,
                         message: format!(
-                            "thermal emission (mode {}) of RPV and Hapke surfaces is not modelled yet: use a Lambertian key, or mode R",
+                            "thermal emission (mode {}) of RPV and Hapke surfaces is modelled for a flat ground only: use a Lambertian key here, or mode R",
                             th.mode.name()
                         ),
                     });
