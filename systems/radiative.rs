@@ -73,6 +73,39 @@ pub fn track_flux(
     let fractions = exact_facet_fractions(&facets, &dirs);
     let optics: Vec<TrackOptics> = tables.optics.clone();
     // Thermal emission (issue #34): ε B(T) per element; a `T` run has no sun and solar sky.
+    // Illumination-driven temperatures need each element's directly lit fraction first: a
+    // launch-only pass of the sun.
+    let lit = thermal_run
+        .as_deref()
+        .filter(|t| !t.desc.sunlit_temperatures_k.is_empty())
+        .map(|_| {
+            let mut params = settings.tracking.clone();
+            params.max_iterations = 1;
+            params.progress = false;
+            let inp = RadiativeInput {
+                spec: &spec,
+                grid: &grid,
+                facets: &facets.facets,
+                facet_fractions: &fractions,
+                facet_brdf: &facet_brdf,
+                facet_tables: &facet_tables,
+                dirs: &dirs.set,
+                sector_of: &dirs.sector_of,
+                n_sectors: dirs.n_sectors,
+                optics: &optics,
+                image_of: &[],
+                image_oversampling: 1,
+                flat_ground: flat_ground.clone(),
+                ground_brdf: ground_brdf.clone(),
+                sun: dirs.sun,
+                e_dir: scene.e_dir.clone(),
+                e_diff: vec![0.0; nb],
+                params,
+                emitters: &[],
+                thermal: None,
+            };
+            sunlit_fractions(&inp, &run(&inp))
+        });
     let thermal = match thermal_run.as_deref() {
         Some(t) => match thermal_sources(
             t,
@@ -84,6 +117,7 @@ pub fn track_flux(
                 .iter()
                 .map(|b| b.footprint.clone())
                 .collect::<Vec<_>>(),
+            lit.as_ref(),
         ) {
             Ok(s) => Some(s),
             Err(e) => {
@@ -176,6 +210,7 @@ fn thermal_sources(
     (grid, facets, spec): (&CellGrid, &FacetStore, &GridSpec),
     flat_ground: Option<crate::resources::materials::MaterialId>,
     footprints: &[Vec<glam::DVec2>],
+    lit: Option<&SunlitFractions>,
 ) -> Result<ThermalSources, String> {
     let nb = info.bands.len();
     let planck = |t: f64| -> Result<Vec<f64>, String> {
@@ -189,6 +224,7 @@ fn thermal_sources(
     };
     // ε B per material and band (`None`: the material does not emit).
     let mut per_mat: Vec<Option<Vec<f64>>> = Vec::with_capacity(mats.list.len());
+    let mut eps_mat: Vec<Option<Vec<f64>>> = Vec::with_capacity(mats.list.len());
     for m in &mats.list {
         let key = m.name.split('@').next().unwrap_or(&m.name);
         let eps: Option<Vec<f64>> = match &m.kind {
@@ -220,6 +256,7 @@ fn thermal_sources(
             // (validation refuses BRDF facets in thermal runs).
             MaterialKind::Rpv(_) | MaterialKind::Hapke(_) => Some(vec![1.0; nb]),
         };
+        eps_mat.push(eps.clone());
         per_mat.push(match (eps, run.desc.temperature_of(key)) {
             (Some(eps), Some(t)) => {
                 let b = planck(t)?;
@@ -241,8 +278,14 @@ fn thermal_sources(
     };
     let mut out = ThermalSources::default();
     out.turbid.reserve(grid.turbid.len() * nb);
-    for e in &grid.turbid {
-        out.turbid.extend_from_slice(need(e.material)?);
+    // ε B at an element's own temperature when its key's temperature follows illumination
+    // (`sunlit_temperatures_k`), else its material's (`per_mat`).
+    let mut at_f = LitPlanck::new(run, info, mats, &eps_mat);
+    for (k, e) in grid.turbid.iter().enumerate() {
+        match lit.and_then(|l| at_f.get(e.material, l.turbid[k])) {
+            Some(v) => out.turbid.extend_from_slice(&v?),
+            None => out.turbid.extend_from_slice(need(e.material)?),
+        }
     }
     let under_building = |q: glam::DVec2| {
         footprints
@@ -263,7 +306,11 @@ fn thermal_sources(
         if buried {
             out.facet.extend(std::iter::repeat_n(0.0, nb));
         } else {
-            out.facet.extend_from_slice(need(f.material)?);
+            let i = out.facet.len() / nb.max(1);
+            match lit.and_then(|l| at_f.get(f.material, l.facet[i])) {
+                Some(v) => out.facet.extend_from_slice(&v?),
+                None => out.facet.extend_from_slice(need(f.material)?),
+            }
         }
     }
     if let Some(g) = flat_ground {
@@ -278,13 +325,162 @@ fn thermal_sources(
                 .sum::<f64>()
                 / (dx * dy);
             let open = (1.0 - covered).clamp(0.0, 1.0);
-            out.ground.extend(eb.iter().map(|v| v * open));
+            match lit.and_then(|l| at_f.get(g, l.ground[c])) {
+                Some(v) => out.ground.extend(v?.iter().map(|v| v * open)),
+                None => out.ground.extend(eb.iter().map(|v| v * open)),
+            }
         }
     }
     if let Some(t) = run.desc.sky_temperature_k {
         out.sky = planck(t)?;
     }
     Ok(out)
+}
+
+/// The directly lit fraction of every element (for `sunlit_temperatures_k`), from a
+/// launch-only pass of the sun (no sky, no scattering): per turbid entry the direct power it
+/// intercepted over `E⊥ G(Ω_s) u V` (the mean transmittance of the direct beam over its
+/// leaves), per facet over `E⊥ A |n·Ω_s| (1 − T_dir^{1/|μ|})` (its lit area share), per
+/// flat-ground column over `E_h a`; clamped to [0, 1].
+struct SunlitFractions {
+    turbid: Vec<f64>,
+    facet: Vec<f64>,
+    ground: Vec<f64>,
+}
+
+/// Step of [`track_flux`]: [`SunlitFractions`] of the launch-only result `r` of `inp`.
+fn sunlit_fractions(
+    inp: &RadiativeInput,
+    r: &crate::radiative::engine::RadiativeResult,
+) -> SunlitFractions {
+    let w = r.n_channels;
+    // The first band the sun lights (the fractions are geometric: any band gives them).
+    let b = inp.e_dir.iter().position(|&e| e > 0.0);
+    let mu_s = (-inp.sun.z).max(1e-12);
+    let spec = inp.spec;
+    let frac = |x: f64, full: f64| {
+        if full > 0.0 {
+            (x / full).clamp(0.0, 1.0)
+        } else {
+            0.0
+        }
+    };
+    let Some(b) = b else {
+        return SunlitFractions {
+            turbid: vec![0.0; inp.grid.turbid.len()],
+            facet: vec![0.0; inp.facets.len()],
+            ground: vec![0.0; spec.n[0] * spec.n[1]],
+        };
+    };
+    let e_perp = inp.e_dir[b] / mu_s;
+    let vol = spec.cell.x * spec.cell.y * spec.cell.z;
+    let turbid = inp
+        .grid
+        .turbid
+        .iter()
+        .enumerate()
+        .map(|(k, e)| {
+            let g = match &inp.optics[e.material as usize] {
+                TrackOptics::Turbid { g, .. } => g.last().copied().unwrap_or(0.5),
+                _ => 0.0,
+            };
+            frac(
+                r.intercepted_turbid[k * w + b],
+                e_perp * g * e.density as f64 * vol,
+            )
+        })
+        .collect();
+    let facet = inp
+        .facets
+        .iter()
+        .enumerate()
+        .map(|(i, f)| {
+            let n2 = (f.v[1] - f.v[0]).cross(f.v[2] - f.v[0]);
+            let mu = n2.normalize_or(glam::DVec3::Z).dot(inp.sun).abs();
+            let open = match &inp.optics[f.material as usize] {
+                TrackOptics::Lambert { t_dir, .. } => {
+                    let t = t_dir.get(b).copied().unwrap_or(0.0);
+                    if t > 0.0 {
+                        1.0 - t.powf(1.0 / mu.max(1e-12))
+                    } else {
+                        1.0
+                    }
+                }
+                _ => 1.0,
+            };
+            frac(
+                r.intercepted_facet[i * w + b],
+                e_perp * 0.5 * n2.length() * mu * open,
+            )
+        })
+        .collect();
+    let a = spec.cell.x * spec.cell.y;
+    let ground = (0..spec.n[0] * spec.n[1])
+        .map(|c| frac(r.intercepted_ground[c * w + b], inp.e_dir[b] * a))
+        .collect();
+    SunlitFractions {
+        turbid,
+        facet,
+        ground,
+    }
+}
+
+/// `ε B(T(f))` per band for materials whose key's temperature follows illumination, cached
+/// per (material, f to 1e-4).
+struct LitPlanck<'a> {
+    run: &'a ThermalRun,
+    info: &'a SceneInfo,
+    mats: &'a Materials,
+    eps: &'a [Option<Vec<f64>>],
+    cache: HashMap<(u32, u32), Vec<f64>>,
+}
+
+impl<'a> LitPlanck<'a> {
+    fn new(
+        run: &'a ThermalRun,
+        info: &'a SceneInfo,
+        mats: &'a Materials,
+        eps: &'a [Option<Vec<f64>>],
+    ) -> Self {
+        LitPlanck {
+            run,
+            info,
+            mats,
+            eps,
+            cache: HashMap::new(),
+        }
+    }
+
+    /// `ε B` of material `m` lit over fraction `f`; `Ok(None)` when its key's temperature does
+    /// not follow illumination.
+    fn get(&mut self, m: u32, f: f64) -> Option<Result<Vec<f64>, String>> {
+        let mat = &self.mats.list[m as usize];
+        let key = mat.name.split('@').next().unwrap_or(&mat.name);
+        if !self.run.desc.sunlit_temperatures_k.contains_key(key) {
+            return None;
+        }
+        let eps = self.eps[m as usize].as_ref()?;
+        let q = (f.clamp(0.0, 1.0) * 1e4).round() as u32;
+        if let Some(v) = self.cache.get(&(m, q)) {
+            return Some(Ok(v.clone()));
+        }
+        let t = self.run.desc.temperature_at(key, q as f64 * 1e-4)?;
+        let v: Result<Vec<f64>, String> = self
+            .info
+            .band_responses
+            .iter()
+            .zip(eps)
+            .map(|(r, e)| {
+                crate::physics::thermal::band_planck(r, t)
+                    .map(|b| e.max(0.0) * b)
+                    .map_err(|e| format!("{}: thermal: {e}", self.info.source.display()))
+            })
+            .collect();
+        if let Ok(v) = &v {
+            self.cache.insert((m, q), v.clone());
+        }
+        Some(v)
+    }
 }
 
 /// Step of [`track_flux`]: the RPV / Hapke tables of the flat ground (one facet table per band

@@ -1709,6 +1709,12 @@ const SECTIONS_AND_SYNTAX: &[Case] = &[
         "thermal.temperatures_k",
     ),
     c(
+        "thermal_sunlit_and_fixed",
+        "version: 1,",
+        "version: 1, thermal: (mode: T, temperatures_k: {\"soil\": 300.0}, sunlit_temperatures_k: {\"soil\": (290.0, 310.0)}, default_temperature_k: Some(300.0)),",
+        "thermal.sunlit_temperatures_k.soil",
+    ),
+    c(
         "thermal_missing_mode",
         "version: 1,",
         "version: 1, thermal: (default_temperature_k: Some(300.0)),",

@@ -182,6 +182,7 @@ impl OpticsFlags {
         Ok(Some(ThermalDesc {
             mode,
             temperatures_k,
+            sunlit_temperatures_k: Default::default(),
             default_temperature_k: None,
             sky_temperature_k: self.sky_temperature_k,
         }))

@@ -17,6 +17,14 @@ pub struct ThermalDesc {
     /// key's). Keys must exist in `optics`.
     #[serde(default)]
     pub temperatures_k: BTreeMap<String, f64>,
+    /// Illumination-driven temperatures per optics key, `(shaded, sunlit)` K (DART assigns
+    /// temperatures from illumination): each element made of the key gets `shaded + f
+    /// (sunlit − shaded)`, f the fraction of it the direct sun reaches (turbid leaves: the
+    /// mean of the direct beam's transmittance over the cell's leaves; facets and ground
+    /// columns: the lit share of their area), from a sun-only pass of the scene's sun. A key
+    /// is in `temperatures_k` or here, not both.
+    #[serde(default, skip_serializing_if = "BTreeMap::is_empty")]
+    pub sunlit_temperatures_k: BTreeMap<String, (f64, f64)>,
     /// Temperature of every optics key not in `temperatures_k`, K. Without it every key used
     /// by an emitting element needs a temperature.
     #[serde(default, skip_serializing_if = "Option::is_none")]
@@ -71,6 +79,16 @@ impl ThermalDesc {
         self.temperatures_k
             .get(key)
             .copied()
+            .or_else(|| self.sunlit_temperatures_k.get(key).map(|p| p.0))
             .or(self.default_temperature_k)
+    }
+
+    /// The temperature of an element made of `key` lit over a fraction `f` ∈ [0, 1] by the
+    /// direct sun, K: its `sunlit_temperatures_k` interpolation, else [`Self::temperature_of`].
+    pub fn temperature_at(&self, key: &str, f: f64) -> Option<f64> {
+        match self.sunlit_temperatures_k.get(key) {
+            Some(&(shaded, sunlit)) => Some(shaded + f.clamp(0.0, 1.0) * (sunlit - shaded)),
+            None => self.temperature_of(key),
+        }
     }
 }

@@ -57,6 +57,24 @@ impl V<'_> {
             }
             check_t(f, t)?;
         }
+        for (key, &(shaded, sunlit)) in &th.sunlit_temperatures_k {
+            let f = format!("thermal.sunlit_temperatures_k.{key}");
+            if !self.desc.optics.contains_key(key) {
+                return Err(self
+                    .src
+                    .invalid(f, format!("`{key}` is not a key of `optics`")));
+            }
+            if th.temperatures_k.contains_key(key) {
+                return Err(self.src.invalid(
+                    f,
+                    format!(
+                        "`{key}` also has a temperature in `temperatures_k`: give one of the two"
+                    ),
+                ));
+            }
+            check_t(f.clone(), shaded)?;
+            check_t(f, sunlit)?;
+        }
         if let Some(t) = th.default_temperature_k {
             check_t("thermal.default_temperature_k".into(), t)?;
         }
