@@ -10,6 +10,7 @@ pub mod images;
 #[cfg(target_arch = "x86_64")]
 pub mod lanes;
 pub mod products;
+pub mod thermal;
 pub mod toa;
 mod walk;
 
