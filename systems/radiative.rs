@@ -157,7 +157,7 @@ pub fn track_flux(
 /// element's optics key (a material derived from a key, `key@objects[i]`, takes the key's),
 /// ε Kirchhoff's `1 − ρ_L − τ_L` (turbid leaves), `1 − R − T_d` (Lambertian facets) or
 /// `1 − ρ` (Lambertian ground); the thermal sky `B(T_sky)`.
-fn thermal_sources(
+pub(crate) fn thermal_sources(
     run: &ThermalRun,
     info: &SceneInfo,
     mats: &Materials,

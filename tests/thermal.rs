@@ -305,8 +305,9 @@ fn hard_cases_stay_finite_and_closed() {
     assert!(closure < 1e-9);
 }
 
-/// Refusals: a thermal mode with RPV/Hapke surfaces (their emissivity is not modelled yet)
-/// and with the Monte Carlo solver (no emission there yet) — clear errors naming the field.
+/// Refusals: a thermal mode with RPV/Hapke surfaces (their emissivity is not modelled yet) —
+/// a clear error naming the field. (The Monte Carlo solver runs thermal modes:
+/// tests/thermal_mc.rs.)
 #[test]
 fn thermal_refuses_what_it_does_not_model() {
     let mut d = layer(1.0, (0.03, 0.02), 0.05, 0.5);
@@ -325,22 +326,6 @@ fn thermal_refuses_what_it_does_not_model() {
         .unwrap_err()
         .to_string();
     assert!(e.contains("optics.road") && e.contains("RPV"), "{e}");
-    d.optics.remove("road");
-    let settings = lumenscape::resources::scene::RunSettings {
-        solver: lumenscape::resources::scene::Solver::MonteCarlo {
-            photons: 1000,
-            sampler: lumenscape::photon::engine::SamplerKind::Continuous,
-        },
-        ..Default::default()
-    };
-    let e = lumenscape::simulation::Simulation::from_desc(&d, &src, settings)
-        .err()
-        .expect("refused")
-        .to_string();
-    assert!(
-        e.contains("thermal.mode") && e.contains("flux-tracking"),
-        "{e}"
-    );
 }
 
 /// `generate turbid-layer --mode t --leaf-temperature-k … --soil-temperature-k …` writes a

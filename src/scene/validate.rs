@@ -12,8 +12,8 @@ use std::path::{Path, PathBuf};
 mod atmosphere;
 mod lidar;
 mod objects;
-mod thermal;
 mod sensor;
+mod thermal;
 pub use sensor::MAX_SENSOR_PIXELS;
 
 /// The text a scene came from, to turn field paths into line numbers.
