@@ -6,18 +6,22 @@
 //! Reads GridSpec, CellGrid, FacetStore, Directions, OpticsTables (discrete samplers only),
 //! RunSettings, SceneInfo, Materials, TerrainRes, Ground, TurbidCrown, TurbidPlot, ImportedMesh,
 //! the Atmosphere when the scene has one (sun photons then start at its top and the products
-//! gain the TOA block) and SensorInstruments (optional); writes RadiativeProducts and, with
-//! sensors, SensorProducts.
+//! gain the TOA block), SensorInstruments (optional) and ThermalRun (`T` and `R+T` modes:
+//! a thermal run of emission photons, joined with the solar run in `R+T`, issue #34); writes
+//! RadiativeProducts and, with sensors, SensorProducts.
 
 use crate::components::{Ground, ImportedMesh, TurbidCrown, TurbidPlot};
 use crate::photon::engine::{PhotonAtmosphere, PhotonInput, PhotonOptics, PhotonParams, run};
 use crate::photon::material_optics::{LadCache, build_photon_optics};
-use crate::photon::products::photon_products;
+use crate::photon::products::{join_thermal_products, photon_products, thermal_photon_products};
 use crate::photon::sensors::{CameraSpec, sensor_products};
+use crate::radiative::thermal::thermal_sources;
 use crate::resources::facets::FacetStore;
 use crate::resources::grid::{CellGrid, GridSpec};
 use crate::resources::materials::Materials;
-use crate::resources::scene::{RunSettings, SceneInfo, Solver, StageErrors, TerrainRes};
+use crate::resources::scene::{
+    RunSettings, SceneInfo, Solver, StageErrors, TerrainRes, ThermalRun,
+};
 use crate::resources::sensors::SensorInstruments;
 use crate::resources::tracking::{Directions, OpticsTables};
 use crate::scene::desc::InstrumentDesc;
@@ -52,7 +56,12 @@ pub fn track_photons(
         ResMut<LadOpticsCache>,
         Option<Res<crate::resources::atmosphere::Atmosphere>>,
     ),
-    (sensors, mut commands): (Option<Res<SensorInstruments>>, Commands),
+    (sensors, thermal_run, buildings, mut commands): (
+        Option<Res<SensorInstruments>>,
+        Option<Res<ThermalRun>>,
+        Query<&crate::components::Building>,
+        Commands,
+    ),
 ) {
     let Solver::MonteCarlo { photons, sampler } = settings.solver else {
         return;
@@ -104,6 +113,96 @@ pub fn track_photons(
         .as_deref()
         .map(|s| camera_specs(s, &scene.band_names))
         .unwrap_or_default();
+    // Thermal emission (issue #34): ε B(T) per element, as in flux tracking.
+    let thermal = match thermal_run.as_deref() {
+        Some(t) => {
+            if atm.is_some() || !cams.is_empty() {
+                errors.0.push(format!(
+                    "{}: field `thermal.mode`: mode {} with the Monte Carlo solver runs without an atmosphere and sensors (not supported together yet)",
+                    info.source.display(),
+                    t.mode.name()
+                ));
+                return;
+            }
+            // Not in the Monte Carlo emission yet: a BRDF ground's directional emissivity and
+            // illumination-driven temperatures (flux tracking has both).
+            let brdf_ground = scene.flat_ground.is_some_and(|g| {
+                matches!(
+                    mats.list[g as usize].kind,
+                    crate::resources::materials::MaterialKind::Rpv(_)
+                        | crate::resources::materials::MaterialKind::Hapke(_)
+                )
+            });
+            if brdf_ground || !t.desc.sunlit_temperatures_k.is_empty() {
+                errors.0.push(format!(
+                    "{}: field `thermal`: mode {} with the Monte Carlo solver does not model {} yet (flux tracking does)",
+                    info.source.display(),
+                    t.mode.name(),
+                    if brdf_ground {
+                        "the emission of an RPV/Hapke ground"
+                    } else {
+                        "`sunlit_temperatures_k`"
+                    }
+                ));
+                return;
+            }
+            let footprints: Vec<_> = buildings.iter().map(|b| b.footprint.clone()).collect();
+            match thermal_sources(
+                t,
+                &info,
+                &mats,
+                (&grid, &facets, &spec),
+                scene.flat_ground,
+                &footprints,
+                None,
+            ) {
+                Ok(s) => Some(s),
+                Err(e) => {
+                    errors.0.push(e);
+                    return;
+                }
+            }
+        }
+        None => None,
+    };
+    let solar = thermal_run.as_deref().is_none_or(|t| t.mode.solar());
+    let thermal_products = thermal.as_ref().map(|th| {
+        let input = PhotonInput {
+            views: views.clone(),
+            e_dir: vec![0.0; nb],
+            e_diff: vec![0.0; nb],
+            thermal: Some(th),
+            ..photon_input(
+                &spec,
+                &grid,
+                &facets,
+                &dirs,
+                &scene,
+                &optics,
+                params.clone(),
+            )
+        };
+        let t0 = std::time::Instant::now();
+        let raw = run(&input);
+        let secs = t0.elapsed().as_secs_f64();
+        thermal_photon_products(
+            raw,
+            &params,
+            &dirs.set,
+            &view_dir,
+            &scene.band_names,
+            &info.band_responses,
+            scene.area_m2,
+            &scene.ground_facet,
+            secs,
+        )
+    });
+    if !solar {
+        if let Some(p) = thermal_products {
+            commands.insert_resource(p);
+        }
+        return;
+    }
     let input = PhotonInput {
         views,
         cameras: cams.iter().map(|c| c.camera.clone()).collect(),
@@ -132,7 +231,7 @@ pub fn track_photons(
             &scene.e_diff,
         ));
     }
-    commands.insert_resource(photon_products(
+    let products = photon_products(
         raw,
         &params,
         &dirs.set,
@@ -144,7 +243,18 @@ pub fn track_photons(
         &scene.ground_facet,
         secs,
         atm.as_ref().map(|a| &a.1[..]),
-    ));
+    );
+    commands.insert_resource(match thermal_products {
+        // R+T: the solar run joined with the thermal one.
+        Some(t) => join_thermal_products(
+            products,
+            t,
+            &scene.e_dir,
+            &scene.e_diff,
+            &info.band_responses,
+        ),
+        None => products,
+    });
 }
 
 /// The frame cameras of the scene's sensors, with the scene bands each records (all when its
@@ -197,6 +307,7 @@ pub fn photon_input<'a>(
         sun: dirs.sun,
         e_dir: vec![0.0],
         e_diff: vec![0.0],
+        thermal: None,
         params,
     }
 }

@@ -370,19 +370,6 @@ pub fn spawn_scene(
     });
     world.insert_resource(mats);
     if let Some(th) = desc.thermal.as_ref().filter(|t| t.mode.thermal()) {
-        let mc = world
-            .get_resource::<crate::resources::scene::RunSettings>()
-            .is_some_and(|s| s.solver.is_monte_carlo());
-        if mc {
-            return Err(SceneError::NotSupported {
-                at: src.at("thermal.mode"),
-                field: "thermal.mode".into(),
-                message: format!(
-                    "mode {} runs with the flux-tracking solver only (thermal emission is not in the Monte Carlo solver yet)",
-                    th.mode.name()
-                ),
-            });
-        }
         world.insert_resource(crate::resources::scene::ThermalRun {
             mode: th.mode,
             desc: th.clone(),

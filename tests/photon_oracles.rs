@@ -255,6 +255,7 @@ fn slab(
         sun: -sun_pos,
         e_dir: vec![1.0],
         e_diff: vec![0.0],
+        thermal: None,
         params: PhotonParams {
             fluid_peel_points: k_points,
             ..PhotonParams::new(photons, 11, SamplerKind::Continuous)

@@ -306,8 +306,9 @@ fn hard_cases_stay_finite_and_closed() {
     assert!(closure < 1e-9);
 }
 
-/// Refusals: a thermal mode with RPV/Hapke surfaces (their emissivity is not modelled yet)
-/// and with the Monte Carlo solver (no emission there yet) — clear errors naming the field.
+/// Refusals: a thermal mode with RPV/Hapke surfaces (their emissivity is not modelled yet) —
+/// a clear error naming the field. (The Monte Carlo solver runs thermal modes:
+/// tests/thermal_mc.rs.)
 #[test]
 fn thermal_refuses_what_it_does_not_model() {
     let mut d = layer(1.0, (0.03, 0.02), 0.05, 0.5);
@@ -326,22 +327,6 @@ fn thermal_refuses_what_it_does_not_model() {
         .unwrap_err()
         .to_string();
     assert!(e.contains("optics.road") && e.contains("RPV"), "{e}");
-    d.optics.remove("road");
-    let settings = lumenscape::resources::scene::RunSettings {
-        solver: lumenscape::resources::scene::Solver::MonteCarlo {
-            photons: 1000,
-            sampler: lumenscape::photon::engine::SamplerKind::Continuous,
-        },
-        ..Default::default()
-    };
-    let e = lumenscape::simulation::Simulation::from_desc(&d, &src, settings)
-        .err()
-        .expect("refused")
-        .to_string();
-    assert!(
-        e.contains("thermal.mode") && e.contains("flux-tracking"),
-        "{e}"
-    );
 }
 
 /// `generate turbid-layer --mode t --leaf-temperature-k … --soil-temperature-k …` writes a
@@ -556,4 +541,39 @@ fn sunlit_and_shaded_temperatures_follow_the_shadow() {
     let got = p.bands[0].thermal.as_ref().unwrap().emitted_w_m2_um;
     println!("emitted {got} vs {want}: {:.2e}", (got - want) / want);
     assert!(((got - want) / want).abs() < 1e-6, "{got} vs {want}");
+}
+
+/// What the Monte Carlo emission does not model yet is refused with the field named: an
+/// RPV ground's directional emissivity and illumination-driven temperatures.
+#[test]
+fn monte_carlo_refuses_brdf_grounds_and_sunlit_temperatures() {
+    let settings = || lumenscape::resources::scene::RunSettings {
+        solver: lumenscape::resources::scene::Solver::MonteCarlo {
+            photons: 1000,
+            sampler: lumenscape::photon::engine::SamplerKind::Continuous,
+        },
+        ..Default::default()
+    };
+    let src = lumenscape::scene::SceneSource::generated();
+    let mut d = layer(1.0, (0.03, 0.02), 0.05, 0.5);
+    let mut th = thermal(RunMode::T, Some(300.0), &[], None);
+    th.sunlit_temperatures_k
+        .insert("vegetation".into(), (295.0, 305.0));
+    d.thermal = Some(th);
+    let mut sim = lumenscape::simulation::Simulation::from_desc(&d, &src, settings()).unwrap();
+    let e = sim.run(None).err().expect("refused").to_string();
+    assert!(e.contains("sunlit_temperatures_k"), "{e}");
+    d.thermal = Some(thermal(RunMode::T, Some(300.0), &[], None));
+    d.optics.insert(
+        "soil".into(),
+        OpticsDesc::Rpv {
+            rho0: vec![0.1],
+            k: vec![0.8],
+            theta: vec![-0.1],
+            rho_c: None,
+        },
+    );
+    let mut sim = lumenscape::simulation::Simulation::from_desc(&d, &src, settings()).unwrap();
+    let e = sim.run(None).err().expect("refused").to_string();
+    assert!(e.contains("RPV/Hapke ground"), "{e}");
 }

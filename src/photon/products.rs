@@ -274,3 +274,156 @@ fn toa_products(
         })
         .collect()
 }
+
+/// The products of a Monte Carlo thermal run (`T` mode, issue #34; channels `[sun (zero),
+/// thermal]`): the flux tracking's thermal products ([`RadiativeProducts::with_thermal`]:
+/// radiance and brightness temperature per upward direction, thermal budget), with the
+/// radiance of every view direction from the peel-off tallies, `L_v = I_v / (A μ_v)` (I_v in
+/// W sr⁻¹ per spectral unit, A the scene area), the escape-counting sector mean
+/// `W_j / (A ∫_{ΔΩ_j} μ dΩ)` elsewhere, and their standard errors from the batches.
+/// `responses`: the bands' spectral responses (brightness temperatures).
+#[allow(clippy::too_many_arguments)]
+pub fn thermal_photon_products(
+    res: PhotonResult,
+    params: &PhotonParams,
+    dirs: &DirectionSet,
+    view_dir: &[usize],
+    band_names: &[String],
+    responses: &[crate::physics::spectral::SpectralBand],
+    area: f64,
+    ground_facet: &[bool],
+    seconds: f64,
+) -> RadiativeProducts {
+    let nb = res.n_bands;
+    let w = res.n_channels;
+    let zeros = vec![0.0; nb];
+    let peel = res.peel.clone();
+    let batches = res.batch_summaries.clone();
+    let sm = res.summary.clone();
+    let (roulette, lost, source) = (res.roulette.clone(), res.lost.clone(), res.source.clone());
+    let sky = res.thermal_sky_source.clone();
+    let mut p = photon_products(
+        res,
+        params,
+        dirs,
+        view_dir,
+        band_names,
+        area,
+        &zeros,
+        &zeros,
+        ground_facet,
+        seconds,
+        None,
+    );
+    p.raw.has_thermal = true;
+    p.raw.thermal_sky_source = sky;
+    let mut p = p.with_thermal(
+        crate::scene::desc::RunMode::T,
+        dirs,
+        responses,
+        area,
+        glam::DVec3::Z,
+    );
+    let tiling = dirs.tiling();
+    for b in 0..nb {
+        let ch = nb + b;
+        let bp = &mut p.bands[b];
+        // No reflectance in a T run (its solar fractions are NaN, null in JSON).
+        bp.albedo_se = None;
+        bp.fabs_se = None;
+        bp.fabs_ground_se = None;
+        bp.ftran_se = None;
+        if let Some(t) = bp.thermal.as_mut() {
+            t.exitance_se_w_m2_um = Some(se_of(&batches, |s| s[sm.escaped(ch)]) / area);
+        }
+        let mut entry = 0;
+        for (j, d) in tiling.iter().enumerate() {
+            if d.omega.z <= 0.0 {
+                continue;
+            }
+            let Some(e) = bp.radiance.get_mut(entry) else {
+                break;
+            };
+            entry += 1;
+            match view_dir.iter().position(|&x| x == j) {
+                Some(v) => {
+                    let f = 1.0 / (area * d.omega.z);
+                    e.radiance_w_m2_sr_um = peel[v * w + ch] * f;
+                    e.radiance_se_w_m2_sr_um = Some(se_of(&batches, |s| s[sm.view(v, ch)]) * f);
+                    e.brightness_temperature_k = responses.get(b).map_or(0.0, |r| {
+                        crate::physics::thermal::band_brightness_temperature(
+                            r,
+                            e.radiance_w_m2_sr_um,
+                        )
+                        .unwrap_or(0.0)
+                    });
+                }
+                None => {
+                    let f = 1.0 / (area * d.projected_sr);
+                    e.radiance_se_w_m2_sr_um = Some(se_of(&batches, |s| s[sm.dir(j, ch)]) * f);
+                }
+            }
+        }
+    }
+    if let Some(mc) = p.monte_carlo.as_mut() {
+        mc.roulette_balance = (0..nb).map(|b| roulette[nb + b] / source[nb + b]).collect();
+        mc.lost = (0..nb).map(|b| lost[nb + b] / source[nb + b]).collect();
+    }
+    p
+}
+
+/// The products of a Monte Carlo `R+T` run (issue #34): the solar run's products (`solar`,
+/// [`photon_products`]) joined with the thermal run's (`thermal`, [`thermal_photon_products`];
+/// independent photon streams), like the flux tracking's
+/// ([`RadiativeResult::with_thermal_of`]): per upward direction the total radiance is the
+/// thermal one plus the solar one, `HDRF (E_dir + E_diff)/π` (`BRF E_dir/π` without a sky),
+/// their standard errors added in quadrature; the thermal budget is the thermal run's.
+pub fn join_thermal_products(
+    solar: RadiativeProducts,
+    thermal: RadiativeProducts,
+    e_dir: &[f64],
+    e_diff: &[f64],
+    responses: &[crate::physics::spectral::SpectralBand],
+) -> RadiativeProducts {
+    let mut p = solar;
+    let raw = std::mem::take(&mut p.raw);
+    p.raw = raw.with_thermal_of(thermal.raw.clone());
+    p.mode = crate::scene::desc::RunMode::RT.name();
+    for (b, tb) in thermal.bands.iter().enumerate() {
+        let e_tot = e_dir[b] + e_diff.get(b).copied().unwrap_or(0.0);
+        let radiance = tb
+            .radiance
+            .iter()
+            .zip(&p.bands[b].brf)
+            .map(|(t, r)| {
+                let (sol, sol_se) = match r.hdrf {
+                    Some(h) => (h * e_tot / PI, r.hdrf_se.unwrap_or(0.0) * e_tot / PI),
+                    None => (
+                        r.brf * e_dir[b] / PI,
+                        r.brf_se.unwrap_or(0.0) * e_dir[b] / PI,
+                    ),
+                };
+                let th = t.radiance_w_m2_sr_um;
+                let total = th + sol;
+                let se = t.radiance_se_w_m2_sr_um.unwrap_or(0.0).hypot(sol_se);
+                let mut e = t.clone();
+                e.radiance_w_m2_sr_um = total;
+                e.radiance_se_w_m2_sr_um = Some(se);
+                e.thermal_radiance_w_m2_sr_um = Some(th);
+                e.solar_radiance_w_m2_sr_um = Some(sol);
+                e.brightness_temperature_k = responses.get(b).map_or(0.0, |r| {
+                    crate::physics::thermal::band_brightness_temperature(r, total).unwrap_or(0.0)
+                });
+                e
+            })
+            .collect();
+        p.bands[b].radiance = radiance;
+        p.bands[b].thermal = tb.thermal.clone();
+    }
+    if let (Some(a), Some(t)) = (p.monte_carlo.as_mut(), thermal.monte_carlo.as_ref()) {
+        a.photons += t.photons;
+        a.events += t.events;
+    }
+    p.tracking_seconds += thermal.tracking_seconds;
+    p
+}

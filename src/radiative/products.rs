@@ -117,6 +117,10 @@ pub struct RadianceEntry {
     /// `R+T`: the solar part (reflected sun and sky).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub solar_radiance_w_m2_sr_um: Option<f64>,
+    /// Monte Carlo: the standard error of `radiance_w_m2_sr_um` (spread of the batch
+    /// estimates), W m⁻² sr⁻¹ µm⁻¹.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub radiance_se_w_m2_sr_um: Option<f64>,
 }
 
 /// The thermal channels' budget of one band, per unit horizontal scene area, W m⁻² µm⁻¹.
@@ -136,6 +140,9 @@ pub struct ThermalBudget {
     pub lost_w_m2_um: f64,
     /// |1 − (absorbed + escaped + lost + remaining) / (emitted + sky)|.
     pub energy_closure: f64,
+    /// Monte Carlo: the standard error of `exitance_w_m2_um` (spread of the batch estimates).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub exitance_se_w_m2_um: Option<f64>,
 }
 
 /// The Radiative stage's products.
@@ -413,6 +420,7 @@ impl RadiativeProducts {
                     brightness_temperature_k: bt,
                     thermal_radiance_w_m2_sr_um: (mode.solar()).then_some(thermal),
                     solar_radiance_w_m2_sr_um: (mode.solar()).then_some(solar),
+                    radiance_se_w_m2_sr_um: None,
                 });
             }
             let band = &mut self.bands[b];
@@ -425,6 +433,7 @@ impl RadiativeProducts {
                 absorbed_ground_w_m2_um: (ground + ground_facets) / area,
                 lost_w_m2_um: lost / area,
                 energy_closure: closure,
+                exitance_se_w_m2_um: None,
             });
             if !mode.solar() {
                 band.brf.clear();

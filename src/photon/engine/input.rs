@@ -274,6 +274,10 @@ pub struct PhotonInput<'a> {
     pub e_dir: Vec<f64>,
     /// Diffuse sky irradiance on a horizontal plane per band (isotropic sky).
     pub e_diff: Vec<f64>,
+    /// Thermal emission (issue #34): `ε B(T)` per element and band and the thermal sky
+    /// radiance. `Some`: a thermal run (emission and thermal sky photons on the thermal
+    /// channels `nb..2 nb`; `e_dir` and `e_diff` must be zero, see [`super::emission`]).
+    pub thermal: Option<&'a crate::radiative::engine::ThermalSources>,
     /// Parameters.
     pub params: PhotonParams,
 }

@@ -50,7 +50,8 @@
 //! * `events`: band-weighted event choice, Russian roulette, BRDF events, far-photon
 //!   roulette.
 //! * `trace`: one photon's history from its entry to its escape, loss or death.
-//! * `passive`: the passive (sun and sky) run over seeded batches.
+//! * `passive`: the passive (sun and sky) run over seeded batches; [`emission`]: the thermal
+//!   emission photons of a thermal run (issue #34).
 //! * `tally`: per-batch accumulators and the receiver tally interface (`ReturnTally`)
 //!   that the LiDAR pulse tracking (`lidar::tracking`, which depends on this engine, never the
 //!   reverse) books its waveforms through.
@@ -58,6 +59,7 @@
 pub mod atmosphere;
 pub(crate) mod camera;
 pub(crate) mod context;
+pub mod emission;
 pub(crate) mod events;
 pub(crate) mod flight;
 pub mod input;
@@ -75,6 +77,7 @@ pub use atmosphere::PhotonAtmosphere;
 #[cfg(debug_assertions)]
 pub use context::COLUMN_RETURNS;
 pub use context::Receiver;
+pub use emission::THERMAL_STREAM;
 pub use events::FAR_ROULETTE_CELLS;
 pub use input::{
     DiscreteRows, FluidField, FluidMaterial, PhotonInput, PhotonOptics, PhotonParams, RowSampler,

@@ -1,8 +1,10 @@
 //! The passive Monte Carlo run (DART 5 paper §4; Gastellu-Etchegorry et al. 2016, eqs. 1–3):
 //! sun and sky photons in seeded batches (one `Xoshiro256PlusPlus` stream per batch), merged in
-//! batch order into a [`PhotonResult`] with standard errors.
+//! batch order into a [`PhotonResult`] with standard errors; in a thermal run, emission and
+//! thermal sky photons instead ([`super::emission`]).
 
 use super::context::{Bands, Ctx, Photon};
+use super::emission::{EmissionTable, Emitter, THERMAL_STREAM, launch_emission};
 use super::input::PhotonInput;
 use super::result::PhotonResult;
 use super::tally::{Acc, BatchOut};
@@ -16,10 +18,13 @@ use std::collections::HashMap;
 pub fn run(inp: &PhotonInput) -> PhotonResult {
     let spec = inp.spec;
     let nb = inp.e_dir.len();
-    let has_sky = inp.e_diff.iter().any(|&e| e > 0.0);
-    let w = nb * if has_sky { 2 } else { 1 };
+    // A thermal run (issue #34): channels [sun (zero), thermal]; its sky is the thermal one.
+    let thermal = inp.thermal.is_some();
+    let has_sky = !thermal && inp.e_diff.iter().any(|&e| e > 0.0);
+    let w = nb * if has_sky || thermal { 2 } else { 1 };
     let n_dirs = inp.dirs.tiling().len();
     let ctx = Ctx::new(inp, nb, w);
+    let table = EmissionTable::new(&ctx);
     let area = ctx.size.0 * ctx.size.1;
     let mut source = vec![0.0; w];
     for b in 0..nb {
@@ -33,6 +38,9 @@ pub fn run(inp: &PhotonInput) -> PhotonResult {
         if has_sky {
             source[nb + b] = inp.e_diff[b] * area;
         }
+        if thermal {
+            source[nb + b] = table.emitted[b] + table.sky[b];
+        }
     }
     let n_batches = inp.params.batches.max(1) as u64;
     let per_batch = inp.params.photons.div_ceil(n_batches).max(1);
@@ -43,6 +51,8 @@ pub fn run(inp: &PhotonInput) -> PhotonResult {
         n_channels: w,
         n_bands: nb,
         has_sky,
+        has_thermal: thermal,
+        thermal_sky_source: table.sky.clone(),
         source: source.clone(),
         escaped: vec![0.0; n_dirs * w],
         peel: vec![0.0; inp.views.len() * w],
@@ -69,7 +79,13 @@ pub fn run(inp: &PhotonInput) -> PhotonResult {
         let b1 = (b0 + wave).min(n_batches);
         let outs: Vec<BatchOut> = (b0..b1)
             .into_par_iter()
-            .map(|b| run_batch(&ctx, b, per_batch, &source))
+            .map(|b| {
+                if thermal {
+                    run_thermal_batch(&ctx, &table, b, per_batch)
+                } else {
+                    run_batch(&ctx, b, per_batch, &source)
+                }
+            })
             .collect();
         for o in outs {
             let s = &o.summary;
@@ -186,6 +202,65 @@ pub(crate) fn run_batch(ctx: &Ctx, batch: u64, n: u64, source: &[f64]) -> BatchO
         {
             continue;
         }
+        trace_photon(
+            ctx,
+            &mut ph,
+            &mut rng,
+            &mut out,
+            &mut g_cur,
+            &mut scratch,
+            &mut tr,
+        );
+    }
+    book_summaries(ctx, &mut out);
+    out
+}
+
+/// One batch of `n` photons of a thermal run (stream `batch` of the run's seed under
+/// [`THERMAL_STREAM`]): each photon picks an emitting element or the sky from `table`
+/// (probability ∝ its band-summed power), is launched from it ([`launch_emission`], or like a
+/// solar sky photon on the thermal channels) and traced.
+pub(crate) fn run_thermal_batch(ctx: &Ctx, table: &EmissionTable, batch: u64, n: u64) -> BatchOut {
+    let inp = ctx.inp;
+    let nb = ctx.nb;
+    let mut out = new_batch_out(ctx);
+    if table.total() <= 0.0 {
+        return out;
+    }
+    let mut rng = crate::random::stream(inp.params.seed, THERMAL_STREAM, batch);
+    let n_total = (n * inp.params.batches.max(1) as u64) as f64;
+    let n_tur = ctx.tur_ids.len();
+    let mut g_cur = vec![0.0; n_tur];
+    let mut scratch = vec![0.0; nb];
+    let mut tr = vec![0.0; nb];
+    let mut wb = vec![0.0; nb];
+    let mut ph = new_photon(nb);
+    // The sky's source as `launch_photon` reads it: weights P_b / (q N) over N photons.
+    let mut sky_source = vec![0.0; 2 * nb];
+    for _ in 0..n {
+        let k = table.pick(rng.next_f64());
+        table.weights(k, n_total, nb, &mut wb);
+        // Per band the launched weight is random (elements differ in spectrum); its departure
+        // from the nominal share of the source goes to the weight balance (expectation 0), so
+        // the energy closes exactly.
+        for b in 0..nb {
+            out.roulette[nb + b] += (table.emitted[b] + table.sky[b]) / n_total - wb[b];
+        }
+        ph.order = 0;
+        ph.skip_facet = None;
+        ph.off = nb;
+        let el = table.elements[k];
+        let go = if matches!(el, Emitter::Sky) {
+            sky_source[nb..].copy_from_slice(&wb);
+            launch_photon(ctx, &mut ph, &mut rng, &mut out, &sky_source, true, 1.0)
+        } else {
+            ph.w.iter_mut().zip(&wb).for_each(|(w, x)| *w = *x);
+            launch_emission(ctx, el, &mut ph, &mut rng, &mut out, &mut scratch, &mut tr)
+        };
+        if !go {
+            continue;
+        }
+        ph.order = 0;
         trace_photon(
             ctx,
             &mut ph,

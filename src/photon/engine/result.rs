@@ -11,6 +11,11 @@ pub struct PhotonResult {
     pub n_bands: usize,
     /// Whether sky channels exist.
     pub has_sky: bool,
+    /// A thermal run (issue #34): channels `[sun (zero), thermal]`.
+    pub has_thermal: bool,
+    /// Thermal run: the sky's power through the top per band (part of the thermal
+    /// channels' `source`), W.
+    pub thermal_sky_source: Vec<f64>,
     /// Source power per channel, W.
     pub source: Vec<f64>,
     /// Escaped power per tiling direction `[dir][channel]`, W (escape counting).
