@@ -74,35 +74,36 @@ pub fn track_flux(
     // Thermal emission (issue #34): ε B(T) per element; a `T` run has no sun and solar sky.
     // Illumination-driven temperatures need each element's directly lit fraction first: a
     // launch-only pass of the sun.
+    let image_of = image_indices(&dirs);
+    let make_input = |e_dir: Vec<f64>, e_diff: Vec<f64>, thermal| RadiativeInput {
+        spec: &spec,
+        grid: &grid,
+        facets: &facets.facets,
+        facet_fractions: &fractions,
+        facet_brdf: &facet_brdf,
+        facet_tables: &facet_tables,
+        dirs: &dirs.set,
+        sector_of: &dirs.sector_of,
+        n_sectors: dirs.n_sectors,
+        optics: &optics,
+        image_of: &image_of,
+        image_oversampling: settings.image_oversampling,
+        flat_ground: flat_ground.clone(),
+        ground_brdf: ground_brdf.clone(),
+        sun: dirs.sun,
+        e_dir,
+        e_diff,
+        params: settings.tracking.clone(),
+        emitters: &[],
+        thermal,
+    };
     let lit = thermal_run
         .as_deref()
         .filter(|t| !t.desc.sunlit_temperatures_k.is_empty())
         .map(|_| {
-            let mut params = settings.tracking.clone();
-            params.max_iterations = 1;
-            params.progress = false;
-            let inp = RadiativeInput {
-                spec: &spec,
-                grid: &grid,
-                facets: &facets.facets,
-                facet_fractions: &fractions,
-                facet_brdf: &facet_brdf,
-                facet_tables: &facet_tables,
-                dirs: &dirs.set,
-                sector_of: &dirs.sector_of,
-                n_sectors: dirs.n_sectors,
-                optics: &optics,
-                image_of: &[],
-                image_oversampling: 1,
-                flat_ground: flat_ground.clone(),
-                ground_brdf: ground_brdf.clone(),
-                sun: dirs.sun,
-                e_dir: scene.e_dir.clone(),
-                e_diff: vec![0.0; nb],
-                params,
-                emitters: &[],
-                thermal: None,
-            };
+            let mut inp = make_input(scene.e_dir.clone(), vec![0.0; nb], None);
+            inp.params.max_iterations = 1;
+            inp.params.progress = false;
             sunlit_fractions(&inp, &run(&inp))
         });
     let thermal = match thermal_run.as_deref() {
@@ -131,29 +132,6 @@ pub fn track_flux(
         (scene.e_dir.clone(), scene.e_diff.clone())
     } else {
         (vec![0.0; nb], vec![0.0; nb])
-    };
-    let image_of = image_indices(&dirs);
-    let make_input = |e_dir: Vec<f64>, e_diff: Vec<f64>, thermal| RadiativeInput {
-        spec: &spec,
-        grid: &grid,
-        facets: &facets.facets,
-        facet_fractions: &fractions,
-        facet_brdf: &facet_brdf,
-        facet_tables: &facet_tables,
-        dirs: &dirs.set,
-        sector_of: &dirs.sector_of,
-        n_sectors: dirs.n_sectors,
-        optics: &optics,
-        image_of: &image_of,
-        image_oversampling: settings.image_oversampling,
-        flat_ground: flat_ground.clone(),
-        ground_brdf: ground_brdf.clone(),
-        sun: dirs.sun,
-        e_dir,
-        e_diff,
-        params: settings.tracking.clone(),
-        emitters: &[],
-        thermal,
     };
     let t0 = std::time::Instant::now();
     let raw = match (thermal.as_ref(), solar) {

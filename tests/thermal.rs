@@ -6,64 +6,18 @@
 
 mod common;
 
+use common::thermal_section as thermal;
 use common::*;
 use lumenscape::direction::ExactDirection;
 use lumenscape::physics::thermal::planck;
 use lumenscape::radiative::products::RadiativeProducts;
 use lumenscape::scene::desc::*;
-use lumenscape::scene::generators::BandOptics;
-use lumenscape::scene::generators::turbid_layer::{TurbidLayerParams, turbid_layer};
-use std::collections::BTreeMap;
-
-/// Thermal band used throughout, nm (monochromatic).
-const TIR_NM: f64 = 10_000.0;
 
 /// A turbid layer (spherical LAD, no hotspot) of leaf area index `lai` over a Lambertian soil,
 /// in one monochromatic thermal band, with `leaf` (r, t) and soil reflectance `soil`, cells of
 /// `cell` m, and two grazing exact views (85°, 89°) added to the generator's.
 fn layer(lai: f64, leaf: (f64, f64), soil: f64, cell: f64) -> SceneDesc {
-    let mut d = turbid_layer(&TurbidLayerParams {
-        lai,
-        bands: vec![BandOptics {
-            name: "tir".into(),
-            wavelength_nm: TIR_NM,
-            leaf_r: leaf.0,
-            leaf_t: leaf.1,
-            soil_r: soil,
-        }],
-        cell_m: cell,
-        ..Default::default()
-    });
-    no_hotspot(&mut d);
-    let dirs = d.directions.as_mut().expect("generator directions");
-    for z in [85.0, 89.0] {
-        dirs.exact.push(ExactDirection {
-            zenith_deg: z,
-            azimuth_deg: 30.0,
-            label: None,
-            solid_angle_sr: None,
-        });
-    }
-    d
-}
-
-/// `thermal` section: mode, one temperature for every key (or per key), a sky temperature.
-fn thermal(
-    mode: RunMode,
-    default_k: Option<f64>,
-    per_key: &[(&str, f64)],
-    sky_k: Option<f64>,
-) -> ThermalDesc {
-    ThermalDesc {
-        mode,
-        temperatures_k: per_key
-            .iter()
-            .map(|(k, t)| (k.to_string(), *t))
-            .collect::<BTreeMap<_, _>>(),
-        sunlit_temperatures_k: Default::default(),
-        default_temperature_k: default_k,
-        sky_temperature_k: sky_k,
-    }
+    tir_layer(lai, leaf, soil, cell, &[(85.0, 30.0), (89.0, 30.0)])
 }
 
 fn run(desc: &SceneDesc, preset: Option<Preset>) -> RadiativeProducts {
@@ -561,7 +515,7 @@ fn monte_carlo_refuses_brdf_grounds_and_sunlit_temperatures() {
         .insert("vegetation".into(), (295.0, 305.0));
     d.thermal = Some(th);
     let mut sim = lumenscape::simulation::Simulation::from_desc(&d, &src, settings()).unwrap();
-    let e = sim.run(None).err().expect("refused").to_string();
+    let e = sim.run(None).expect_err("refused").to_string();
     assert!(e.contains("sunlit_temperatures_k"), "{e}");
     d.thermal = Some(thermal(RunMode::T, Some(300.0), &[], None));
     d.optics.insert(
@@ -574,6 +528,6 @@ fn monte_carlo_refuses_brdf_grounds_and_sunlit_temperatures() {
         },
     );
     let mut sim = lumenscape::simulation::Simulation::from_desc(&d, &src, settings()).unwrap();
-    let e = sim.run(None).err().expect("refused").to_string();
+    let e = sim.run(None).expect_err("refused").to_string();
     assert!(e.contains("RPV/Hapke ground"), "{e}");
 }

@@ -7,6 +7,7 @@
 
 mod common;
 
+use common::thermal_section as thermal;
 use common::*;
 use lumenscape::direction::ExactDirection;
 use lumenscape::photon::engine::SamplerKind;
@@ -15,60 +16,19 @@ use lumenscape::radiative::products::{RadianceEntry, RadiativeProducts};
 use lumenscape::resources::scene::{RunSettings, Solver};
 use lumenscape::scene::SceneSource;
 use lumenscape::scene::desc::*;
-use lumenscape::scene::generators::BandOptics;
-use lumenscape::scene::generators::turbid_layer::{TurbidLayerParams, turbid_layer};
 use lumenscape::simulation::Simulation;
-use std::collections::BTreeMap;
-
-/// Thermal band used throughout, nm (monochromatic).
-const TIR_NM: f64 = 10_000.0;
 
 /// A turbid layer (spherical LAD, no hotspot) of leaf area index `lai` over a Lambertian soil
 /// in one monochromatic thermal band, leaf (r, t), soil reflectance, 0.5 m cells; exact views
 /// at 20°, 40°, 60° (azimuth 0) added to the generator's.
 fn layer(lai: f64, leaf: (f64, f64), soil: f64) -> SceneDesc {
-    let mut d = turbid_layer(&TurbidLayerParams {
+    tir_layer(
         lai,
-        bands: vec![BandOptics {
-            name: "tir".into(),
-            wavelength_nm: TIR_NM,
-            leaf_r: leaf.0,
-            leaf_t: leaf.1,
-            soil_r: soil,
-        }],
-        cell_m: 0.5,
-        ..Default::default()
-    });
-    no_hotspot(&mut d);
-    let dirs = d.directions.as_mut().expect("generator directions");
-    for z in [20.0, 40.0, 60.0] {
-        dirs.exact.push(ExactDirection {
-            zenith_deg: z,
-            azimuth_deg: 0.0,
-            label: None,
-            solid_angle_sr: None,
-        });
-    }
-    d
-}
-
-/// `thermal` section: mode, default temperature, per-key temperatures, sky temperature.
-fn thermal(
-    mode: RunMode,
-    default_k: Option<f64>,
-    per_key: &[(&str, f64)],
-    sky_k: Option<f64>,
-) -> ThermalDesc {
-    ThermalDesc {
-        mode,
-        temperatures_k: per_key
-            .iter()
-            .map(|(k, t)| (k.to_string(), *t))
-            .collect::<BTreeMap<_, _>>(),
-        sunlit_temperatures_k: Default::default(),
-        default_temperature_k: default_k,
-        sky_temperature_k: sky_k,
-    }
+        leaf,
+        soil,
+        0.5,
+        &[(20.0, 0.0), (40.0, 0.0), (60.0, 0.0)],
+    )
 }
 
 /// Runs the scene with the Monte Carlo solver (continuous sampler, `photons`).

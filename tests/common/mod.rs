@@ -333,3 +333,63 @@ pub fn lidar(name: &str, altitude_m: f64, pulses: PulsePattern, photons: u32) ->
         fusion: false,
     }
 }
+
+/// Thermal band of the thermal tests, nm (10 µm, monochromatic).
+pub const TIR_NM: f64 = 10_000.0;
+
+/// A turbid layer (spherical LAD, no hotspot) of leaf area index `lai` over a Lambertian soil
+/// in one monochromatic thermal band ([`TIR_NM`]), leaf `(r, t)`, soil reflectance `soil`,
+/// cells of `cell` m, with the exact views `(zenith, azimuth)` (degrees) added to the
+/// generator's.
+pub fn tir_layer(
+    lai: f64,
+    leaf: (f64, f64),
+    soil: f64,
+    cell: f64,
+    views: &[(f64, f64)],
+) -> SceneDesc {
+    use lumenscape::scene::generators::BandOptics;
+    use lumenscape::scene::generators::turbid_layer::{TurbidLayerParams, turbid_layer};
+    let mut d = turbid_layer(&TurbidLayerParams {
+        lai,
+        bands: vec![BandOptics {
+            name: "tir".into(),
+            wavelength_nm: TIR_NM,
+            leaf_r: leaf.0,
+            leaf_t: leaf.1,
+            soil_r: soil,
+        }],
+        cell_m: cell,
+        ..Default::default()
+    });
+    no_hotspot(&mut d);
+    let dirs = d.directions.as_mut().expect("generator directions");
+    for &(z, a) in views {
+        dirs.exact.push(lumenscape::direction::ExactDirection {
+            zenith_deg: z,
+            azimuth_deg: a,
+            label: None,
+            solid_angle_sr: None,
+        });
+    }
+    d
+}
+
+/// A `thermal` section: mode, default temperature, per-key temperatures, sky temperature.
+pub fn thermal_section(
+    mode: RunMode,
+    default_k: Option<f64>,
+    per_key: &[(&str, f64)],
+    sky_k: Option<f64>,
+) -> ThermalDesc {
+    ThermalDesc {
+        mode,
+        temperatures_k: per_key
+            .iter()
+            .map(|(k, t)| (k.to_string(), *t))
+            .collect::<BTreeMap<_, _>>(),
+        sunlit_temperatures_k: Default::default(),
+        default_temperature_k: default_k,
+        sky_temperature_k: sky_k,
+    }
+}
