@@ -322,6 +322,21 @@ fn generators_write_thermal_scenes() {
     assert_eq!(th.temperature_of("soil"), Some(310.0));
     let p = run(&d, None);
     assert!(!p.bands[0].radiance.is_empty());
+    // `run` writes the mode and the radiances into summary.json.
+    let out = dir.join("out");
+    let o = std::process::Command::new(bin)
+        .args([
+            "run",
+            path.to_str().unwrap(),
+            "--quiet",
+            "--out",
+            out.to_str().unwrap(),
+        ])
+        .output()
+        .unwrap();
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let summary = std::fs::read_to_string(out.join("summary.json")).unwrap();
+    assert!(summary.contains("\"mode\": \"T\"") && summary.contains("brightness_temperature_k"));
     std::fs::remove_dir_all(&dir).ok();
     for (args, needle) in [
         (&["--leaf-temperature-k", "300"][..], "--mode"),

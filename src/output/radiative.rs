@@ -115,6 +115,10 @@ fn write_summary(
                 .map(crate::output::sensors::summary_entry)
                 .collect();
     }
+    if p.mode != "R" {
+        // The run mode of a thermal run (`T`, `R+T`; issue #34); absent in solar-only runs.
+        summary["mode"] = serde_json::json!(p.mode);
+    }
     if let Some(m) = memory {
         summary["memory"] = m.record();
     }
