@@ -200,23 +200,7 @@ fn r_plus_t_is_r_and_t() {
 /// points; asserted 0.5 K, energy closed to 1e-12.
 #[test]
 fn isothermal_disk_canopy_closes_within_half_a_kelvin() {
-    let path = asset("assets/scenes/disk_canopy.ron");
-    let (mut d, _) = lumenscape::scene::load_scene(&path).unwrap();
-    d.bands[0].wavelength_nm = TIR_NM;
-    // Thermal-infrared optics: leaves r 0.02, t 0.01; soil 0.05.
-    for (k, o) in d.optics.iter_mut() {
-        match o {
-            OpticsDesc::BiLambertian {
-                reflectance,
-                transmittance,
-            } => {
-                *reflectance = vec![0.02];
-                *transmittance = vec![0.01];
-            }
-            OpticsDesc::Lambertian { reflectance, .. } => *reflectance = vec![0.05],
-            _ => assert_eq!(k, "vegetation"),
-        }
-    }
+    let mut d = tir_disk_canopy();
     d.thermal = Some(thermal(RunMode::T, Some(300.0), &[], Some(300.0)));
     let (worst, closure) = worst_bt(&run(&d, None), 300.0);
     println!("disk canopy: worst |BT − T| {worst:.3} K");

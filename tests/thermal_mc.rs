@@ -235,22 +235,7 @@ fn isothermal_disk_canopy_radiates_the_planck_radiance() {
     // Leaf optics: bi-Lambertian, then Lambertian with a direct transmittance (T_dir 0.3:
     // the emission's directional factor 1 − T_dir^{1/μ} and its integral I(T_dir)).
     for t_dir in [None, Some(0.3)] {
-        let path = asset("assets/scenes/disk_canopy.ron");
-        let (mut d, _) = lumenscape::scene::load_scene(&path).unwrap();
-        d.bands[0].wavelength_nm = TIR_NM;
-        for (k, o) in d.optics.iter_mut() {
-            match o {
-                OpticsDesc::BiLambertian {
-                    reflectance,
-                    transmittance,
-                } => {
-                    *reflectance = vec![0.02];
-                    *transmittance = vec![0.01];
-                }
-                OpticsDesc::Lambertian { reflectance, .. } => *reflectance = vec![0.05],
-                _ => assert_eq!(k, "vegetation"),
-            }
-        }
+        let mut d = tir_disk_canopy();
         if let Some(t) = t_dir {
             d.optics.insert(
                 "plate".into(),
@@ -306,7 +291,7 @@ fn r_plus_t_joins_the_solar_and_thermal_runs() {
     let t = run_mc(&d, 10_000);
     d.thermal = th(RunMode::R);
     let r = run_mc(&d, 10_000);
-    assert_eq!(rt.mode, "R+T");
+    assert_eq!(rt.mode, RunMode::RT);
     assert!(t.bands[0].brf.is_empty() && !rt.bands[0].brf.is_empty());
     assert_eq!(rt.bands[0].albedo, r.bands[0].albedo);
     for (k, e) in rt.bands[0].radiance.iter().enumerate() {
@@ -374,16 +359,21 @@ fn two_band_thermal_budget_closes() {
     let mut t = d.clone();
     t.thermal.as_mut().unwrap().mode = RunMode::T;
     let ft = run_radiative(&t, None);
-    for (desc, mode) in [(&t, "T"), (&d, "R+T")] {
+    for (desc, mode) in [(&t, RunMode::T), (&d, RunMode::RT)] {
         let p = run_mc(desc, 5_000);
         assert_eq!(p.mode, mode);
         for (b, band) in p.bands.iter().enumerate() {
             let th = band.thermal.as_ref().unwrap();
             let f = ft.bands[b].thermal.as_ref().unwrap();
-            println!("{mode} band {b}: closure {:.1e}", th.energy_closure);
+            println!(
+                "{} band {b}: closure {:.1e}",
+                mode.name(),
+                th.energy_closure
+            );
             assert!(
                 th.energy_closure <= 1e-9,
-                "{mode} band {b}: {}",
+                "{} band {b}: {}",
+                mode.name(),
                 th.energy_closure
             );
             assert!((th.sky_w_m2_um - f.sky_w_m2_um).abs() <= 1e-9 * f.sky_w_m2_um);

@@ -36,7 +36,7 @@ pub fn write_radiative(
         write_brf_csv(dir, p)?;
     }
     // The budget files are solar (per unit incident sun and sky power): none in a `T` run.
-    if wants("budget") && p.mode != "T" {
+    if wants("budget") && p.mode.solar() {
         std::fs::create_dir_all(dir.join("budget"))
             .map_err(|e| format!("{}: cannot create output folder: {e}", dir.display()))?;
         write_budget(dir, p, info, spec, grid, facets, mats)?;
@@ -115,9 +115,9 @@ fn write_summary(
                 .map(crate::output::sensors::summary_entry)
                 .collect();
     }
-    if p.mode != "R" {
+    if p.mode.thermal() {
         // The run mode of a thermal run (`T`, `R+T`; issue #34); absent in solar-only runs.
-        summary["mode"] = serde_json::json!(p.mode);
+        summary["mode"] = serde_json::json!(p.mode.name());
     }
     if let Some(m) = memory {
         summary["memory"] = m.record();
@@ -458,7 +458,7 @@ fn write_images(
             continue;
         }
         let mut channels: Vec<(String, Vec<f64>)> = Vec::new();
-        let solar = p.mode != "T";
+        let solar = p.mode.solar();
         for b in 0..nb.min(if solar { nb } else { 0 }) {
             let mut brf = vec![0.0; npx];
             let mut hdrf = vec![0.0; npx];

@@ -388,7 +388,7 @@ pub fn join_thermal_products(
     let mut p = solar;
     let raw = std::mem::take(&mut p.raw);
     p.raw = raw.with_thermal_of(thermal.raw.clone());
-    p.mode = crate::scene::desc::RunMode::RT.name();
+    p.mode = crate::scene::desc::RunMode::RT;
     for (b, tb) in thermal.bands.iter().enumerate() {
         let e_tot = e_dir[b] + e_diff.get(b).copied().unwrap_or(0.0);
         let radiance = tb

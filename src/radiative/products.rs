@@ -166,9 +166,9 @@ pub struct RadiativeProducts {
     pub tracking_seconds: f64,
     /// Solver: `flux-tracking` (Radiative stage) or `monte-carlo` (Photon stage).
     pub solver: &'static str,
-    /// Run mode (`T`, `R+T`; issue #34); not written for a solar-only (`R`) run.
-    #[serde(skip_serializing_if = "is_solar_only")]
-    pub mode: &'static str,
+    /// Run mode (issue #34); `summary.json` records it as `mode` for `T` and `R+T` runs.
+    #[serde(skip)]
+    pub mode: crate::scene::desc::RunMode,
     /// Sun and sky launch grids (flux tracking only).
     #[serde(skip_serializing_if = "Option::is_none")]
     pub launch: Option<crate::radiative::engine::LaunchPlan>,
@@ -202,11 +202,6 @@ pub fn radiance_area(area: f64, n: glam::DVec3, d: &crate::direction::Direction)
     } else {
         f64::NAN
     }
-}
-
-/// Whether a mode name is the solar-only `R`.
-fn is_solar_only(mode: &&'static str) -> bool {
-    *mode == "R"
 }
 
 /// Description of a Monte Carlo run (in summary.json).
@@ -348,7 +343,7 @@ impl RadiativeProducts {
             skipped: raw.skipped,
             tracking_seconds: seconds,
             solver: "flux-tracking",
-            mode: "R",
+            mode: crate::scene::desc::RunMode::R,
             launch: Some(raw.launch),
             monte_carlo: None,
             toa: None,
@@ -369,7 +364,7 @@ impl RadiativeProducts {
         area: f64,
         mean_normal: glam::DVec3,
     ) -> Self {
-        self.mode = mode.name();
+        self.mode = mode;
         let raw = &self.raw;
         if !raw.has_thermal {
             return self;

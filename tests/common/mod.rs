@@ -393,3 +393,25 @@ pub fn thermal_section(
         sky_temperature_k: sky_k,
     }
 }
+
+/// The example disc canopy (`assets/scenes/disk_canopy.ron`) in the thermal band ([`TIR_NM`])
+/// with thermal-infrared optics: leaves r 0.02, t 0.01; soil 0.05.
+pub fn tir_disk_canopy() -> SceneDesc {
+    let (mut d, _) =
+        lumenscape::scene::load_scene(&asset("assets/scenes/disk_canopy.ron")).unwrap();
+    d.bands[0].wavelength_nm = TIR_NM;
+    for (k, o) in d.optics.iter_mut() {
+        match o {
+            OpticsDesc::BiLambertian {
+                reflectance,
+                transmittance,
+            } => {
+                *reflectance = vec![0.02];
+                *transmittance = vec![0.01];
+            }
+            OpticsDesc::Lambertian { reflectance, .. } => *reflectance = vec![0.05],
+            _ => assert_eq!(k, "vegetation"),
+        }
+    }
+    d
+}
